@@ -1,0 +1,340 @@
+//! Capacities and default parameters of the paper, and validated runtime [`Params`].
+//!
+//! Capacities (`SCREAMING_CASE`) size every buffer and bound every loop in the
+//! core; [`Params`] holds the values a mission may tune at run time. A parameter
+//! outside its range is an error ([`ParamError`]), never silently clamped.
+
+use crate::failure::FailureCode;
+
+// ---- capacities -----------------------------------------------------------
+
+/// Largest image side (pixels) any view accepts. Paper profile: 5472×3648.
+pub const MAX_IMAGE_DIM: usize = 8192;
+/// Largest template side ℓ (pixels). Paper: 256.
+pub const MAX_TEMPLATE_PX: usize = 256;
+/// Smallest template side accepted.
+pub const MIN_TEMPLATE_PX: usize = 16;
+/// Largest search-window side (pixels). Paper: about 800.
+pub const MAX_SEARCH_PX: usize = 1024;
+/// Largest number of correspondences per iteration (N_corr cap).
+pub const MAX_CORR: usize = 256;
+/// Largest number of iterations (N_iter cap).
+pub const MAX_ITER: usize = 16;
+/// Largest RANSAC iteration cap.
+pub const MAX_RANSAC_ITER: usize = 4096;
+/// Pose candidates kept for Distribute.
+pub const MAX_POSE_CANDIDATES: usize = 8;
+/// Largest number of pose seeds for the multi-seed mode.
+pub const MAX_SEEDS: usize = 256;
+/// Largest cap on consecutive Stall or Reseed.
+pub const MAX_CONSECUTIVE_CAP: usize = 64;
+/// Largest cap on correspondence attempts in one iteration.
+pub const MAX_ATTEMPTS_PER_ITER: usize = 100_000;
+/// Events kept in the failure log's ring.
+pub const FAILURE_RING_LEN: usize = 32;
+
+// ---- defaults (paper §III, §IV) ------------------------------------------
+
+/// N_corr: correspondences per iteration.
+pub const DEFAULT_N_CORR: u16 = 100;
+/// N_iter: successful iterations.
+pub const DEFAULT_N_ITER: u8 = 5;
+/// t̃₀: initial translation search bound, metres.
+pub const DEFAULT_T0_M: f32 = 0.20;
+/// r̃₀: initial rotation search bound, degrees.
+pub const DEFAULT_R0_DEG: f32 = 1.5;
+/// γ: Anneal decay.
+pub const DEFAULT_GAMMA: f32 = 0.5;
+/// ε: epipolar row tolerance, pixels.
+pub const DEFAULT_EPSILON_PX: f32 = 8.0;
+/// ℓ: template side at paper scale.
+pub const DEFAULT_TEMPLATE_PX: u16 = 256;
+/// Consecutive Stall cap.
+pub const DEFAULT_MAX_STALL: u8 = 3;
+/// Consecutive Reseed cap.
+pub const DEFAULT_MAX_RESEED: u8 = 10;
+/// RANSAC iteration cap.
+pub const DEFAULT_RANSAC_ITER: u16 = 1000;
+/// RANSAC inlier threshold, metres.
+pub const DEFAULT_INLIER_M: f32 = 0.05;
+/// Convergence: stop when the pose update is below this, metres.
+pub const DEFAULT_CONVERGENCE_M: f32 = 0.001;
+/// Reuse: fraction of inliers carried into the next iteration.
+pub const DEFAULT_REUSE_FRACTION: f32 = 0.5;
+/// Correspondence attempts allowed per iteration before it fails.
+pub const DEFAULT_ATTEMPTS_PER_ITER: u32 = 2000;
+/// Minimum NCC score to accept a match.
+pub const DEFAULT_MIN_SCORE: f32 = 0.5;
+
+const _: () = assert!(MIN_TEMPLATE_PX <= MAX_TEMPLATE_PX);
+const _: () = assert!(MAX_TEMPLATE_PX <= MAX_SEARCH_PX);
+const _: () = assert!(DEFAULT_N_CORR as usize <= MAX_CORR);
+const _: () = assert!(DEFAULT_N_ITER as usize <= MAX_ITER);
+const _: () = assert!(DEFAULT_RANSAC_ITER as usize <= MAX_RANSAC_ITER);
+const _: () = assert!(DEFAULT_TEMPLATE_PX as usize <= MAX_TEMPLATE_PX);
+// 255² · 256² must fit a u32 for exact integer NCC sums (see fsw-docs/budgets/numeric.md).
+const _: () = assert!((255u64 * 255 * (MAX_TEMPLATE_PX * MAX_TEMPLATE_PX) as u64) < (1u64 << 32));
+
+/// The relocalization mechanisms of paper §III-E, each switchable.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Mechanisms {
+    /// Stall: on failure after a success, collect new correspondences from the same pose.
+    pub stall: bool,
+    /// Reseed: on failure, perturb the pose randomly before collecting again.
+    pub reseed: bool,
+    /// Anneal: shrink t̃, r̃ by γ after each success.
+    pub anneal: bool,
+    /// Distribute: spread viewpoints over the best pose candidates by inlier count.
+    pub distribute: bool,
+    /// Reuse: carry a fraction of inliers into the next iteration.
+    pub reuse: bool,
+}
+
+/// Runtime parameters, validated against the capacities above.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Params {
+    /// N_corr, 3..=MAX_CORR.
+    pub n_corr: u16,
+    /// N_iter, 1..=MAX_ITER.
+    pub n_iter: u8,
+    /// t̃₀ in metres, (0, 2].
+    pub t0_m: f32,
+    /// r̃₀ in degrees, (0, 20].
+    pub r0_deg: f32,
+    /// γ, [0, 1].
+    pub gamma: f32,
+    /// ε in pixels, (0, 64].
+    pub epsilon_px: f32,
+    /// ℓ in pixels, even, MIN_TEMPLATE_PX..=MAX_TEMPLATE_PX.
+    pub template_px: u16,
+    /// Also match the ℓ/2 sub-template variant.
+    pub sub_template: bool,
+    /// Consecutive Stall cap, 1..=MAX_CONSECUTIVE_CAP.
+    pub max_stall: u8,
+    /// Consecutive Reseed cap, 1..=MAX_CONSECUTIVE_CAP.
+    pub max_reseed: u8,
+    /// RANSAC iteration cap, 1..=MAX_RANSAC_ITER.
+    pub ransac_iter: u16,
+    /// RANSAC inlier threshold in metres, (0, 1].
+    pub inlier_m: f32,
+    /// Convergence threshold in metres, [0, 0.1].
+    pub convergence_m: f32,
+    /// Reuse fraction, [0, 1].
+    pub reuse_fraction: f32,
+    /// Attempts per iteration, n_corr..=MAX_ATTEMPTS_PER_ITER.
+    pub attempts_per_iter: u32,
+    /// Minimum NCC score to accept a match, (0, 1).
+    pub min_score: f32,
+    /// Pose seeds for large priors (0 = off), 0..=MAX_SEEDS.
+    pub seeds: u16,
+    /// Mechanism switches.
+    pub mechanisms: Mechanisms,
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Self::paper()
+    }
+}
+
+/// Which field of [`Params`] is out of range.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ParamField {
+    /// `n_corr`
+    NCorr,
+    /// `n_iter`
+    NIter,
+    /// `t0_m`
+    T0,
+    /// `r0_deg`
+    R0,
+    /// `gamma`
+    Gamma,
+    /// `epsilon_px`
+    Epsilon,
+    /// `template_px`
+    TemplatePx,
+    /// `max_stall`
+    MaxStall,
+    /// `max_reseed`
+    MaxReseed,
+    /// `ransac_iter`
+    RansacIter,
+    /// `inlier_m`
+    InlierM,
+    /// `convergence_m`
+    ConvergenceM,
+    /// `reuse_fraction`
+    ReuseFraction,
+    /// `attempts_per_iter`
+    AttemptsPerIter,
+    /// `min_score`
+    MinScore,
+    /// `seeds`
+    Seeds,
+}
+
+/// A parameter outside its allowed range.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ParamError {
+    /// The offending field.
+    pub field: ParamField,
+}
+
+impl From<ParamError> for FailureCode {
+    fn from(_: ParamError) -> Self {
+        FailureCode::ConfigParamOutOfRange
+    }
+}
+
+fn in_range(v: f32, lo: f32, hi: f32, lo_open: bool) -> bool {
+    v.is_finite() && v <= hi && if lo_open { v > lo } else { v >= lo }
+}
+
+impl Params {
+    /// The paper's parameters (§III, §IV).
+    pub const fn paper() -> Self {
+        Self {
+            n_corr: DEFAULT_N_CORR,
+            n_iter: DEFAULT_N_ITER,
+            t0_m: DEFAULT_T0_M,
+            r0_deg: DEFAULT_R0_DEG,
+            gamma: DEFAULT_GAMMA,
+            epsilon_px: DEFAULT_EPSILON_PX,
+            template_px: DEFAULT_TEMPLATE_PX,
+            sub_template: true,
+            max_stall: DEFAULT_MAX_STALL,
+            max_reseed: DEFAULT_MAX_RESEED,
+            ransac_iter: DEFAULT_RANSAC_ITER,
+            inlier_m: DEFAULT_INLIER_M,
+            convergence_m: DEFAULT_CONVERGENCE_M,
+            reuse_fraction: DEFAULT_REUSE_FRACTION,
+            attempts_per_iter: DEFAULT_ATTEMPTS_PER_ITER,
+            min_score: DEFAULT_MIN_SCORE,
+            seeds: 0,
+            mechanisms: Mechanisms {
+                stall: true,
+                reseed: true,
+                anneal: true,
+                distribute: true,
+                reuse: true,
+            },
+        }
+    }
+
+    /// Check every field; the first one out of range is reported.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        let err = |field| Err(ParamError { field });
+        if !(3..=MAX_CORR as u16).contains(&self.n_corr) {
+            return err(ParamField::NCorr);
+        }
+        if !(1..=MAX_ITER as u8).contains(&self.n_iter) {
+            return err(ParamField::NIter);
+        }
+        if !in_range(self.t0_m, 0.0, 2.0, true) {
+            return err(ParamField::T0);
+        }
+        if !in_range(self.r0_deg, 0.0, 20.0, true) {
+            return err(ParamField::R0);
+        }
+        if !in_range(self.gamma, 0.0, 1.0, false) {
+            return err(ParamField::Gamma);
+        }
+        if !in_range(self.epsilon_px, 0.0, 64.0, true) {
+            return err(ParamField::Epsilon);
+        }
+        let l = self.template_px as usize;
+        if !(MIN_TEMPLATE_PX..=MAX_TEMPLATE_PX).contains(&l) || l % 2 != 0 {
+            return err(ParamField::TemplatePx);
+        }
+        if !(1..=MAX_CONSECUTIVE_CAP as u8).contains(&self.max_stall) {
+            return err(ParamField::MaxStall);
+        }
+        if !(1..=MAX_CONSECUTIVE_CAP as u8).contains(&self.max_reseed) {
+            return err(ParamField::MaxReseed);
+        }
+        if !(1..=MAX_RANSAC_ITER as u16).contains(&self.ransac_iter) {
+            return err(ParamField::RansacIter);
+        }
+        if !in_range(self.inlier_m, 0.0, 1.0, true) {
+            return err(ParamField::InlierM);
+        }
+        if !in_range(self.convergence_m, 0.0, 0.1, false) {
+            return err(ParamField::ConvergenceM);
+        }
+        if !in_range(self.reuse_fraction, 0.0, 1.0, false) {
+            return err(ParamField::ReuseFraction);
+        }
+        if !(u32::from(self.n_corr)..=MAX_ATTEMPTS_PER_ITER as u32)
+            .contains(&self.attempts_per_iter)
+        {
+            return err(ParamField::AttemptsPerIter);
+        }
+        if !(self.min_score.is_finite() && self.min_score > 0.0 && self.min_score < 1.0) {
+            return err(ParamField::MinScore);
+        }
+        if self.seeds as usize > MAX_SEEDS {
+            return err(ParamField::Seeds);
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn paper_params_are_valid() {
+        assert_eq!(Params::paper().validate(), Ok(()));
+    }
+
+    #[test]
+    fn each_out_of_range_field_has_its_own_error() {
+        type Case = (fn(&mut Params), ParamField);
+        let cases: &[Case] = &[
+            (|p| p.n_corr = 2, ParamField::NCorr),
+            (|p| p.n_corr = MAX_CORR as u16 + 1, ParamField::NCorr),
+            (|p| p.n_iter = 0, ParamField::NIter),
+            (|p| p.n_iter = MAX_ITER as u8 + 1, ParamField::NIter),
+            (|p| p.t0_m = 0.0, ParamField::T0),
+            (|p| p.t0_m = f32::NAN, ParamField::T0),
+            (|p| p.r0_deg = -1.0, ParamField::R0),
+            (|p| p.r0_deg = f32::INFINITY, ParamField::R0),
+            (|p| p.gamma = 1.5, ParamField::Gamma),
+            (|p| p.epsilon_px = 0.0, ParamField::Epsilon),
+            (|p| p.template_px = 255, ParamField::TemplatePx),
+            (|p| p.template_px = 512, ParamField::TemplatePx),
+            (|p| p.template_px = 8, ParamField::TemplatePx),
+            (|p| p.max_stall = 0, ParamField::MaxStall),
+            (
+                |p| p.max_reseed = MAX_CONSECUTIVE_CAP as u8 + 1,
+                ParamField::MaxReseed,
+            ),
+            (|p| p.ransac_iter = 0, ParamField::RansacIter),
+            (
+                |p| p.ransac_iter = MAX_RANSAC_ITER as u16 + 1,
+                ParamField::RansacIter,
+            ),
+            (|p| p.inlier_m = 0.0, ParamField::InlierM),
+            (|p| p.convergence_m = -0.001, ParamField::ConvergenceM),
+            (|p| p.reuse_fraction = 1.01, ParamField::ReuseFraction),
+            (|p| p.attempts_per_iter = 10, ParamField::AttemptsPerIter),
+            (|p| p.min_score = 1.0, ParamField::MinScore),
+            (|p| p.seeds = MAX_SEEDS as u16 + 1, ParamField::Seeds),
+        ];
+        for (mutate, field) in cases {
+            let mut p = Params::paper();
+            mutate(&mut p);
+            assert_eq!(p.validate(), Err(ParamError { field: *field }), "{field:?}");
+            assert_eq!(
+                FailureCode::from(ParamError { field: *field }),
+                FailureCode::ConfigParamOutOfRange
+            );
+        }
+    }
+}

@@ -1,0 +1,3 @@
+//! The `vtsm` command line.
+
+fn main() {}

@@ -1,0 +1,1 @@
+//! End-to-end and traceability tests for VTSM live in `tests/tests/`.
