@@ -1,6 +1,20 @@
 //! # vtsm-sim
 //!
-//! Desktop simulator for VTSM: procedural depots, a photometric renderer,
-//! photogrammetry-like map products, HAL implementations with fault injection,
-//! file formats, evaluation suites and the `vtsm` command line.
+//! Desktop side of VTSM (std): procedural depots ([`terrain`]), a photometric
+//! renderer of its own ([`render`]), photogrammetry-like map products
+//! ([`mapping`]), capture grids and scenes ([`scene`]), HAL implementations with
+//! seeded fault injection ([`devices`]), file formats ([`io`]), evaluation suites
+//! ([`eval`]) and the `vtsm` command line ([`cli`]).
 #![forbid(unsafe_code)]
+
+pub mod cli;
+pub mod devices;
+pub mod error;
+pub mod eval;
+pub mod io;
+pub mod mapping;
+pub mod render;
+pub mod scene;
+pub mod terrain;
+
+pub use error::{Error, Result};

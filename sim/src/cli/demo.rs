@@ -1,0 +1,12 @@
+//! `vtsm demo`.
+
+/// Arguments of `vtsm demo`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Args {}
+
+/// Run the command; returns the exit code.
+pub fn run(_args: &Args) -> crate::Result<u8> {
+    Err(crate::Error::msg(
+        "`vtsm demo` is not available in this build",
+    ))
+}

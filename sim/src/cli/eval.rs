@@ -1,0 +1,12 @@
+//! `vtsm eval`.
+
+/// Arguments of `vtsm eval`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Args {}
+
+/// Run the command; returns the exit code.
+pub fn run(_args: &Args) -> crate::Result<u8> {
+    Err(crate::Error::msg(
+        "`vtsm eval` is not available in this build",
+    ))
+}

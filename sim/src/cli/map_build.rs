@@ -1,0 +1,12 @@
+//! `vtsm map build`.
+
+/// Arguments of `vtsm map build`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Args {}
+
+/// Run the command; returns the exit code.
+pub fn run(_args: &Args) -> crate::Result<u8> {
+    Err(crate::Error::msg(
+        "`vtsm map build` is not available in this build",
+    ))
+}
