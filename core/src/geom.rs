@@ -169,14 +169,13 @@ impl Camera {
             && height > 0
             && width as usize <= crate::config::MAX_IMAGE_DIM
             && height as usize <= crate::config::MAX_IMAGE_DIM;
-        if !(fx.is_finite()
+        let intrinsics_ok = fx.is_finite()
             && fy.is_finite()
             && fx > 0.0
             && fy > 0.0
             && cx.is_finite()
-            && cy.is_finite())
-            || !dims_ok
-        {
+            && cy.is_finite();
+        if !intrinsics_ok || !dims_ok {
             return Err(FailureCode::StereoRigInvalid);
         }
         Ok(Self {
@@ -213,7 +212,8 @@ impl Camera {
     /// (`Z < MIN_DEPTH_M`) or not finite. The pixel may lie outside the image.
     #[inline]
     pub fn project(&self, p: &Vec3) -> Option<[f32; 2]> {
-        if !(p.z >= MIN_DEPTH_M) || !p.x.is_finite() || !p.y.is_finite() {
+        let in_front = p.z.is_finite() && p.z >= MIN_DEPTH_M;
+        if !in_front || !p.x.is_finite() || !p.y.is_finite() {
             return None;
         }
         let inv = 1.0 / p.z;
