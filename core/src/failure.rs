@@ -145,6 +145,8 @@ failure_codes! {
         "Disparity is non-positive or below the plausible minimum; the pair is rejected.";
     StereoRigInvalid = 0x0603, Fatal, Never, "STEREO_RIG_INVALID",
         "Camera intrinsics or baseline are non-finite or non-positive; nothing is triangulated.";
+    StereoPixelNonFinite = 0x0604, Info, Same, "STEREO_PIXEL_NON_FINITE",
+        "A left or right peak coordinate is NaN or infinite; the pair is rejected.";
     // 0x07xx pose
     PoseTooFewPoints = 0x0701, Degraded, Same, "POSE_TOO_FEW_POINTS",
         "Fewer than three correspondences; no transform can be estimated.";
