@@ -168,12 +168,19 @@ mod tests {
         let (mut kept, mut rejected) = (0, 0);
         for _ in 0..20_000 {
             let l = [rng.uniform(700.0, 900.0), rng.uniform(0.0, 959.0)];
-            let r = [l[0] - rng.uniform(20.0, 200.0), l[1] + rng.uniform(-16.0, 16.0)];
+            let r = [
+                l[0] - rng.uniform(20.0, 200.0),
+                l[1] + rng.uniform(-16.0, 16.0),
+            ];
             // Independent reference in f64.
             let beyond = (f64::from(l[1]) - f64::from(r[1])).abs() > f64::from(eps);
             let res = triangulate(&rig, l, r, eps, 0.1, 1.0);
             if beyond {
-                assert_eq!(res, Err(FailureCode::StereoEpipolarViolation), "{l:?} {r:?}");
+                assert_eq!(
+                    res,
+                    Err(FailureCode::StereoEpipolarViolation),
+                    "{l:?} {r:?}"
+                );
                 rejected += 1;
             } else {
                 assert!(res.is_ok(), "{l:?} {r:?}");
@@ -196,9 +203,18 @@ mod tests {
     fn rejects_non_positive_and_implausibly_small_disparity() {
         let rig = rig();
         let bad = FailureCode::StereoDisparityInvalid;
-        assert_eq!(triangulate(&rig, [500.0, 10.0], [500.0, 10.0], 8.0, 0.1, 0.0), Err(bad));
-        assert_eq!(triangulate(&rig, [500.0, 10.0], [510.0, 10.0], 8.0, 0.1, 0.0), Err(bad));
-        assert_eq!(triangulate(&rig, [500.0, 10.0], [499.5, 10.0], 8.0, 0.1, 1.0), Err(bad));
+        assert_eq!(
+            triangulate(&rig, [500.0, 10.0], [500.0, 10.0], 8.0, 0.1, 0.0),
+            Err(bad)
+        );
+        assert_eq!(
+            triangulate(&rig, [500.0, 10.0], [510.0, 10.0], 8.0, 0.1, 0.0),
+            Err(bad)
+        );
+        assert_eq!(
+            triangulate(&rig, [500.0, 10.0], [499.5, 10.0], 8.0, 0.1, 1.0),
+            Err(bad)
+        );
         assert!(triangulate(&rig, [500.0, 10.0], [499.0, 10.0], 8.0, 0.1, 1.0).is_ok());
         // Non-finite peaks, bad tolerances and bad rigs have their own codes.
         assert_eq!(
@@ -241,7 +257,9 @@ mod tests {
         for z in [2.0f32, 5.0, 10.0] {
             let p = Vec3::new(0.2, 0.1, z);
             let (l, r) = rig.project_stereo(&p).unwrap();
-            let pred = triangulate(&rig, l, r, 8.0, sigma_d, 0.0).unwrap().sigma_z_m;
+            let pred = triangulate(&rig, l, r, 8.0, sigma_d, 0.0)
+                .unwrap()
+                .sigma_z_m;
             let expect = z * z * sigma_d / (rig.cam.fx * 0.4);
             assert!((pred - expect).abs() <= 1e-3 * expect);
             let n = 20_000;
@@ -253,7 +271,10 @@ mod tests {
             }
             let emp = (sum2 / f64::from(n)).sqrt() as f32;
             // First order is accurate while σ_d ≪ d (d ≥ 20 px here); MC error ~1 %.
-            assert!((emp / pred - 1.0).abs() < 0.05, "z={z} emp={emp} pred={pred}");
+            assert!(
+                (emp / pred - 1.0).abs() < 0.05,
+                "z={z} emp={emp} pred={pred}"
+            );
         }
     }
 
