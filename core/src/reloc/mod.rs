@@ -20,34 +20,22 @@
 //! depend on how the work is split across calls.
 
 mod engine;
+pub mod policy;
+pub mod solver;
 pub mod viewpoint;
+pub mod workspace;
 
 pub use engine::{Relocalizer, StepResult};
+pub use policy::{MatchPolicy, Variant};
+pub use solver::RansacSolver;
+pub use workspace::{Workspace, WorkspaceSizes, PAPER_WORKSPACE_BYTES, TEST_WORKSPACE_BYTES};
 
 use crate::config::{Params, MAX_ITER, MAX_POSE_CANDIDATES};
 use crate::failure::{FailureCode, FailureLog};
-use crate::geom::{Pose, Vec3};
+use crate::geom::Pose;
 use crate::rng::Rng;
 
-/// One world/camera point correspondence (field names follow `pose::Correspondence`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Correspondence {
-    /// Point in the world frame (metres), from the map.
-    pub world: Vec3,
-    /// The same point in the left camera frame (metres), from stereo.
-    pub cam: Vec3,
-    /// Expected 1-σ position error of `cam` (metres).
-    pub sigma_m: f32,
-}
-
-/// A pose hypothesis and its RANSAC support (for Distribute).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Candidate {
-    /// `world_from_left`.
-    pub pose: Pose,
-    /// Number of inliers supporting it.
-    pub inliers: u16,
-}
+pub use crate::pose::{Candidate, Correspondence};
 
 /// Result of one GetTransform.
 #[derive(Clone, Debug, PartialEq)]
