@@ -265,7 +265,7 @@ impl ScratchSizes {
         while k < levels {
             window += (ww >> k) * (wh >> k);
             template += 2 * (tw >> k) * (th >> k);
-            runs += (th >> k) * (((tw >> k) + 1) / 2);
+            runs += (th >> k) * (tw >> k).div_ceil(2);
             k += 1;
         }
         let lc = levels - 1;
@@ -1149,6 +1149,7 @@ mod tests {
     }
 
     /// Two-pass floating-point zero-mean NCC over the kept pixels (the reference).
+    #[allow(clippy::too_many_arguments)]
     fn ref_score(
         t: &[u8],
         tw: usize,
@@ -1224,6 +1225,7 @@ mod tests {
         out
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn score_one(
         t: &[u8],
         tw: usize,
