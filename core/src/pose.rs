@@ -377,6 +377,8 @@ pub struct RansacStats {
     pub residuals_evaluated: u32,
     /// Jacobi sweeps over all fits.
     pub jacobi_sweeps: u32,
+    /// Local refits of new best hypotheses during the search.
+    pub local_refits: u16,
     /// Refits accepted after the search.
     pub refits: u8,
     /// Whether the confidence rule stopped the search before the cap.
@@ -459,17 +461,18 @@ fn pose_distance(a: &Pose, b: &Pose, lever_m: f32) -> f32 {
 }
 
 /// Count inliers of `pose`; optionally write the inlier mask. Returns
-/// `(inliers, sum of squared inlier residuals)`.
+/// `(inliers, sum of squared inlier residuals, whether any mask entry changed)`.
 fn score(
     pairs: &[Correspondence],
     cfg: &RansacConfig,
     pose: &Pose,
     mut mask: Option<&mut [bool]>,
-) -> (u16, f32) {
+) -> (u16, f32, bool) {
     let r: Matrix3<f32> = pose.rotation().to_rotation_matrix().into_inner();
     let t = pose.translation();
     let mut count = 0u16;
     let mut sum_sq = 0.0f32;
+    let mut changed = false;
     for (i, p) in pairs.iter().enumerate() {
         let e2 = (p.world - (r * p.cam + t)).norm_squared();
         let inlier = e2 <= gate_sq(cfg, p);
@@ -478,10 +481,11 @@ fn score(
             sum_sq += e2;
         }
         if let Some(m) = mask.as_deref_mut().and_then(|m| m.get_mut(i)) {
+            changed |= *m != inlier;
             *m = inlier;
         }
     }
-    (count, sum_sq)
+    (count, sum_sq, changed)
 }
 
 /// Insert `c` into the list kept sorted by inliers (descending), keeping entries
@@ -545,6 +549,7 @@ pub struct Ransac {
     candidates: heapless::Vec<Candidate, MAX_POSE_CANDIDATES>,
     lever_m: f32,
     weighted_refit: bool,
+    local_refit: bool,
     stats: RansacStats,
 }
 
@@ -573,6 +578,7 @@ impl Ransac {
             candidates: heapless::Vec::new(),
             lever_m,
             weighted_refit: false,
+            local_refit: true,
             stats: RansacStats::default(),
         })
     }
@@ -580,6 +586,13 @@ impl Ransac {
     /// Refit on the inliers weighted by `1/σ²` instead of equally.
     pub fn with_weighted_refit(mut self, on: bool) -> Self {
         self.weighted_refit = on;
+        self
+    }
+
+    /// Refit each new best hypothesis on its inliers during the search
+    /// (default on).
+    pub fn with_local_refit(mut self, on: bool) -> Self {
+        self.local_refit = on;
         self
     }
 
@@ -659,16 +672,46 @@ impl Ransac {
             }
         };
         self.stats.jacobi_sweeps = self.stats.jacobi_sweeps.saturating_add(fs.jacobi_sweeps);
-        let (inliers, _) = score(pairs, &self.cfg, &pose, None);
+        let (inliers, _, _) = score(pairs, &self.cfg, &pose, None);
         self.stats.hypotheses_scored += 1;
         self.stats.residuals_evaluated =
             self.stats.residuals_evaluated.saturating_add(self.n as u32);
-        let cand = Candidate { pose, inliers };
+        let mut cand = Candidate { pose, inliers };
         if self.best.is_none_or(|b| inliers > b.inliers) {
+            if self.local_refit {
+                cand = self.refine(pairs, cand);
+            }
             self.best = Some(cand);
-            self.needed = required_iterations(inliers, self.n, self.cfg.confidence);
+            self.needed = required_iterations(cand.inliers, self.n, self.cfg.confidence);
         }
         insert_candidate(&mut self.candidates, cand, self.lever_m, self.cfg.inlier_m);
+    }
+
+    /// Local optimisation (LO-RANSAC, Chum et al. 2003): refit a new best
+    /// hypothesis on its own inliers and keep the refit if it has at least as
+    /// many. Runs only when the best count strictly grows, so at most `n` times
+    /// per search.
+    fn refine(&mut self, pairs: &[Correspondence], c: Candidate) -> Candidate {
+        let r: Matrix3<f32> = c.pose.rotation().to_rotation_matrix().into_inner();
+        let t = c.pose.translation();
+        let cfg = self.cfg;
+        let inlier =
+            |p: &Correspondence| (p.world - (r * p.cam + t)).norm_squared() <= gate_sq(&cfg, p);
+        self.stats.local_refits += 1;
+        self.stats.residuals_evaluated = self
+            .stats
+            .residuals_evaluated
+            .saturating_add(3 * self.n as u32);
+        let Ok((pose, fs)) = fit(pairs, |_, p| if inlier(p) { 1.0 } else { 0.0 }) else {
+            return c;
+        };
+        self.stats.jacobi_sweeps = self.stats.jacobi_sweeps.saturating_add(fs.jacobi_sweeps);
+        let (inliers, _, _) = score(pairs, &self.cfg, &pose, None);
+        if inliers >= c.inliers {
+            Candidate { pose, inliers }
+        } else {
+            c
+        }
     }
 
     /// Refit the best hypothesis on its inliers (recounting after each refit,
@@ -698,9 +741,14 @@ impl Ransac {
             }
         };
         let (mut pose, mut inliers) = (best.pose, best.inliers);
-        let (_, mut sum_sq) = score(pairs, &self.cfg, &pose, Some(&mut *mask));
+        let (_, mut sum_sq, _) = score(pairs, &self.cfg, &pose, Some(&mut *mask));
         self.stats.residuals_evaluated =
             self.stats.residuals_evaluated.saturating_add(self.n as u32);
+        // Refit on the inliers and recount until the inlier set is stable. The
+        // refit is kept even if it has fewer inliers than the 3-point hypothesis:
+        // a least-squares fit on the consensus set is the better estimate, and a
+        // wrong hypothesis can collect more pairs than the truth by including
+        // outliers near the gate.
         for _ in 0..REFIT_ROUNDS {
             let weighted = self.weighted_refit;
             let m: &[bool] = mask;
@@ -711,19 +759,20 @@ impl Ransac {
             });
             let Ok((new_pose, fs)) = refit else { break };
             self.stats.jacobi_sweeps = self.stats.jacobi_sweeps.saturating_add(fs.jacobi_sweeps);
-            let (new_inliers, new_sum) = score(pairs, &self.cfg, &new_pose, None);
+            let (new_inliers, new_sum, changed) =
+                score(pairs, &self.cfg, &new_pose, Some(&mut *mask));
             self.stats.residuals_evaluated =
                 self.stats.residuals_evaluated.saturating_add(self.n as u32);
-            if new_inliers < inliers {
+            if new_inliers < 3 {
+                // Consensus lost: keep the previous pose and restore its mask.
+                score(pairs, &self.cfg, &pose, Some(&mut *mask));
                 break;
             }
-            let grew = new_inliers > inliers;
             pose = new_pose;
             inliers = new_inliers;
             sum_sq = new_sum;
             self.stats.refits += 1;
-            score(pairs, &self.cfg, &pose, Some(&mut *mask));
-            if !grew {
+            if !changed {
                 break;
             }
         }
@@ -1253,6 +1302,15 @@ mod tests {
                     ok += 1;
                     continue;
                 }
+            }
+            match &est {
+                Ok(e) => std::println!(
+                    "seed {seed}: n {n}, error {:?}, inliers {}, {:?}",
+                    e.pose.error_to(&truth),
+                    e.inliers,
+                    e.stats
+                ),
+                Err(code) => std::println!("seed {seed}: n {n}, {code:?}"),
             }
             fails.push(seed);
         }
