@@ -996,6 +996,42 @@ mod tests {
 
     // ---- Umeyama ----------------------------------------------------------
 
+    /// Tolerances for a noise-free fit at f32 precision: (angle, residual).
+    ///
+    /// * Data: the world points are computed in f32, so each coordinate carries
+    ///   an error up to u ≈ 2 ulp(max |coordinate|). To first order that moves the
+    ///   exact fit's rotation by u·√tr(J⁻¹) (J = Σ |a|²I − aaᵀ over the centred
+    ///   camera points, as in the noise test) and the centroid by u.
+    /// * Solver: the cross-covariance and Horn's 4×4 matrix are formed in f32,
+    ///   a perturbation of ε‖N‖ against an eigen-gap that shrinks with the second
+    ///   scatter eigenvalue λ₂, so δθ ≈ c·ε·λ₁/λ₂ (c ≤ 5.2 measured against the
+    ///   f64 reference over 200,000 random 3–7 point sets).
+    ///
+    /// Both with a margin (8 on the data term, 16 on the solver term).
+    fn rounding_tolerance(pairs: &[Correspondence]) -> (f64, f64) {
+        let max_c = pairs
+            .iter()
+            .flat_map(|p| p.world.iter().chain(p.cam.iter()))
+            .fold(0.0f32, |m, c| m.max(c.abs()));
+        let eps = f64::from(f32::EPSILON);
+        let u = 2.0 * f64::from(max_c) * eps;
+        let n = pairs.len() as f64;
+        let cc = pairs.iter().map(|p| v64(&p.cam)).sum::<V3<f64>>() / n;
+        let mut j = M3::<f64>::zeros();
+        let mut sc = M3::<f64>::zeros();
+        let mut reach = 0.0f64;
+        for p in pairs {
+            let a = v64(&p.cam) - cc;
+            j += M3::identity() * a.norm_squared() - a * a.transpose();
+            sc += a * a.transpose();
+            reach = reach.max(a.norm());
+        }
+        let mut ev: Vec<f64> = sc.symmetric_eigenvalues().iter().copied().collect();
+        ev.sort_by(|a, b| b.partial_cmp(a).unwrap());
+        let ang = 8.0 * u * j.try_inverse().unwrap().trace().sqrt() + 16.0 * eps * ev[0] / ev[1];
+        (ang, 8.0 * u + ang * reach)
+    }
+
     /// Verifies: VTSM-POSE-001
     #[test]
     fn recovers_random_rigid_transforms_noise_free() {
@@ -1011,13 +1047,17 @@ mod tests {
                 .iter()
                 .map(|p| f64::from((est.transform_point(&p.cam) - p.world).norm()))
                 .fold(0.0, f64::max);
-            worst = (worst.0.max(ang), worst.1.max(max_res));
-            // f32 precision: coordinates reach ~15 m, so ~1e-6 m per rounding.
-            assert!(ang < 1e-5, "case {case}: angle {ang}");
-            assert!(max_res < 2e-5, "case {case}: residual {max_res}");
+            let (tol_ang, tol_t) = rounding_tolerance(&pairs);
+            worst = (worst.0.max(ang / tol_ang), worst.1.max(max_res / tol_t));
+            assert!(ang < tol_ang, "case {case}: angle {ang} > {tol_ang}");
+            assert!(max_res < tol_t, "case {case}: residual {max_res} > {tol_t}");
+            // With enough points the tolerance itself is at f32 level.
+            if n >= 20 {
+                assert!(ang < 1e-5 && max_res < 2e-5, "case {case}: {ang} {max_res}");
+            }
         }
         std::println!(
-            "noise-free worst: angle {:.2e} rad, residual {:.2e} m",
+            "noise-free worst / tolerance: angle {:.2}, residual {:.2}",
             worst.0,
             worst.1
         );
@@ -1235,8 +1275,11 @@ mod tests {
             let truth = random_pose(&mut rng);
             let pairs = exact_pairs(&mut rng, &truth, n);
             let est = umeyama(&pairs).unwrap();
-            prop_assert!(angle_between(&rot64(&est), &rot64(&truth)) < 1e-5);
-            prop_assert!((est.translation() - truth.translation()).norm() < 5e-5);
+            let (tol_ang, tol_t) = rounding_tolerance(&pairs);
+            prop_assert!(angle_between(&rot64(&est), &rot64(&truth)) < tol_ang);
+            let cc = pairs.iter().map(|p| p.cam).sum::<Vec3>() / n as f32;
+            let moved = (est.transform_point(&cc) - truth.transform_point(&cc)).norm();
+            prop_assert!(f64::from(moved) < tol_t, "{moved} > {tol_t}");
         }
     }
 
