@@ -57,8 +57,8 @@ pub const TEMPLATE_MASK_RADIUS_PX: usize = 3;
 /// Template mask: a background pixel is kept when it is farther than a nearby
 /// mask pixel by more than this absolute jump, metres...
 pub const TEMPLATE_MASK_JUMP_M: f32 = 0.05;
-/// ...plus this fraction of the mask pixel's depth (the jump threshold grows with range).
-pub const TEMPLATE_MASK_JUMP_REL: f32 = 0.02;
+/// ...plus the mask pixel's depth divided by this (50 → 2 %: the threshold grows with range).
+pub const TEMPLATE_MASK_JUMP_REL_DIV: u32 = 50;
 
 // ---- defaults (paper §III, §IV) ------------------------------------------
 

@@ -1,7 +1,7 @@
 extern crate std;
 use super::*;
-use crate::map::{encode, encoded_len, MapSource};
 use crate::image::GrayView;
+use crate::map::{encode, encoded_len, MapSource};
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
 use proptest::prelude::*;
 use std::vec;
@@ -21,7 +21,12 @@ struct Scene {
 
 impl Scene {
     fn new() -> Self {
-        Self { tex: vec![128; 4], tw: 2, th: 2, ..Default::default() }
+        Self {
+            tex: vec![128; 4],
+            tw: 2,
+            th: 2,
+            ..Default::default()
+        }
     }
     fn tri(&mut self, p: [[f32; 3]; 3], uv: [[f32; 2]; 3], mask: bool) {
         let base = self.vertices.len() as u32;
@@ -49,7 +54,10 @@ impl Scene {
         let mut s = Self::new();
         for j in 0..=n {
             for i in 0..=n {
-                let (x, y) = (x0 + size * i as f32 / n as f32, x0 + size * j as f32 / n as f32);
+                let (x, y) = (
+                    x0 + size * i as f32 / n as f32,
+                    x0 + size * j as f32 / n as f32,
+                );
                 s.vertices.push([x, y, height(x, y)]);
             }
         }
@@ -69,7 +77,11 @@ impl Scene {
         s.tw = 64;
         s.th = 64;
         s.tex = (0..64 * 64)
-            .map(|k| (128.0 + 100.0 * libm::sinf((k % 64) as f32 * 0.4) * libm::cosf((k / 64) as f32 * 0.3)) as u8)
+            .map(|k| {
+                (128.0
+                    + 100.0 * libm::sinf((k % 64) as f32 * 0.4) * libm::cosf((k / 64) as f32 * 0.3))
+                    as u8
+            })
             .collect();
         s
     }
@@ -99,9 +111,18 @@ struct Render {
 fn render(map: &MapView, cam: &Camera, pose: &Pose, win: Rect) -> Render {
     let n = (win.w * win.h) as usize;
     let (mut intensity, mut depth, mut mask_depth) = (vec![0u8; n], vec![0u32; n], vec![0u32; n]);
-    let mut t = Target { intensity: &mut intensity, depth: &mut depth, mask_depth: &mut mask_depth };
+    let mut t = Target {
+        intensity: &mut intensity,
+        depth: &mut depth,
+        mask_depth: &mut mask_depth,
+    };
     let result = render_window(map, cam, pose, win, &mut t);
-    Render { intensity, depth, mask_depth, result }
+    Render {
+        intensity,
+        depth,
+        mask_depth,
+        result,
+    }
 }
 
 /// Coverage count per window pixel (test-only use of the pixel sink).
@@ -109,10 +130,16 @@ fn coverage(map: &MapView, cam: &Camera, pose: &Pose, win: Rect) -> Vec<u32> {
     let n = (win.w * win.h) as usize;
     let mut count = vec![0u32; n];
     let mut outside = 0usize;
-    rasterize(map, cam, pose, win, &mut |f: Frag| match count.get_mut(f.idx) {
-        Some(c) => *c += 1,
-        None => outside += 1,
-    })
+    rasterize(
+        map,
+        cam,
+        pose,
+        win,
+        &mut |f: Frag| match count.get_mut(f.idx) {
+            Some(c) => *c += 1,
+            None => outside += 1,
+        },
+    )
     .unwrap();
     assert_eq!(outside, 0, "fragment outside the window");
     count
@@ -122,16 +149,32 @@ fn coverage(map: &MapView, cam: &Camera, pose: &Pose, win: Rect) -> Vec<u32> {
 #[test]
 fn rejects_invalid_windows_buffers_and_poses() {
     let mut s = Scene::new();
-    s.tri([[0.0, 0.0, 5.0], [1.0, 0.0, 5.0], [0.0, 1.0, 5.0]], [[0.0; 2]; 3], false);
+    s.tri(
+        [[0.0, 0.0, 5.0], [1.0, 0.0, 5.0], [0.0, 1.0, 5.0]],
+        [[0.0; 2]; 3],
+        false,
+    );
     let bytes = s.bytes(10.0);
     let map = MapView::new_checked(&bytes).unwrap();
     let cam = camera(64, 64, 50.0);
     let id = Pose::identity();
-    for win in [Rect::new(0, 0, 0, 8), Rect::new(0, 0, 8, 0), Rect::new(0, 0, 257, 8), Rect::new(i32::MIN, 0, 8, 8)] {
-        assert_eq!(render(&map, &cam, &id, win).result, Err(FailureCode::RasterWindowInvalid));
+    for win in [
+        Rect::new(0, 0, 0, 8),
+        Rect::new(0, 0, 8, 0),
+        Rect::new(0, 0, 257, 8),
+        Rect::new(i32::MIN, 0, 8, 8),
+    ] {
+        assert_eq!(
+            render(&map, &cam, &id, win).result,
+            Err(FailureCode::RasterWindowInvalid)
+        );
     }
     let (mut a, mut b, mut c) = (vec![0u8; 63], vec![0u32; 64], vec![0u32; 64]);
-    let mut t = Target { intensity: &mut a, depth: &mut b, mask_depth: &mut c };
+    let mut t = Target {
+        intensity: &mut a,
+        depth: &mut b,
+        mask_depth: &mut c,
+    };
     assert_eq!(
         render_window(&map, &cam, &id, Rect::new(0, 0, 8, 8), &mut t),
         Err(FailureCode::RasterBufferTooSmall)
@@ -141,17 +184,32 @@ fn rejects_invalid_windows_buffers_and_poses() {
         p
     });
     let bad = bad.unwrap();
-    assert_eq!(render(&map, &cam, &bad, Rect::new(0, 0, 8, 8)).result, Err(FailureCode::RasterPoseInvalid));
+    assert_eq!(
+        render(&map, &cam, &bad, Rect::new(0, 0, 8, 8)).result,
+        Err(FailureCode::RasterPoseInvalid)
+    );
     let mut cam_bad = cam;
     cam_bad.fx = f32::INFINITY;
-    assert_eq!(render(&map, &cam_bad, &id, Rect::new(0, 0, 8, 8)).result, Err(FailureCode::RasterPoseInvalid));
+    assert_eq!(
+        render(&map, &cam_bad, &id, Rect::new(0, 0, 8, 8)).result,
+        Err(FailureCode::RasterPoseInvalid)
+    );
     // Looking away: nothing visible.
     let away = look_at([0.0, 0.0, 0.0], [1.0, 0.0, -5.0]);
-    assert_eq!(render(&map, &cam, &away, Rect::new(0, 0, 8, 8)).result, Err(FailureCode::RasterNothingVisible));
+    assert_eq!(
+        render(&map, &cam, &away, Rect::new(0, 0, 8, 8)).result,
+        Err(FailureCode::RasterNothingVisible)
+    );
 }
 
 fn coord() -> impl Strategy<Value = f32> {
-    prop_oneof![-1.0e5f32..1.0e5, -20.0f32..20.0, -0.2f32..0.2, Just(0.0f32), Just(super::RASTER_NEAR_M)]
+    prop_oneof![
+        -1.0e5f32..1.0e5,
+        -20.0f32..20.0,
+        -0.2f32..0.2,
+        Just(0.0f32),
+        Just(super::RASTER_NEAR_M)
+    ]
 }
 
 proptest! {
@@ -237,9 +295,17 @@ fn jittered_plane(n: usize, a: f32, b: f32, seed: u32, flip: bool) -> Scene {
             let a0 = (j * (n + 1) + i) as u32;
             let (b0, c0, d0) = (a0 + 1, a0 + n as u32 + 1, a0 + n as u32 + 2);
             let diag = rng.next_u32() % 2 == 0;
-            let (t1, t2) = if diag { ([a0, b0, d0], [a0, d0, c0]) } else { ([a0, b0, c0], [b0, d0, c0]) };
+            let (t1, t2) = if diag {
+                ([a0, b0, d0], [a0, d0, c0])
+            } else {
+                ([a0, b0, c0], [b0, d0, c0])
+            };
             for t in [t1, t2] {
-                let t = if flip && rng.next_u32() % 2 == 0 { [t[0], t[2], t[1]] } else { t };
+                let t = if flip && rng.next_u32() % 2 == 0 {
+                    [t[0], t[2], t[1]]
+                } else {
+                    t
+                };
                 s.triangles.push(t);
                 s.uvs.push([[0.0; 2]; 3]);
                 s.mask.push(false);
@@ -276,9 +342,12 @@ fn grid_crossing_the_near_plane_is_drawn_at_most_once() {
     let bytes = s.bytes(5.0);
     let map = MapView::new_checked(&bytes).unwrap();
     let cam = camera(200, 160, 150.0);
-    for (k, pose) in [look_at([0.0, 0.0, 4.3], [0.0, 10.0, 3.8]), look_at([0.0, -3.0, 3.0], [0.0, 30.0, 4.0])]
-        .iter()
-        .enumerate()
+    for (k, pose) in [
+        look_at([0.0, 0.0, 4.3], [0.0, 10.0, 3.8]),
+        look_at([0.0, -3.0, 3.0], [0.0, 30.0, 4.0]),
+    ]
+    .iter()
+    .enumerate()
     {
         let cov = coverage(&map, &cam, pose, Rect::new(0, 0, 200, 160));
         assert!(cov.iter().all(|c| *c <= 1), "pose {k}");
@@ -289,10 +358,21 @@ fn grid_crossing_the_near_plane_is_drawn_at_most_once() {
         let mut expected_hits = 0;
         for (i, c) in cov.iter().enumerate() {
             let (u, v) = ((i % 200) as f64, (i / 200) as f64);
-            let d = r * Vec3::new(((u - 99.5) / 150.0) as f32, ((v - 79.5) / 150.0) as f32, 1.0);
+            let d = r * Vec3::new(
+                ((u - 99.5) / 150.0) as f32,
+                ((v - 79.5) / 150.0) as f32,
+                1.0,
+            );
             let t = (4.0 - f64::from(eye.z)) / f64::from(d.z);
-            let hit = [f64::from(eye.x) + t * f64::from(d.x), f64::from(eye.y) + t * f64::from(d.y)];
-            if t > 2.0 * f64::from(RASTER_NEAR_M) + 0.01 && hit[0].abs() < 39.0 && hit[1].abs() < 39.0 && t < 1e4 {
+            let hit = [
+                f64::from(eye.x) + t * f64::from(d.x),
+                f64::from(eye.y) + t * f64::from(d.y),
+            ];
+            if t > 2.0 * f64::from(RASTER_NEAR_M) + 0.01
+                && hit[0].abs() < 39.0
+                && hit[1].abs() < 39.0
+                && t < 1e4
+            {
                 expected_hits += 1;
                 assert_eq!(*c, 1, "pose {k} pixel {i} t {t}");
             }
@@ -350,7 +430,11 @@ proptest! {
 fn ray_cast(s: &Scene, o: [f64; 3], d: [f64; 3]) -> Option<(f64, usize)> {
     let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
     let cross = |a: [f64; 3], b: [f64; 3]| {
-        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
     };
     let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     let v = |i: u32| s.vertices[i as usize].map(f64::from);
@@ -378,7 +462,9 @@ fn ray_cast(s: &Scene, o: [f64; 3], d: [f64; 3]) -> Option<(f64, usize)> {
 /// Verifies: VTSM-RAST-004
 #[test]
 fn terrain_depth_matches_f64_ray_casting() {
-    let s = Scene::terrain(24, 0.0, 6.0, |x, y| 0.35 * libm::sinf(x * 1.1) * libm::cosf(y * 0.8) + 0.05 * x);
+    let s = Scene::terrain(24, 0.0, 6.0, |x, y| {
+        0.35 * libm::sinf(x * 1.1) * libm::cosf(y * 0.8) + 0.05 * x
+    });
     let bytes = s.bytes(1.0);
     let map = MapView::new_checked(&bytes).unwrap();
     let cam = camera(160, 120, 140.0);
@@ -391,7 +477,11 @@ fn terrain_depth_matches_f64_ray_casting() {
     for i in 0..160 * 120 {
         let (u, v) = ((i % 160) as f64, (i / 160) as f64);
         // Ray with camera-frame z = 1, so the hit distance is camera Z.
-        let dc = Vec3::new(((u - 79.5) / 140.0) as f32, ((v - 59.5) / 140.0) as f32, 1.0);
+        let dc = Vec3::new(
+            ((u - 79.5) / 140.0) as f32,
+            ((v - 59.5) / 140.0) as f32,
+            1.0,
+        );
         let dw = (rot * dc).map(f64::from);
         let hit = ray_cast(&s, [eye.x, eye.y, eye.z], [dw.x, dw.y, dw.z]);
         match (hit, depth_to_m(r.depth[i])) {
@@ -412,7 +502,9 @@ fn terrain_depth_matches_f64_ray_casting() {
     assert!(both > 8000, "{both}");
     // Coverage differs only at the mesh border (snapping to 1/16 px).
     assert!(only_one * 100 < both, "{only_one} of {both}");
-    std::println!("terrain depth: {both} px, worst relative error {worst:e}, {only_one} border px differ");
+    std::println!(
+        "terrain depth: {both} px, worst relative error {worst:e}, {only_one} border px differ"
+    );
 }
 
 /// Verifies: VTSM-RAST-005
@@ -422,7 +514,13 @@ fn textured_quad_at_an_angle_matches_analytic_projection() {
     let o = [-1.2f64, -0.9, 3.0];
     let uu = [2.4f64, 0.0, 2.0];
     let vv = [0.0f64, 1.8, 0.3];
-    let at = |s: f64, t: f64| [(o[0] + s * uu[0] + t * vv[0]) as f32, (o[1] + s * uu[1] + t * vv[1]) as f32, (o[2] + s * uu[2] + t * vv[2]) as f32];
+    let at = |s: f64, t: f64| {
+        [
+            (o[0] + s * uu[0] + t * vv[0]) as f32,
+            (o[1] + s * uu[1] + t * vv[1]) as f32,
+            (o[2] + s * uu[2] + t * vv[2]) as f32,
+        ]
+    };
     let mut sc = Scene::new();
     sc.tw = 48;
     sc.th = 40;
@@ -433,8 +531,16 @@ fn textured_quad_at_an_angle_matches_analytic_projection() {
         })
         .collect();
     // OBJ uv of a corner = (s, t).
-    sc.tri([at(0.0, 0.0), at(1.0, 0.0), at(1.0, 1.0)], [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]], false);
-    sc.tri([at(0.0, 0.0), at(1.0, 1.0), at(0.0, 1.0)], [[0.0, 0.0], [1.0, 1.0], [0.0, 1.0]], false);
+    sc.tri(
+        [at(0.0, 0.0), at(1.0, 0.0), at(1.0, 1.0)],
+        [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]],
+        false,
+    );
+    sc.tri(
+        [at(0.0, 0.0), at(1.0, 1.0), at(0.0, 1.0)],
+        [[0.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+        false,
+    );
     let bytes = sc.bytes(1.0);
     let map = MapView::new_checked(&bytes).unwrap();
     let cam = camera(200, 150, 160.0);
@@ -443,7 +549,11 @@ fn textured_quad_at_an_angle_matches_analytic_projection() {
     let tex = |x: i64, y: i64| f64::from(sc.tex[(y.clamp(0, 39) * 48 + x.clamp(0, 47)) as usize]);
     let (mut checked, mut worst, mut depth_err) = (0, 0.0f64, 0.0f64);
     // Normal of the quad plane for the ray intersection.
-    let n = [uu[1] * vv[2] - uu[2] * vv[1], uu[2] * vv[0] - uu[0] * vv[2], uu[0] * vv[1] - uu[1] * vv[0]];
+    let n = [
+        uu[1] * vv[2] - uu[2] * vv[1],
+        uu[2] * vv[0] - uu[0] * vv[2],
+        uu[0] * vv[1] - uu[1] * vv[0],
+    ];
     let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     for i in 0..200 * 150 {
         let (u, v) = ((i % 200) as f64, (i / 200) as f64);
@@ -469,7 +579,10 @@ fn textured_quad_at_an_angle_matches_analytic_projection() {
         let got = f64::from(r.intensity[i]);
         worst = worst.max((got - want).abs());
         checked += 1;
-        assert!((got - want).abs() <= 2.0, "pixel ({u},{v}): {got} vs {want:.2}");
+        assert!(
+            (got - want).abs() <= 2.0,
+            "pixel ({u},{v}): {got} vs {want:.2}"
+        );
         let z_d = depth_to_m(r.depth[i]).unwrap();
         depth_err += (f64::from(z_d) - z).abs();
     }
@@ -481,12 +594,17 @@ fn textured_quad_at_an_angle_matches_analytic_projection() {
 /// Verifies: VTSM-RAST-006
 #[test]
 fn window_render_equals_crop_of_full_render() {
-    let s = Scene::terrain(30, -4.0, 14.0, |x, y| 0.4 * libm::sinf(x * 0.9) * libm::cosf(y * 1.3));
+    let s = Scene::terrain(30, -4.0, 14.0, |x, y| {
+        0.4 * libm::sinf(x * 0.9) * libm::cosf(y * 1.3)
+    });
     let bytes = s.bytes(1.5);
     let map = MapView::new_checked(&bytes).unwrap();
     let cam = camera(220, 170, 130.0);
     let mut rng = crate::rng::Rng::new(99);
-    for pose in [look_at([3.0, -3.0, 2.0], [3.0, 4.0, 0.0]), look_at([0.0, 0.0, 0.6], [5.0, 5.0, 0.2])] {
+    for pose in [
+        look_at([3.0, -3.0, 2.0], [3.0, 4.0, 0.0]),
+        look_at([0.0, 0.0, 0.6], [5.0, 5.0, 0.2]),
+    ] {
         let full = render(&map, &cam, &pose, Rect::new(0, 0, 220, 170));
         full.result.unwrap();
         for _ in 0..40 {
@@ -497,8 +615,14 @@ fn window_render_equals_crop_of_full_render() {
             let win = render(&map, &cam, &pose, Rect::new(x, y, w, h));
             for yy in 0..h as usize {
                 for xx in 0..w as usize {
-                    let (i, j) = (yy * w as usize + xx, (y as usize + yy) * 220 + x as usize + xx);
-                    assert_eq!(win.intensity[i], full.intensity[j], "window {x},{y},{w},{h} at {xx},{yy}");
+                    let (i, j) = (
+                        yy * w as usize + xx,
+                        (y as usize + yy) * 220 + x as usize + xx,
+                    );
+                    assert_eq!(
+                        win.intensity[i], full.intensity[j],
+                        "window {x},{y},{w},{h} at {xx},{yy}"
+                    );
                     assert_eq!(win.depth[i], full.depth[j]);
                     assert_eq!(win.mask_depth[i], full.mask_depth[j]);
                 }
@@ -512,8 +636,16 @@ fn window_render_equals_crop_of_full_render() {
 fn mask_depth_is_set_only_where_the_mask_is_the_visible_surface() {
     let mut s = Scene::new();
     let quad = |s: &mut Scene, x0: f32, x1: f32, z: f32, mask: bool| {
-        s.tri([[x0, -1.0, z], [x1, -1.0, z], [x1, 1.0, z]], [[0.0; 2]; 3], mask);
-        s.tri([[x0, -1.0, z], [x1, 1.0, z], [x0, 1.0, z]], [[0.0; 2]; 3], mask);
+        s.tri(
+            [[x0, -1.0, z], [x1, -1.0, z], [x1, 1.0, z]],
+            [[0.0; 2]; 3],
+            mask,
+        );
+        s.tri(
+            [[x0, -1.0, z], [x1, 1.0, z], [x0, 1.0, z]],
+            [[0.0; 2]; 3],
+            mask,
+        );
     };
     quad(&mut s, -1.0, 1.0, 5.0, true); // mask plane behind
     quad(&mut s, -0.2, 0.3, 3.0, false); // occluder in front
@@ -549,7 +681,10 @@ fn tile_culling_skips_work_without_changing_the_image() {
     let s = Scene::terrain(60, -15.0, 30.0, |x, y| 0.2 * libm::sinf(x) * libm::cosf(y));
     let tiled = s.bytes(2.0);
     let single = s.bytes(1000.0);
-    let (mt, ms) = (MapView::new_checked(&tiled).unwrap(), MapView::new_checked(&single).unwrap());
+    let (mt, ms) = (
+        MapView::new_checked(&tiled).unwrap(),
+        MapView::new_checked(&single).unwrap(),
+    );
     assert!(mt.tile_count() > 100 && ms.tile_count() == 1);
     let cam = camera(256, 256, 400.0);
     let pose = look_at([0.0, -3.0, 2.0], [1.0, 2.0, 0.0]);
@@ -560,7 +695,10 @@ fn tile_culling_skips_work_without_changing_the_image() {
         assert_eq!(a.depth, b.depth);
         assert_eq!(a.mask_depth, b.mask_depth);
         assert!(sa.tiles_visible < sa.tiles_tested / 2, "{sa:?}");
-        assert!(sa.triangles_tested * 2 < sb.triangles_tested, "{sa:?} {sb:?}");
+        assert!(
+            sa.triangles_tested * 2 < sb.triangles_tested,
+            "{sa:?} {sb:?}"
+        );
         assert!(sa.triangles_tested <= mt.triangle_count());
     }
 }
@@ -573,13 +711,18 @@ fn template_mask_reference(depth: &[u32], mdepth: &[u32], w: usize, h: usize) ->
         for x in 0..w as i64 {
             let i = (y * w as i64 + x) as usize;
             let mut keep = mdepth[i] != DEPTH_NONE;
-            let d = if depth[i] == DEPTH_NONE { f64::INFINITY } else { f64::from(depth[i]) / 65536.0 };
+            let d = if depth[i] == DEPTH_NONE {
+                f64::INFINITY
+            } else {
+                f64::from(depth[i]) / 65536.0
+            };
             for yy in (y - r).max(0)..=(y + r).min(h as i64 - 1) {
                 for xx in (x - r).max(0)..=(x + r).min(w as i64 - 1) {
                     let m = mdepth[(yy * w as i64 + xx) as usize];
                     if m != DEPTH_NONE {
                         let zm = f64::from(m) / 65536.0;
-                        let jump = f64::from(TEMPLATE_MASK_JUMP_M) + zm / f64::from(TEMPLATE_MASK_JUMP_REL_DIV);
+                        let jump = f64::from(TEMPLATE_MASK_JUMP_M)
+                            + zm / f64::from(TEMPLATE_MASK_JUMP_REL_DIV);
                         // Half an LSB of slack each way for the fixed-point threshold.
                         if d > zm + jump + 1.5 / 65536.0 {
                             keep = true;
