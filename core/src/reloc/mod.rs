@@ -20,12 +20,14 @@
 //! depend on how the work is split across calls.
 
 mod engine;
+pub mod pipeline;
 pub mod policy;
 pub mod solver;
 pub mod viewpoint;
 pub mod workspace;
 
 pub use engine::{Relocalizer, StepResult};
+pub use pipeline::Pipeline;
 pub use policy::{MatchPolicy, Variant};
 pub use solver::RansacSolver;
 pub use workspace::{Workspace, WorkspaceSizes, PAPER_WORKSPACE_BYTES, TEST_WORKSPACE_BYTES};

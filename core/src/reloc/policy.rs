@@ -65,7 +65,11 @@ impl MatchPolicy {
                 v(false, Filter::Laplacian),
                 if sub { v(true, Filter::Gray) } else { None },
                 if sub { v(true, Filter::Sobel) } else { None },
-                if sub { v(true, Filter::Laplacian) } else { None },
+                if sub {
+                    v(true, Filter::Laplacian)
+                } else {
+                    None
+                },
             ],
             min_score: params.min_score,
             max_runner_up_ratio: 0.9,
@@ -103,7 +107,6 @@ impl MatchPolicy {
     }
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -114,7 +117,8 @@ mod tests {
         let mut p = Params::paper();
         let pol = MatchPolicy::for_params(&p);
         assert_eq!(pol.validate(256), Ok(()));
-        let idx: heapless::Vec<usize, 6> = pol.variants.iter().flatten().map(|v| v.index()).collect();
+        let idx: heapless::Vec<usize, 6> =
+            pol.variants.iter().flatten().map(|v| v.index()).collect();
         assert_eq!(idx.as_slice(), &[0, 1, 2, 3, 4, 5]);
         p.sub_template = false;
         let pol = MatchPolicy::for_params(&p);

@@ -39,7 +39,6 @@ impl Solver for RansacSolver {
     }
 }
 
-
 #[cfg(test)]
 mod tests {
     extern crate std;
@@ -58,12 +57,20 @@ mod tests {
         let mut rng = Rng::new(4);
         let pairs: Vec<Correspondence> = (0..60)
             .map(|i| {
-                let cam = Vec3::new(rng.uniform(-2.0, 2.0), rng.uniform(-1.0, 1.0), rng.uniform(1.0, 6.0));
+                let cam = Vec3::new(
+                    rng.uniform(-2.0, 2.0),
+                    rng.uniform(-1.0, 1.0),
+                    rng.uniform(1.0, 6.0),
+                );
                 let mut world = truth.transform_point(&cam);
                 if i % 4 == 0 {
                     world += Vec3::new(rng.uniform(0.5, 2.0), rng.uniform(-2.0, 2.0), 0.3);
                 }
-                Correspondence { world, cam, sigma_m: 0.005 }
+                Correspondence {
+                    world,
+                    cam,
+                    sigma_m: 0.005,
+                }
             })
             .collect();
         let p = Params::paper();
@@ -77,6 +84,9 @@ mod tests {
             assert_eq!(*m, i % 4 != 0, "pair {i}");
         }
         assert!(sol.iterations >= 1 && sol.iterations <= p.ransac_iter);
-        assert_eq!(s.solve(&pairs[..2], &mut Rng::new(1), &mut mask).err(), Some(FailureCode::PoseTooFewPoints));
+        assert_eq!(
+            s.solve(&pairs[..2], &mut Rng::new(1), &mut mask).err(),
+            Some(FailureCode::PoseTooFewPoints)
+        );
     }
 }

@@ -141,7 +141,6 @@ impl<'w> Workspace<'w> {
     }
 }
 
-
 #[cfg(test)]
 mod tests {
     extern crate std;
@@ -162,12 +161,15 @@ mod tests {
             assert_eq!(s.words, 4 * l * l + s.ncc.integral);
             let total = s.bytes + 4 * s.words + s.runs * core::mem::size_of::<Run>();
             assert_eq!(s.total_bytes(), total);
-            let (mut b, mut wd, mut r) = (vec![0u8; s.bytes], vec![0u32; s.words], vec![Run::default(); s.runs]);
+            let (mut b, mut wd, mut r) = (
+                vec![0u8; s.bytes],
+                vec![0u32; s.words],
+                vec![Run::default(); s.runs],
+            );
             let ws = Workspace::new(s, &mut b, &mut wd, &mut r).unwrap();
             assert_eq!(ws.inten_l.len(), l * l);
             assert_eq!(ws.mdepth_r.len(), l * l);
             assert!(s.ncc.fits(&ws.scratch));
-            drop(ws);
             let short = Workspace::new(s, &mut b[1..], &mut wd, &mut r).err();
             assert_eq!(short, Some(FailureCode::ConfigCapacityTooSmall));
             let short = Workspace::new(s, &mut b, &mut wd[1..], &mut r).err();
