@@ -18,12 +18,12 @@ use vtsm_core::reloc::{
 
 fn print_workspace(name: &str, s: &WorkspaceSizes) {
     let l = s.template_px;
-    println!(
-        "{name}: template {l}x{l}, search {w}x{w}",
-        w = s.search_px
-    );
+    println!("{name}: template {l}x{l}, search {w}x{w}", w = s.search_px);
     println!("  templates+masks  u8  {:>10} B  (4 x {l}^2)", 4 * l * l);
-    println!("  depth+mask depth u32 {:>10} B  (4 x {l}^2 x 4)", 16 * l * l);
+    println!(
+        "  depth+mask depth u32 {:>10} B  (4 x {l}^2 x 4)",
+        16 * l * l
+    );
     println!("  ncc window       u8  {:>10} B", s.ncc.window);
     println!("  ncc template     u8  {:>10} B", s.ncc.template);
     println!("  ncc integral     u32 {:>10} B", 4 * s.ncc.integral);
@@ -41,8 +41,15 @@ fn main() {
     let full = size_of::<Relocalizer<Pipeline<'static, 'static>, RansacSolver>>();
     println!("engine state (Relocalizer without pipeline/solver): {engine} B");
     println!("Relocalizer<Pipeline, RansacSolver> (by value, workspace borrowed): {full} B");
-    println!("Pipeline (views + borrowed workspace): {} B", size_of::<Pipeline<'static, 'static>>());
-    println!("Outcome: {} B (Stats {} B)", size_of::<Outcome>(), size_of::<Stats>());
+    println!(
+        "Pipeline (views + borrowed workspace): {} B",
+        size_of::<Pipeline<'static, 'static>>()
+    );
+    println!(
+        "Outcome: {} B (Stats {} B)",
+        size_of::<Outcome>(),
+        size_of::<Stats>()
+    );
     print_workspace("paper workspace", &PAPER_WORKSPACE);
     print_workspace("test workspace", &TEST_WORKSPACE);
     let exhaustive = WorkspaceSizes::new(256, 1024, Search::Exhaustive);
