@@ -37,6 +37,8 @@ pub enum StepResult {
 enum Phase {
     Collect,
     Solve,
+    /// A chunked solve is under way.
+    Chunks,
 }
 
 /// The relocalization engine. Generic over the per-attempt pipeline `A` and
@@ -60,6 +62,7 @@ pub struct Relocalizer<A, S> {
     candidates: heapless::Vec<Candidate, MAX_POSE_CANDIDATES>,
     round: u32,
     round_attempts: u32,
+    round_chunks: u32,
     consecutive_stall: u8,
     consecutive_reseed: u8,
     /// Next seed to evaluate while `seeding`.
@@ -115,6 +118,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             candidates: heapless::Vec::new(),
             round: 0,
             round_attempts: 0,
+            round_chunks: 0,
             consecutive_stall: 0,
             consecutive_reseed: 0,
             seed_index: 0,
@@ -139,12 +143,15 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
     /// Between two successes there are at most `max_stall + max_reseed` failed
     /// rounds that continue (the next failure ends the run); there are at most
     /// `n_iter` successes, plus `seeds` seed rounds; each round does at most
-    /// `attempts_per_iter` attempts and one solve.
+    /// `attempts_per_iter` attempts, one solve start and ⌈`ransac_iter` /
+    /// [`super::RANSAC_CHUNK`]⌉ RANSAC chunks.
     pub fn max_work_units(params: &Params) -> u32 {
         let fails = u64::from(params.max_stall) + u64::from(params.max_reseed);
         let n_iter = u64::from(params.n_iter);
         let rounds = u64::from(params.seeds) + n_iter + (n_iter + 1) * fails + 1;
-        let units = rounds * (u64::from(params.attempts_per_iter) + 1);
+        let per_round =
+            u64::from(params.attempts_per_iter) + 1 + u64::from(Self::max_chunks(params));
+        let units = rounds * per_round;
         u32::try_from(units).unwrap_or(u32::MAX)
     }
 
@@ -160,6 +167,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             match self.phase {
                 Phase::Collect => self.collect_one(now),
                 Phase::Solve => self.solve(now),
+                Phase::Chunks => self.solve_chunk(now),
             }
         }
         match &self.done {
@@ -282,8 +290,42 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         let mut rng = self.root.fork(STREAM_SOLVE).fork(u64::from(self.round));
         let n = self.pairs.len();
         self.inlier_mask.iter_mut().for_each(|m| *m = false);
-        let mask = self.inlier_mask.get_mut(..n).unwrap_or(&mut []);
-        match self.solver.solve(&self.pairs, &mut rng, mask) {
+        self.round_chunks = 0;
+        match self.solver.start(&self.pairs, rng) {
+            Ok(true) => {
+                let mask = self.inlier_mask.get_mut(..n).unwrap_or(&mut []);
+                let result = self.solver.solve(&self.pairs, &mut rng, mask);
+                self.conclude(result, now);
+            }
+            Ok(false) => self.phase = Phase::Chunks,
+            Err(code) => self.conclude(Err(code), now),
+        }
+    }
+
+    /// Chunks allowed per solve: enough for `ransac_iter` hypotheses.
+    fn max_chunks(params: &Params) -> u32 {
+        u32::from(params.ransac_iter.div_ceil(super::RANSAC_CHUNK))
+    }
+
+    fn solve_chunk(&mut self, now: u64) {
+        self.stats.work_units = self.stats.work_units.saturating_add(1);
+        self.stats.ransac_chunks = self.stats.ransac_chunks.saturating_add(1);
+        self.round_chunks = self.round_chunks.saturating_add(1);
+        let done = match self.solver.run_chunk(&self.pairs, super::RANSAC_CHUNK) {
+            Ok(done) => done || self.round_chunks >= Self::max_chunks(&self.params),
+            Err(code) => return self.conclude(Err(code), now),
+        };
+        if done {
+            let n = self.pairs.len();
+            let mask = self.inlier_mask.get_mut(..n).unwrap_or(&mut []);
+            let result = self.solver.finish(&self.pairs, mask);
+            self.conclude(result, now);
+        }
+    }
+
+    fn conclude(&mut self, result: Result<Solution, FailureCode>, now: u64) {
+        let n = self.pairs.len();
+        match result {
             Ok(sol) => {
                 self.stats.ransac_iterations = self
                     .stats
@@ -1121,7 +1163,8 @@ mod tests {
             let s = out.stats;
             proptest::prop_assert!(out.failure != Some(FailureCode::RelocBudgetExhausted));
             proptest::prop_assert!(calls <= u64::from(max) + 1);
-            proptest::prop_assert_eq!(s.work_units, s.attempts + s.solves);
+            proptest::prop_assert_eq!(s.work_units, s.attempts + s.solves + s.ransac_chunks);
+            proptest::prop_assert_eq!(s.ransac_chunks, 0);
             proptest::prop_assert!(s.attempts <= s.rounds * p.attempts_per_iter);
             proptest::prop_assert!(s.successes <= u16::from(p.n_iter));
             proptest::prop_assert!(s.stalls <= u16::from(p.max_stall) * (s.successes + 1));

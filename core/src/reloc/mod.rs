@@ -13,7 +13,7 @@
 //! [`Quality`] (inliers, RMS, per-iteration history) and work [`Stats`].
 //!
 //! Bounds: every call to [`Relocalizer::step`] does exactly one work unit (one
-//! attempt or one solve); the number of units of a whole run is bounded by
+//! attempt, the start of a solve, or one chunk of [`RANSAC_CHUNK`] RANSAC hypotheses); the number of units of a whole run is bounded by
 //! [`Relocalizer::max_work_units`], computed from validated parameters. All
 //! buffers are fixed-size fields sized by `config` capacities. Random draws come
 //! from streams forked per attempt / round index, so the outcome does not
@@ -104,7 +104,47 @@ pub trait Solver {
         rng: &mut Rng,
         inlier_mask: &mut [bool],
     ) -> Result<Solution, FailureCode>;
+
+    /// Chunked form, first unit: prepare a solve of `pairs` drawing from `rng`.
+    /// `Ok(true)` means the solver has no chunked form and the engine calls
+    /// [`Solver::solve`] in the same unit (the default).
+    ///
+    /// # Errors
+    /// As [`Solver::solve`].
+    fn start(&mut self, pairs: &[Correspondence], rng: Rng) -> Result<bool, FailureCode> {
+        let _ = (pairs, rng);
+        Ok(true)
+    }
+
+    /// Chunked form: evaluate at most `max_iterations` hypotheses; `Ok(true)` once done.
+    ///
+    /// # Errors
+    /// As [`Solver::solve`].
+    fn run_chunk(
+        &mut self,
+        pairs: &[Correspondence],
+        max_iterations: u16,
+    ) -> Result<bool, FailureCode> {
+        let _ = (pairs, max_iterations);
+        Ok(true)
+    }
+
+    /// Chunked form, last unit: the solution of the solve begun by [`Solver::start`].
+    ///
+    /// # Errors
+    /// As [`Solver::solve`]; the default (no chunked form) reports no consensus.
+    fn finish(
+        &mut self,
+        pairs: &[Correspondence],
+        inlier_mask: &mut [bool],
+    ) -> Result<Solution, FailureCode> {
+        let _ = (pairs, inlier_mask);
+        Err(FailureCode::PoseRansacNoConsensus)
+    }
 }
+
+/// RANSAC hypotheses evaluated per work unit by a chunked [`Solver`].
+pub const RANSAC_CHUNK: u16 = 64;
 
 /// A work and tick budget after which the best pose so far is returned with
 /// [`FailureCode::RelocBudgetExhausted`].
@@ -195,7 +235,7 @@ pub struct PipelineStats {
 /// Work counters of one run.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Stats {
-    /// Work units done (attempts + solves).
+    /// Work units done (attempts + solves + RANSAC chunks).
     pub work_units: u32,
     /// Rounds started (successful and failed iterations, seeds included).
     pub rounds: u32,
@@ -207,6 +247,8 @@ pub struct Stats {
     pub reused: u32,
     /// GetTransform calls.
     pub solves: u32,
+    /// Extra work units spent in chunked GetTransform (RANSAC chunks).
+    pub ransac_chunks: u32,
     /// RANSAC hypotheses evaluated, summed.
     pub ransac_iterations: u32,
     /// Successful iterations (pose updates).

@@ -731,6 +731,14 @@ mod tests {
             assert_eq!(out.failure, None);
             assert!(et < 0.05, "error {et} m");
             assert!(out.quality.inliers >= 15);
+            // Work stays under the structural bound; RANSAC ran in chunks.
+            let p = test_params();
+            let max = Relocalizer::<Pipeline, RansacSolver>::max_work_units(&p);
+            let s = out.stats;
+            assert!(s.work_units <= max && s.ransac_chunks > 0);
+            assert_eq!(s.work_units, s.attempts + s.solves + s.ransac_chunks);
+            assert!(s.pipeline.renders <= 2 * s.attempts);
+            assert!(s.ransac_iterations <= s.solves * u32::from(p.ransac_iter));
             if k == 0 {
                 // Same seed, stepped 3 units at a time: bit-identical outcome.
                 let p = test_params();

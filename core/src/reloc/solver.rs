@@ -5,11 +5,25 @@ use crate::config::Params;
 use crate::failure::FailureCode;
 use crate::rng::Rng;
 
-/// GetTransform with [`crate::pose::ransac`] (Umeyama + RANSAC).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// GetTransform with [`crate::pose::ransac`] (Umeyama + RANSAC), resumable
+/// in chunks through [`crate::pose::Ransac`].
+#[derive(Clone, Debug)]
 pub struct RansacSolver {
     /// RANSAC settings.
     pub cfg: crate::pose::RansacConfig,
+    /// Whether the engine runs RANSAC in chunks (one work unit each).
+    pub chunked: bool,
+    state: Option<crate::pose::Ransac>,
+}
+
+fn to_solution(e: crate::pose::Estimate) -> Solution {
+    Solution {
+        pose: e.pose,
+        inliers: e.inliers,
+        rms_m: e.rms_m,
+        iterations: e.iterations,
+        candidates: e.candidates,
+    }
 }
 
 impl RansacSolver {
@@ -17,6 +31,8 @@ impl RansacSolver {
     pub fn from_params(p: &Params) -> Self {
         Self {
             cfg: crate::pose::RansacConfig::from_params(p),
+            chunked: true,
+            state: None,
         }
     }
 }
@@ -28,14 +44,38 @@ impl Solver for RansacSolver {
         rng: &mut Rng,
         inlier_mask: &mut [bool],
     ) -> Result<Solution, FailureCode> {
-        let e = crate::pose::ransac(pairs, &self.cfg, rng, inlier_mask)?;
-        Ok(Solution {
-            pose: e.pose,
-            inliers: e.inliers,
-            rms_m: e.rms_m,
-            iterations: e.iterations,
-            candidates: e.candidates,
-        })
+        crate::pose::ransac(pairs, &self.cfg, rng, inlier_mask).map(to_solution)
+    }
+
+    fn start(&mut self, pairs: &[Correspondence], rng: Rng) -> Result<bool, FailureCode> {
+        self.state = None;
+        if !self.chunked {
+            return Ok(true);
+        }
+        self.state = Some(crate::pose::Ransac::new(pairs, &self.cfg, rng)?);
+        Ok(false)
+    }
+
+    fn run_chunk(
+        &mut self,
+        pairs: &[Correspondence],
+        max_iterations: u16,
+    ) -> Result<bool, FailureCode> {
+        match self.state.as_mut() {
+            Some(r) => r.run_chunk(pairs, max_iterations),
+            None => Ok(true),
+        }
+    }
+
+    fn finish(
+        &mut self,
+        pairs: &[Correspondence],
+        inlier_mask: &mut [bool],
+    ) -> Result<Solution, FailureCode> {
+        match self.state.take() {
+            Some(mut r) => r.finish(pairs, inlier_mask).map(to_solution),
+            None => Err(FailureCode::PoseRansacNoConsensus),
+        }
     }
 }
 
@@ -84,6 +124,17 @@ mod tests {
             assert_eq!(*m, i % 4 != 0, "pair {i}");
         }
         assert!(sol.iterations >= 1 && sol.iterations <= p.ransac_iter);
+        // The chunked form gives the same solution bit for bit.
+        assert!(!s.start(&pairs, Rng::new(1)).unwrap());
+        let mut chunks = 0;
+        while !s.run_chunk(&pairs, 7).unwrap() {
+            chunks += 1;
+            assert!(chunks <= 1 + usize::from(p.ransac_iter) / 7);
+        }
+        let mut mask2 = [false; 64];
+        let chunked = s.finish(&pairs, &mut mask2).unwrap();
+        assert_eq!(chunked, sol);
+        assert_eq!(mask2, mask);
         assert_eq!(
             s.solve(&pairs[..2], &mut Rng::new(1), &mut mask).err(),
             Some(FailureCode::PoseTooFewPoints)
