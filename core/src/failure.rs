@@ -138,6 +138,10 @@ failure_codes! {
         "The best score is below the acceptance threshold; the match is rejected.";
     NccAmbiguous = 0x0508, Info, Same, "NCC_AMBIGUOUS",
         "The runner-up peak scores too close to the best one; the match is rejected as ambiguous.";
+    NccWindowTooLarge = 0x0509, Fatal, Never, "NCC_WINDOW_TOO_LARGE",
+        "The search window is larger than config::MAX_SEARCH_PX; nothing is matched.";
+    NccTemplateSizeInvalid = 0x050A, Fatal, Never, "NCC_TEMPLATE_SIZE_INVALID",
+        "The template side is outside MIN_TEMPLATE_PX..=MAX_TEMPLATE_PX or its mask differs in size; nothing is matched.";
     // 0x06xx stereo
     StereoEpipolarViolation = 0x0601, Info, Same, "STEREO_EPIPOLAR_VIOLATION",
         "Left and right peaks differ by more than epsilon rows; the pair is rejected (Valid).";
