@@ -25,12 +25,14 @@
 //!   and the degeneracy test per sample; an inlier gate in metres, optionally
 //!   widened per pair by its depth uncertainty; a hard cap
 //!   `min(cfg.iterations, MAX_RANSAC_ITER)`; early exit once
-//!   `N = log(1 − p) / log(1 − w³)` samples have been drawn; a final refit on all
-//!   inliers with recount (at most [`REFIT_ROUNDS`] rounds).
+//!   `N = log(1 − p) / log(1 − w³)` samples have been drawn; each new best
+//!   hypothesis is refitted on its own inliers (local optimisation); a final
+//!   refit on all inliers with recount (at most [`REFIT_ROUNDS`] rounds).
 //!
 //! Bounds per RANSAC iteration: 3 PRNG draws, one 3-point fit (≤ 16 Jacobi
 //! sweeps), `n ≤ MAX_CORR` residuals, ≤ `MAX_POSE_CANDIDATES` candidate
-//! comparisons. No allocation; f32 through nalgebra and libm, no FMA, so the same
+//! comparisons; plus at most `n` local refits per search (each one fit and
+//! `3n` residuals), since each needs a strictly larger inlier count. No allocation; f32 through nalgebra and libm, no FMA, so the same
 //! seed gives the same bits on every target.
 
 use crate::config::{Params, MAX_CORR, MAX_POSE_CANDIDATES, MAX_RANSAC_ITER};
