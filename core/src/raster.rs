@@ -55,14 +55,8 @@ const CULL_SLACK_M: f32 = 0.01;
 /// Convert camera Z in metres to the depth format (rounded, saturating at [`DEPTH_MAX`]).
 #[inline]
 pub fn depth_from_m(z_m: f32) -> u32 {
-    let q = z_m * DEPTH_SCALE + 0.5;
-    if q.is_nan() || q <= 0.0 {
-        0
-    } else if q >= DEPTH_MAX as f32 {
-        DEPTH_MAX
-    } else {
-        q as u32
-    }
+    // `as` saturates: NaN and negatives give 0, values beyond u32 give u32::MAX.
+    ((z_m * DEPTH_SCALE + 0.5) as u32).min(DEPTH_MAX)
 }
 
 /// Convert a depth value to metres; `None` for [`DEPTH_NONE`].
@@ -546,11 +540,12 @@ fn sample_bilinear(tex: &[u8], tw: usize, th: usize, u: f32, v: f32) -> u8 {
     let (x0, y0) = (u as usize, v as usize);
     let fx = ((u - x0 as f32) * 256.0) as u32;
     let fy = ((v - y0 as f32) * 256.0) as u32;
-    let x1 = (x0 + 1).min(tw - 1);
-    let y1 = (y0 + 1).min(th - 1);
-    let px = |x: usize, y: usize| u32::from(tex.get(y * tw + x).copied().unwrap_or(0));
-    let top = px(x0, y0) * (256 - fx) + px(x1, y0) * fx;
-    let bot = px(x0, y1) * (256 - fx) + px(x1, y1) * fx;
+    let dx = usize::from(x0 + 1 < tw);
+    let dy = if y0 + 1 < th { tw } else { 0 };
+    let i = y0 * tw + x0;
+    let px = |k: usize| u32::from(tex.get(k).copied().unwrap_or(0));
+    let top = px(i) * (256 - fx) + px(i + dx) * fx;
+    let bot = px(i + dy) * (256 - fx) + px(i + dy + dx) * fx;
     ((top * (256 - fy) + bot * fy + (1 << 15)) >> 16) as u8
 }
 
@@ -635,34 +630,52 @@ pub fn template_mask(depth: &[u32], mask_depth: &[u32], w: usize, h: usize, out:
     };
     const JUMP_Q16: u32 = (TEMPLATE_MASK_JUMP_M * (1u32 << DEPTH_FRAC_BITS) as f32) as u32;
     let r = TEMPLATE_MASK_RADIUS_PX;
+    // Separable minimum filter of mask_depth over the (2r+1)² neighbourhood, one
+    // output row at a time: column minimum, then row minimum (straight slice loops).
     let mut colmin = [DEPTH_NONE; MAX_RENDER_PX];
+    let mut nbmin = [DEPTH_NONE; MAX_RENDER_PX];
+    let (Some(colmin), Some(nbmin)) = (colmin.get_mut(..w), nbmin.get_mut(..w)) else {
+        return 0;
+    };
     let mut kept = 0u32;
     for y in 0..h {
         let (y0, y1) = (y.saturating_sub(r), (y + r).min(h - 1));
-        for (x, cm) in colmin.iter_mut().take(w).enumerate() {
-            *cm = (y0..=y1)
-                .filter_map(|yy| mdepth.get(yy * w + x).copied())
-                .min()
-                .unwrap_or(DEPTH_NONE);
-        }
-        for x in 0..w {
-            let i = y * w + x;
-            let (x0, x1) = (x.saturating_sub(r), (x + r).min(w - 1));
-            let m = colmin
-                .get(x0..=x1)
-                .and_then(|s| s.iter().min().copied())
-                .unwrap_or(DEPTH_NONE);
-            let own = mdepth.get(i).copied().unwrap_or(DEPTH_NONE);
-            let d = depth.get(i).copied().unwrap_or(DEPTH_NONE);
-            // J grows with depth, so the minimum of mask_depth + J is J applied to the minimum.
-            let keep = own != DEPTH_NONE
-                || (m != DEPTH_NONE
-                    && d > m
-                        .saturating_add(JUMP_Q16)
-                        .saturating_add(m / TEMPLATE_MASK_JUMP_REL_DIV));
-            if let Some(o) = out.get_mut(i) {
-                *o = if keep { 255 } else { 0 };
+        colmin.fill(DEPTH_NONE);
+        for yy in y0..=y1 {
+            if let Some(row) = mdepth.get(yy * w..(yy + 1) * w) {
+                for (c, m) in colmin.iter_mut().zip(row) {
+                    *c = (*c).min(*m);
+                }
             }
+        }
+        nbmin.copy_from_slice(colmin);
+        for d in 1..=r.min(w - 1) {
+            let (Some(right), Some(left)) = (colmin.get(d..), colmin.get(..w - d)) else {
+                break;
+            };
+            for (n, c) in nbmin.iter_mut().zip(right) {
+                *n = (*n).min(*c);
+            }
+            if let Some(tail) = nbmin.get_mut(d..) {
+                for (n, c) in tail.iter_mut().zip(left) {
+                    *n = (*n).min(*c);
+                }
+            }
+        }
+        let (Some(drow), Some(mrow), Some(orow)) = (
+            depth.get(y * w..(y + 1) * w),
+            mdepth.get(y * w..(y + 1) * w),
+            out.get_mut(y * w..(y + 1) * w),
+        ) else {
+            break;
+        };
+        for (((o, d), own), m) in orow.iter_mut().zip(drow).zip(mrow).zip(nbmin.iter()) {
+            // J grows with depth, so the minimum of mask_depth + J is J applied to the minimum.
+            let thr = m
+                .saturating_add(JUMP_Q16)
+                .saturating_add(m / TEMPLATE_MASK_JUMP_REL_DIV);
+            let keep = *own != DEPTH_NONE || (*m != DEPTH_NONE && *d > thr);
+            *o = if keep { 255 } else { 0 };
             kept += u32::from(keep);
         }
     }
