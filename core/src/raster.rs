@@ -28,8 +28,8 @@
 //! clipped to the window. [`RenderStats`] reports the work.
 
 use crate::config::{
-    MAX_IMAGE_DIM, MAX_RENDER_PX, RASTER_GUARD_PX, RASTER_NEAR_M, TEMPLATE_MASK_JUMP_M,
-    TEMPLATE_MASK_JUMP_REL_DIV, TEMPLATE_MASK_RADIUS_PX,
+    MAX_IMAGE_DIM, MAX_RENDER_PX, RASTER_FAR_M, RASTER_GUARD_PX, RASTER_NEAR_M,
+    TEMPLATE_MASK_JUMP_M, TEMPLATE_MASK_JUMP_REL_DIV, TEMPLATE_MASK_RADIUS_PX,
 };
 use crate::failure::FailureCode;
 use crate::geom::{Camera, Pose, Vec3};
@@ -100,13 +100,44 @@ pub struct RenderStats {
 pub(crate) struct Frag {
     /// Index into the window buffers (`y · w + x`).
     pub idx: usize,
-    /// Camera Z, metres.
-    pub z: f32,
-    /// Texture x over Z, y over Z (multiply by `z` for texture pixels).
-    pub u_over_z: f32,
-    pub v_over_z: f32,
+    /// Depth in the depth format (see [`DEPTH_FRAC_BITS`]).
+    pub depth: u32,
+    /// Texture coordinates in texture pixels, 16.16 fixed point.
+    pub u_q16: i64,
+    pub v_q16: i64,
     /// The triangle belongs to M̂.
     pub mask: bool,
+}
+
+/// Perspective division is exact at every `SEG`-th absolute pixel column and
+/// linear in between (16.16 / depth-format fixed point): one division per 8 pixels.
+const SEG_SHIFT: u32 = 3;
+const SEG: i64 = 1 << SEG_SHIFT;
+/// A segment is interpolated linearly only when its depth changes by at most 1/64.
+const LINEAR_MAX_DZ_INV: i64 = 64;
+/// Texture coordinates are clamped to ±2^20 texture pixels before fixed-point
+/// conversion (beyond the texture they sample the edge texel anyway).
+const UV_LIMIT: f32 = (1u32 << 20) as f32;
+
+/// Exact depth and texture coordinates at one pixel; `None` where the triangle's
+/// plane is beyond `RASTER_FAR_M` or behind the camera (possible only outside
+/// the triangle, when a segment end is extrapolated).
+#[inline]
+fn exact_at(xn: f32, inv_z_row: f32, u_row: f32, v_row: f32, it: &Interp) -> Option<[i64; 3]> {
+    let inv_z = it.inv_z.x * xn + inv_z_row;
+    // NaN fails this test too.
+    let in_range = inv_z > 1.0 / RASTER_FAR_M;
+    if !in_range {
+        return None;
+    }
+    let z = 1.0 / inv_z;
+    let u = ((it.u_over_z.x * xn + u_row) * z).clamp(-UV_LIMIT, UV_LIMIT);
+    let v = ((it.v_over_z.x * xn + v_row) * z).clamp(-UV_LIMIT, UV_LIMIT);
+    Some([
+        (z * DEPTH_SCALE + 0.5) as i64,
+        (u * 65536.0) as i64,
+        (v * 65536.0) as i64,
+    ])
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -402,17 +433,60 @@ fn fill_triangle<S: FnMut(Frag)>(
         let row_u = it.u_over_z.y * yn + it.u_over_z.z;
         let row_v = it.v_over_z.y * yn + it.v_over_z.z;
         let row = ((py - wy) * w - wx) as usize;
-        for px in xl..=xr {
-            let xn = (px as f32 - frame.cx) * frame.inv_fx;
-            let inv_z = it.inv_z.x * xn + row_w;
-            let z = 1.0 / inv_z;
-            sink(Frag {
-                idx: row.wrapping_add(px as usize),
-                z,
-                u_over_z: it.u_over_z.x * xn + row_u,
-                v_over_z: it.v_over_z.x * xn + row_v,
-                mask,
-            });
+        let at = |x: i64| {
+            exact_at(
+                (x as f32 - frame.cx) * frame.inv_fx,
+                row_w,
+                row_u,
+                row_v,
+                it,
+            )
+        };
+        let mut px = xl;
+        // Bounded: each pass advances px to the next segment boundary (at most
+        // w / SEG + 2 passes per span).
+        while px <= xr {
+            let s0 = px & !(SEG - 1);
+            let s1 = s0 + SEG;
+            let end = xr.min(s1 - 1);
+            match (at(s0), at(s1)) {
+                // Linear depth and UVs deviate from perspective-correct values by about
+                // δ²/4 of depth with δ the relative change of depth over the segment;
+                // segments with δ > 1/64 are evaluated exactly at every pixel instead.
+                (Some(a), Some(b)) if (b[0] - a[0]).abs() * LINEAR_MAX_DZ_INV <= a[0] => {
+                    let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+                    let k = px - s0;
+                    // acc / SEG is the linear interpolation between the segment ends.
+                    let mut acc = [
+                        a[0] * SEG + d[0] * k,
+                        a[1] * SEG + d[1] * k,
+                        a[2] * SEG + d[2] * k,
+                    ];
+                    for x in px..=end {
+                        sink(Frag {
+                            idx: row.wrapping_add(x as usize),
+                            depth: (acc[0] >> SEG_SHIFT).clamp(0, i64::from(DEPTH_MAX)) as u32,
+                            u_q16: acc[1] >> SEG_SHIFT,
+                            v_q16: acc[2] >> SEG_SHIFT,
+                            mask,
+                        });
+                        acc = [acc[0] + d[0], acc[1] + d[1], acc[2] + d[2]];
+                    }
+                }
+                _ => {
+                    for x in px..=end {
+                        let e = at(x).unwrap_or([i64::from(DEPTH_MAX), 0, 0]);
+                        sink(Frag {
+                            idx: row.wrapping_add(x as usize),
+                            depth: e[0].clamp(0, i64::from(DEPTH_MAX)) as u32,
+                            u_q16: e[1],
+                            v_q16: e[2],
+                            mask,
+                        });
+                    }
+                }
+            }
+            px = end + 1;
         }
     }
 }
@@ -533,13 +607,12 @@ pub(crate) fn rasterize<S: FnMut(Frag)>(
 /// Bilinear sample of a texture (stride = width) at texture pixel `(u, v)`,
 /// clamped to the edge texels; 8-bit weights, rounded.
 #[inline]
-fn sample_bilinear(tex: &[u8], tw: usize, th: usize, u: f32, v: f32) -> u8 {
-    let u = u.clamp(0.0, (tw - 1) as f32);
-    let v = v.clamp(0.0, (th - 1) as f32);
-    // NaN clamps to NaN and casts to 0: still in range.
-    let (x0, y0) = (u as usize, v as usize);
-    let fx = ((u - x0 as f32) * 256.0) as u32;
-    let fy = ((v - y0 as f32) * 256.0) as u32;
+fn sample_bilinear(tex: &[u8], tw: usize, th: usize, u_q16: i64, v_q16: i64) -> u8 {
+    let u = u_q16.clamp(0, (tw as i64 - 1) << 16);
+    let v = v_q16.clamp(0, (th as i64 - 1) << 16);
+    let (x0, y0) = ((u >> 16) as usize, (v >> 16) as usize);
+    let fx = ((u >> 8) & 0xFF) as u32;
+    let fy = ((v >> 8) & 0xFF) as u32;
     let dx = usize::from(x0 + 1 < tw);
     let dy = if y0 + 1 < th { tw } else { 0 };
     let i = y0 * tw + x0;
@@ -585,7 +658,7 @@ pub fn render_window(
     let tex_slice = map.texture_bytes();
     let mut written = 0u32;
     let mut sink = |f: Frag| {
-        let d = depth_from_m(f.z);
+        let d = f.depth;
         if let Some(slot) = depth.get_mut(f.idx) {
             if d < *slot {
                 *slot = d;
@@ -593,7 +666,7 @@ pub fn render_window(
                     *m = if f.mask { d } else { DEPTH_NONE };
                 }
                 if let Some(p) = inten.get_mut(f.idx) {
-                    *p = sample_bilinear(tex_slice, tw, th, f.u_over_z * f.z, f.v_over_z * f.z);
+                    *p = sample_bilinear(tex_slice, tw, th, f.u_q16, f.v_q16);
                 }
                 written += 1;
             }
