@@ -175,6 +175,10 @@ failure_codes! {
         "No vertex of the sampling mask is in view from the prior; relocalization cannot start.";
     RelocNotStarted = 0x0807, Fatal, Never, "RELOC_NOT_STARTED",
         "An outcome was requested before the relocalizer was started.";
+    RelocSampleOutOfView = 0x0808, Info, Same, "RELOC_SAMPLE_OUT_OF_VIEW",
+        "No drawn mask vertex projected inside both images from the viewpoint; the attempt is skipped.";
+    RelocSampleOccluded = 0x0809, Info, Same, "RELOC_SAMPLE_OCCLUDED",
+        "The sampled vertex is hidden behind other surface in the virtual view; the attempt is skipped.";
     // 0x09xx hardware
     HalCameraTimeout = 0x0901, Degraded, Same, "HAL_CAMERA_TIMEOUT",
         "The stereo camera did not deliver a frame within its timeout; capture again.";
