@@ -4,6 +4,11 @@
 //!
 //! `cargo run --release -p vtsm-core --example bench_pose [trials]`
 //!
+//! `bench_pose instr` instead runs a fixed workload through four
+//! `#[inline(never)]` functions for instruction counting:
+//! `valgrind --tool=callgrind target/release/examples/bench_pose instr`, then
+//! `callgrind_annotate --inclusive=yes` and divide by the call counts printed.
+//!
 //! The simulated scene uses the paper profile (5472 px, 77° HFOV, 0.40 m
 //! baseline): map points 2–12 m ahead, left/right peaks perturbed by Gaussian
 //! pixel noise, triangulated by `stereo::triangulate`, map points perturbed by
@@ -85,7 +90,65 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+#[inline(never)]
+fn instr_umeyama_3(pairs: &[Correspondence]) -> Option<Pose> {
+    black_box(0); // keeps the linker from merging identical wrappers
+    pose::umeyama(pairs).ok()
+}
+
+#[inline(never)]
+fn instr_umeyama_100(pairs: &[Correspondence]) -> Option<Pose> {
+    black_box(1); // keeps the linker from merging identical wrappers
+    pose::umeyama(pairs).ok()
+}
+
+#[inline(never)]
+fn instr_ransac_40(pairs: &[Correspondence], cfg: &RansacConfig, seed: u64) -> u16 {
+    black_box(2); // keeps the linker from merging identical wrappers
+    let mut mask = [false; MAX_CORR];
+    pose::ransac(pairs, cfg, &mut Rng::new(seed), &mut mask).map_or(0, |e| e.iterations)
+}
+
+#[inline(never)]
+fn instr_ransac_60(pairs: &[Correspondence], cfg: &RansacConfig, seed: u64) -> u16 {
+    black_box(3); // keeps the linker from merging identical wrappers
+    let mut mask = [false; MAX_CORR];
+    pose::ransac(pairs, cfg, &mut Rng::new(seed), &mut mask).map_or(0, |e| e.iterations)
+}
+
+/// Fixed workload for instruction counting (see the module docs).
+fn instr(rig: &StereoRig) {
+    let mut rng = Rng::new(5);
+    let cfg = RansacConfig {
+        iterations: 1000,
+        inlier_m: 0.05,
+        confidence: 0.999,
+        scale_by_sigma: true,
+    };
+    let calls = 100u64;
+    let mut it = [0u64; 2];
+    for k in 0..calls {
+        let truth = random_pose(&mut rng);
+        let p100 = stereo_pairs(&mut rng, rig, &truth, 100, 0.0, 0.3);
+        black_box(instr_umeyama_3(black_box(&p100[..3])));
+        black_box(instr_umeyama_100(black_box(&p100)));
+        let p40 = stereo_pairs(&mut rng, rig, &truth, 100, 0.4, 0.3);
+        it[0] += u64::from(instr_ransac_40(black_box(&p40), &cfg, k));
+        let p60 = stereo_pairs(&mut rng, rig, &truth, 100, 0.6, 0.3);
+        it[1] += u64::from(instr_ransac_60(black_box(&p60), &cfg, k));
+    }
+    println!(
+        "instr: {calls} calls each; RANSAC samples drawn: 40 % outliers {}, 60 % outliers {}",
+        it[0], it[1]
+    );
+}
+
 fn main() {
+    if std::env::args().nth(1).as_deref() == Some("instr") {
+        let rig = StereoRig::new(Camera::from_hfov(5472, 3648, 77.0).unwrap(), 0.40).unwrap();
+        instr(&rig);
+        return;
+    }
     let trials: usize = std::env::args()
         .nth(1)
         .and_then(|a| a.parse().ok())

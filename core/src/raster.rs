@@ -28,8 +28,8 @@
 //! clipped to the window. [`RenderStats`] reports the work.
 
 use crate::config::{
-    MAX_IMAGE_DIM, MAX_RENDER_PX, RASTER_GUARD_PX, RASTER_NEAR_M, TEMPLATE_MASK_JUMP_M,
-    TEMPLATE_MASK_JUMP_REL_DIV, TEMPLATE_MASK_RADIUS_PX,
+    MAX_IMAGE_DIM, MAX_RENDER_PX, RASTER_FAR_M, RASTER_GUARD_PX, RASTER_NEAR_M,
+    TEMPLATE_MASK_JUMP_M, TEMPLATE_MASK_JUMP_REL_DIV, TEMPLATE_MASK_RADIUS_PX,
 };
 use crate::failure::FailureCode;
 use crate::geom::{Camera, Pose, Vec3};
@@ -55,14 +55,8 @@ const CULL_SLACK_M: f32 = 0.01;
 /// Convert camera Z in metres to the depth format (rounded, saturating at [`DEPTH_MAX`]).
 #[inline]
 pub fn depth_from_m(z_m: f32) -> u32 {
-    let q = z_m * DEPTH_SCALE + 0.5;
-    if q.is_nan() || q <= 0.0 {
-        0
-    } else if q >= DEPTH_MAX as f32 {
-        DEPTH_MAX
-    } else {
-        q as u32
-    }
+    // `as` saturates: NaN and negatives give 0, values beyond u32 give u32::MAX.
+    ((z_m * DEPTH_SCALE + 0.5) as u32).min(DEPTH_MAX)
 }
 
 /// Convert a depth value to metres; `None` for [`DEPTH_NONE`].
@@ -106,13 +100,44 @@ pub struct RenderStats {
 pub(crate) struct Frag {
     /// Index into the window buffers (`y · w + x`).
     pub idx: usize,
-    /// Camera Z, metres.
-    pub z: f32,
-    /// Texture x over Z, y over Z (multiply by `z` for texture pixels).
-    pub u_over_z: f32,
-    pub v_over_z: f32,
+    /// Depth in the depth format (see [`DEPTH_FRAC_BITS`]).
+    pub depth: u32,
+    /// Texture coordinates in texture pixels, 16.16 fixed point.
+    pub u_q16: i64,
+    pub v_q16: i64,
     /// The triangle belongs to M̂.
     pub mask: bool,
+}
+
+/// Perspective division is exact at every `SEG`-th absolute pixel column and
+/// linear in between (16.16 / depth-format fixed point): one division per 8 pixels.
+const SEG_SHIFT: u32 = 3;
+const SEG: i64 = 1 << SEG_SHIFT;
+/// A segment is interpolated linearly only when its depth changes by at most 1/64.
+const LINEAR_MAX_DZ_INV: i64 = 64;
+/// Texture coordinates are clamped to ±2^20 texture pixels before fixed-point
+/// conversion (beyond the texture they sample the edge texel anyway).
+const UV_LIMIT: f32 = (1u32 << 20) as f32;
+
+/// Exact depth and texture coordinates at one pixel; `None` where the triangle's
+/// plane is beyond `RASTER_FAR_M` or behind the camera (possible only outside
+/// the triangle, when a segment end is extrapolated).
+#[inline]
+fn exact_at(xn: f32, inv_z_row: f32, u_row: f32, v_row: f32, it: &Interp) -> Option<[i64; 3]> {
+    let inv_z = it.inv_z.x * xn + inv_z_row;
+    // NaN fails this test too.
+    let in_range = inv_z > 1.0 / RASTER_FAR_M;
+    if !in_range {
+        return None;
+    }
+    let z = 1.0 / inv_z;
+    let u = ((it.u_over_z.x * xn + u_row) * z).clamp(-UV_LIMIT, UV_LIMIT);
+    let v = ((it.v_over_z.x * xn + v_row) * z).clamp(-UV_LIMIT, UV_LIMIT);
+    Some([
+        (z * DEPTH_SCALE + 0.5) as i64,
+        (u * 65536.0) as i64,
+        (v * 65536.0) as i64,
+    ])
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -408,17 +433,60 @@ fn fill_triangle<S: FnMut(Frag)>(
         let row_u = it.u_over_z.y * yn + it.u_over_z.z;
         let row_v = it.v_over_z.y * yn + it.v_over_z.z;
         let row = ((py - wy) * w - wx) as usize;
-        for px in xl..=xr {
-            let xn = (px as f32 - frame.cx) * frame.inv_fx;
-            let inv_z = it.inv_z.x * xn + row_w;
-            let z = 1.0 / inv_z;
-            sink(Frag {
-                idx: row.wrapping_add(px as usize),
-                z,
-                u_over_z: it.u_over_z.x * xn + row_u,
-                v_over_z: it.v_over_z.x * xn + row_v,
-                mask,
-            });
+        let at = |x: i64| {
+            exact_at(
+                (x as f32 - frame.cx) * frame.inv_fx,
+                row_w,
+                row_u,
+                row_v,
+                it,
+            )
+        };
+        let mut px = xl;
+        // Bounded: each pass advances px to the next segment boundary (at most
+        // w / SEG + 2 passes per span).
+        while px <= xr {
+            let s0 = px & !(SEG - 1);
+            let s1 = s0 + SEG;
+            let end = xr.min(s1 - 1);
+            match (at(s0), at(s1)) {
+                // Linear depth and UVs deviate from perspective-correct values by about
+                // δ²/4 of depth with δ the relative change of depth over the segment;
+                // segments with δ > 1/64 are evaluated exactly at every pixel instead.
+                (Some(a), Some(b)) if (b[0] - a[0]).abs() * LINEAR_MAX_DZ_INV <= a[0] => {
+                    let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+                    let k = px - s0;
+                    // acc / SEG is the linear interpolation between the segment ends.
+                    let mut acc = [
+                        a[0] * SEG + d[0] * k,
+                        a[1] * SEG + d[1] * k,
+                        a[2] * SEG + d[2] * k,
+                    ];
+                    for x in px..=end {
+                        sink(Frag {
+                            idx: row.wrapping_add(x as usize),
+                            depth: (acc[0] >> SEG_SHIFT).clamp(0, i64::from(DEPTH_MAX)) as u32,
+                            u_q16: acc[1] >> SEG_SHIFT,
+                            v_q16: acc[2] >> SEG_SHIFT,
+                            mask,
+                        });
+                        acc = [acc[0] + d[0], acc[1] + d[1], acc[2] + d[2]];
+                    }
+                }
+                _ => {
+                    for x in px..=end {
+                        let e = at(x).unwrap_or([i64::from(DEPTH_MAX), 0, 0]);
+                        sink(Frag {
+                            idx: row.wrapping_add(x as usize),
+                            depth: e[0].clamp(0, i64::from(DEPTH_MAX)) as u32,
+                            u_q16: e[1],
+                            v_q16: e[2],
+                            mask,
+                        });
+                    }
+                }
+            }
+            px = end + 1;
         }
     }
 }
@@ -539,18 +607,18 @@ pub(crate) fn rasterize<S: FnMut(Frag)>(
 /// Bilinear sample of a texture (stride = width) at texture pixel `(u, v)`,
 /// clamped to the edge texels; 8-bit weights, rounded.
 #[inline]
-fn sample_bilinear(tex: &[u8], tw: usize, th: usize, u: f32, v: f32) -> u8 {
-    let u = u.clamp(0.0, (tw - 1) as f32);
-    let v = v.clamp(0.0, (th - 1) as f32);
-    // NaN clamps to NaN and casts to 0: still in range.
-    let (x0, y0) = (u as usize, v as usize);
-    let fx = ((u - x0 as f32) * 256.0) as u32;
-    let fy = ((v - y0 as f32) * 256.0) as u32;
-    let x1 = (x0 + 1).min(tw - 1);
-    let y1 = (y0 + 1).min(th - 1);
-    let px = |x: usize, y: usize| u32::from(tex.get(y * tw + x).copied().unwrap_or(0));
-    let top = px(x0, y0) * (256 - fx) + px(x1, y0) * fx;
-    let bot = px(x0, y1) * (256 - fx) + px(x1, y1) * fx;
+fn sample_bilinear(tex: &[u8], tw: usize, th: usize, u_q16: i64, v_q16: i64) -> u8 {
+    let u = u_q16.clamp(0, (tw as i64 - 1) << 16);
+    let v = v_q16.clamp(0, (th as i64 - 1) << 16);
+    let (x0, y0) = ((u >> 16) as usize, (v >> 16) as usize);
+    let fx = ((u >> 8) & 0xFF) as u32;
+    let fy = ((v >> 8) & 0xFF) as u32;
+    let dx = usize::from(x0 + 1 < tw);
+    let dy = if y0 + 1 < th { tw } else { 0 };
+    let i = y0 * tw + x0;
+    let px = |k: usize| u32::from(tex.get(k).copied().unwrap_or(0));
+    let top = px(i) * (256 - fx) + px(i + dx) * fx;
+    let bot = px(i + dy) * (256 - fx) + px(i + dy + dx) * fx;
     ((top * (256 - fy) + bot * fy + (1 << 15)) >> 16) as u8
 }
 
@@ -590,7 +658,7 @@ pub fn render_window(
     let tex_slice = map.texture_bytes();
     let mut written = 0u32;
     let mut sink = |f: Frag| {
-        let d = depth_from_m(f.z);
+        let d = f.depth;
         if let Some(slot) = depth.get_mut(f.idx) {
             if d < *slot {
                 *slot = d;
@@ -598,7 +666,7 @@ pub fn render_window(
                     *m = if f.mask { d } else { DEPTH_NONE };
                 }
                 if let Some(p) = inten.get_mut(f.idx) {
-                    *p = sample_bilinear(tex_slice, tw, th, f.u_over_z * f.z, f.v_over_z * f.z);
+                    *p = sample_bilinear(tex_slice, tw, th, f.u_q16, f.v_q16);
                 }
                 written += 1;
             }
@@ -635,34 +703,52 @@ pub fn template_mask(depth: &[u32], mask_depth: &[u32], w: usize, h: usize, out:
     };
     const JUMP_Q16: u32 = (TEMPLATE_MASK_JUMP_M * (1u32 << DEPTH_FRAC_BITS) as f32) as u32;
     let r = TEMPLATE_MASK_RADIUS_PX;
+    // Separable minimum filter of mask_depth over the (2r+1)² neighbourhood, one
+    // output row at a time: column minimum, then row minimum (straight slice loops).
     let mut colmin = [DEPTH_NONE; MAX_RENDER_PX];
+    let mut nbmin = [DEPTH_NONE; MAX_RENDER_PX];
+    let (Some(colmin), Some(nbmin)) = (colmin.get_mut(..w), nbmin.get_mut(..w)) else {
+        return 0;
+    };
     let mut kept = 0u32;
     for y in 0..h {
         let (y0, y1) = (y.saturating_sub(r), (y + r).min(h - 1));
-        for (x, cm) in colmin.iter_mut().take(w).enumerate() {
-            *cm = (y0..=y1)
-                .filter_map(|yy| mdepth.get(yy * w + x).copied())
-                .min()
-                .unwrap_or(DEPTH_NONE);
-        }
-        for x in 0..w {
-            let i = y * w + x;
-            let (x0, x1) = (x.saturating_sub(r), (x + r).min(w - 1));
-            let m = colmin
-                .get(x0..=x1)
-                .and_then(|s| s.iter().min().copied())
-                .unwrap_or(DEPTH_NONE);
-            let own = mdepth.get(i).copied().unwrap_or(DEPTH_NONE);
-            let d = depth.get(i).copied().unwrap_or(DEPTH_NONE);
-            // J grows with depth, so the minimum of mask_depth + J is J applied to the minimum.
-            let keep = own != DEPTH_NONE
-                || (m != DEPTH_NONE
-                    && d > m
-                        .saturating_add(JUMP_Q16)
-                        .saturating_add(m / TEMPLATE_MASK_JUMP_REL_DIV));
-            if let Some(o) = out.get_mut(i) {
-                *o = if keep { 255 } else { 0 };
+        colmin.fill(DEPTH_NONE);
+        for yy in y0..=y1 {
+            if let Some(row) = mdepth.get(yy * w..(yy + 1) * w) {
+                for (c, m) in colmin.iter_mut().zip(row) {
+                    *c = (*c).min(*m);
+                }
             }
+        }
+        nbmin.copy_from_slice(colmin);
+        for d in 1..=r.min(w - 1) {
+            let (Some(right), Some(left)) = (colmin.get(d..), colmin.get(..w - d)) else {
+                break;
+            };
+            for (n, c) in nbmin.iter_mut().zip(right) {
+                *n = (*n).min(*c);
+            }
+            if let Some(tail) = nbmin.get_mut(d..) {
+                for (n, c) in tail.iter_mut().zip(left) {
+                    *n = (*n).min(*c);
+                }
+            }
+        }
+        let (Some(drow), Some(mrow), Some(orow)) = (
+            depth.get(y * w..(y + 1) * w),
+            mdepth.get(y * w..(y + 1) * w),
+            out.get_mut(y * w..(y + 1) * w),
+        ) else {
+            break;
+        };
+        for (((o, d), own), m) in orow.iter_mut().zip(drow).zip(mrow).zip(nbmin.iter()) {
+            // J grows with depth, so the minimum of mask_depth + J is J applied to the minimum.
+            let thr = m
+                .saturating_add(JUMP_Q16)
+                .saturating_add(m / TEMPLATE_MASK_JUMP_REL_DIV);
+            let keep = *own != DEPTH_NONE || (*m != DEPTH_NONE && *d > thr);
+            *o = if keep { 255 } else { 0 };
             kept += u32::from(keep);
         }
     }

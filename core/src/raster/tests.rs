@@ -543,8 +543,26 @@ fn textured_quad_at_an_angle_matches_analytic_projection() {
     );
     let bytes = sc.bytes(1.0);
     let map = MapView::new_checked(&bytes).unwrap();
-    let cam = camera(200, 150, 160.0);
-    let r = render(&map, &cam, &Pose::identity(), Rect::new(0, 0, 200, 150));
+    // Wide view (perspective division at every pixel) and a narrow, paper-like view
+    // (8-pixel segments with linear steps), each a 200×150 window.
+    for (cam, win) in [
+        (camera(200, 150, 160.0), Rect::new(0, 0, 200, 150)),
+        (camera(2000, 1500, 1600.0), Rect::new(880, 620, 200, 150)),
+    ] {
+        check_quad_window(&sc, &map, &cam, win, o, uu, vv);
+    }
+}
+
+fn check_quad_window(
+    sc: &Scene,
+    map: &MapView,
+    cam: &Camera,
+    win: Rect,
+    o: [f64; 3],
+    uu: [f64; 3],
+    vv: [f64; 3],
+) {
+    let r = render(map, cam, &Pose::identity(), win);
     r.result.unwrap();
     let tex = |x: i64, y: i64| f64::from(sc.tex[(y.clamp(0, 39) * 48 + x.clamp(0, 47)) as usize]);
     let (mut checked, mut worst, mut depth_err) = (0, 0.0f64, 0.0f64);
@@ -555,9 +573,16 @@ fn textured_quad_at_an_angle_matches_analytic_projection() {
         uu[0] * vv[1] - uu[1] * vv[0],
     ];
     let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-    for i in 0..200 * 150 {
-        let (u, v) = ((i % 200) as f64, (i / 200) as f64);
-        let d = [(u - 99.5) / 160.0, (v - 74.5) / 160.0, 1.0];
+    for i in 0..(win.w * win.h) as usize {
+        let (u, v) = (
+            (i % win.w as usize) as f64 + f64::from(win.x),
+            (i / win.w as usize) as f64 + f64::from(win.y),
+        );
+        let d = [
+            (u - f64::from(cam.cx)) / f64::from(cam.fx),
+            (v - f64::from(cam.cy)) / f64::from(cam.fy),
+            1.0,
+        ];
         let z = dot(n, o) / dot(n, d);
         let p = [d[0] * z - o[0], d[1] * z - o[1], d[2] * z - o[2]];
         // Solve p = s·U + t·V (least squares on the 2×2 normal equations).
@@ -588,7 +613,10 @@ fn textured_quad_at_an_angle_matches_analytic_projection() {
     }
     assert!(checked > 5000, "{checked}");
     assert!(depth_err / f64::from(checked) < 1e-4);
-    std::println!("textured quad: {checked} px, worst |error| {worst:.2} gray levels");
+    std::println!(
+        "textured quad, f = {}: {checked} px, worst |error| {worst:.2} gray levels",
+        cam.fx
+    );
 }
 
 /// Verifies: VTSM-RAST-006

@@ -26,6 +26,7 @@ use crate::io::image::Gray8;
 use std::collections::BTreeMap;
 use std::path::Path;
 use vtsm_core::config::MAX_IMAGE_DIM;
+use vtsm_core::map::{self, MapSource};
 
 /// Side, in texels, of the atlas cell synthesised for each triangle of a
 /// vertex-coloured mesh.
@@ -283,11 +284,22 @@ impl MeshData {
     }
 }
 
-/// The map encoder of `vtsm_core::map`.
-fn encode_with_core(_mesh: &MeshData, _tile_size_m: f32) -> Result<Vec<u8>> {
-    Err(Error::msg(
-        "the map product encoder (vtsm_core::map::encode) is not in this build",
-    ))
+/// The map encoder of `vtsm_core::map`: sizes the buffer, encodes, trims.
+fn encode_with_core(mesh: &MeshData, tile_size_m: f32) -> Result<Vec<u8>> {
+    let texture = mesh.texture.view().map_err(Error::from)?;
+    let src = MapSource {
+        vertices: &mesh.vertices,
+        triangles: &mesh.triangles,
+        uvs: &mesh.uvs,
+        mask: &mesh.mask,
+        texture,
+        tile_size_m,
+    };
+    let len = map::encoded_len(&src).map_err(Error::from)?;
+    let mut out = vec![0u8; len];
+    let n = map::encode(&src, &mut out).map_err(Error::from)?;
+    out.truncate(n);
+    Ok(out)
 }
 
 /// Vertices bucketed on a grid of [`MASK_MATCH_TOL_M`] cells, for matching by position.
