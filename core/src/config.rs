@@ -321,11 +321,13 @@ impl Params {
 mod tests {
     use super::*;
 
+    /// Verifies: VTSM-CFG-002
     #[test]
     fn paper_params_are_valid() {
         assert_eq!(Params::paper().validate(), Ok(()));
     }
 
+    /// Verifies: VTSM-CFG-003
     #[test]
     fn each_out_of_range_field_has_its_own_error() {
         type Case = (fn(&mut Params), ParamField);
