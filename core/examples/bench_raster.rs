@@ -35,6 +35,13 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let views: usize = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(1000);
     let seed: u64 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(1);
+    // Optional: window sides to run ("256,128") and "nomask" to skip the second pass
+    // (for instruction counting under callgrind, one configuration at a time).
+    let sides: Vec<u32> = args
+        .get(3)
+        .map(|s| s.split(',').filter_map(|v| v.parse().ok()).collect())
+        .unwrap_or_else(|| vec![256, 128]);
+    let with_mask = args.get(4).map(|s| s != "nomask").unwrap_or(true);
 
     // Depot-sized textured heightfield, rock-like mask on a sparse pattern of cells.
     let mut vertices = Vec::with_capacity((GRID + 1) * (GRID + 1));
@@ -128,7 +135,7 @@ fn main() {
             side,
         )
     };
-    for side in [256u32, 128] {
+    for side in sides {
         let npx = (side * side) as usize;
         let mut checksum = 0u64;
         let (mut tris, mut drawn, mut written, mut spans, mut empty, mut kept) =
@@ -164,7 +171,7 @@ fn main() {
         );
         // Pass 2: render and form the template mask; the mask's cost is the difference.
         let cpu1 = thread_cpu_ns();
-        for (pose, u, v) in &poses {
+        for (pose, u, v) in poses.iter().filter(|_| with_mask) {
             let mut t = Target {
                 intensity: &mut intensity,
                 depth: &mut depth,

@@ -11,12 +11,17 @@
 //! the camera frame, rejected if all corners lie outside one window plane,
 //! clipped in camera space against the near plane and, only when a corner lies
 //! outside it, against the guard band ([`RASTER_GUARD_PX`] beyond the window);
-//! the clipped polygon is fanned into triangles, snapped to 28.4 fixed point
-//! relative to the window, and filled span by span. Coverage is decided exactly on
+//! the clipped polygon is fanned into triangles, snapped to 28.4 fixed point in
+//! absolute image pixels, and filled span by span. Coverage is decided exactly on
 //! integers with a top-left style tie rule (a pixel centre on an edge belongs to
 //! the triangle that holds the centre moved by (ε, ε²)), so triangles sharing an
 //! edge cover each pixel exactly once. Back faces are drawn (photogrammetry meshes
-//! have arbitrary winding).
+//! have arbitrary winding). Depth and UVs come from the unclipped triangle's plane
+//! (1/Z, u/Z, v/Z linear in the image), evaluated exactly at every 8th absolute
+//! pixel column and stepped linearly in fixed point in between when depth changes
+//! by at most 1/64 over the 8 pixels (exactly at every pixel otherwise). Nothing
+//! that decides a pixel depends on the window, so a window render equals the same
+//! crop of a full render bit for bit.
 //!
 //! Depth format: `u32` camera-frame Z (along the optical axis) in units of
 //! 2⁻¹⁶ m ([`DEPTH_FRAC_BITS`]), [`DEPTH_NONE`] where nothing was drawn; see
@@ -91,7 +96,7 @@ pub struct RenderStats {
     pub triangles_drawn: u32,
     /// Non-empty row spans filled.
     pub spans: u32,
-    /// Pixels that passed the depth test and were written.
+    /// Depth-test passes (pixel writes; a pixel overwritten by a nearer surface counts twice).
     pub pixels_written: u32,
 }
 
@@ -107,6 +112,48 @@ pub(crate) struct Frag {
     pub v_q16: i64,
     /// The triangle belongs to M̂.
     pub mask: bool,
+}
+
+/// Receives every covered pixel of a render.
+pub(crate) trait PixelSink {
+    fn put(&mut self, f: Frag);
+}
+
+impl<F: FnMut(Frag)> PixelSink for F {
+    #[inline]
+    fn put(&mut self, f: Frag) {
+        self(f)
+    }
+}
+
+/// The render target's pixel sink: depth test, mask depth, textured intensity.
+struct ZBuffer<'t, 'b> {
+    intensity: &'b mut [u8],
+    depth: &'b mut [u32],
+    mask_depth: &'b mut [u32],
+    tex: &'t [u8],
+    tw: usize,
+    th: usize,
+    written: u32,
+}
+
+impl PixelSink for ZBuffer<'_, '_> {
+    #[inline(always)]
+    fn put(&mut self, f: Frag) {
+        let d = f.depth;
+        if let Some(slot) = self.depth.get_mut(f.idx) {
+            if d < *slot {
+                *slot = d;
+                if let Some(m) = self.mask_depth.get_mut(f.idx) {
+                    *m = if f.mask { d } else { DEPTH_NONE };
+                }
+                if let Some(p) = self.intensity.get_mut(f.idx) {
+                    *p = sample_bilinear(self.tex, self.tw, self.th, f.u_q16, f.v_q16);
+                }
+                self.written += 1;
+            }
+        }
+    }
 }
 
 /// Perspective division is exact at every `SEG`-th absolute pixel column and
@@ -372,7 +419,7 @@ fn ceil_div(n: i64, d: i64) -> i64 {
 /// Fill one fanned triangle. Coverage is exact integer arithmetic on 28.4
 /// coordinates (magnitudes < 2^18, edge terms < 2^40 in i64); the sink is called
 /// once per covered pixel inside the window.
-fn fill_triangle<S: FnMut(Frag)>(
+fn fill_triangle<S: PixelSink>(
     v: [ScreenVert; 3],
     it: &Interp,
     mask: bool,
@@ -463,7 +510,7 @@ fn fill_triangle<S: FnMut(Frag)>(
                         a[2] * SEG + d[2] * k,
                     ];
                     for x in px..=end {
-                        sink(Frag {
+                        sink.put(Frag {
                             idx: row.wrapping_add(x as usize),
                             depth: (acc[0] >> SEG_SHIFT).clamp(0, i64::from(DEPTH_MAX)) as u32,
                             u_q16: acc[1] >> SEG_SHIFT,
@@ -476,7 +523,7 @@ fn fill_triangle<S: FnMut(Frag)>(
                 _ => {
                     for x in px..=end {
                         let e = at(x).unwrap_or([i64::from(DEPTH_MAX), 0, 0]);
-                        sink(Frag {
+                        sink.put(Frag {
                             idx: row.wrapping_add(x as usize),
                             depth: e[0].clamp(0, i64::from(DEPTH_MAX)) as u32,
                             u_q16: e[1],
@@ -506,7 +553,7 @@ fn snap(frame: &Frame, p: &Vec3) -> ScreenVert {
 }
 
 /// Reject, clip, fan and fill one triangle given in the camera frame.
-fn draw_triangle<S: FnMut(Frag)>(
+fn draw_triangle<S: PixelSink>(
     frame: &Frame,
     p: [Vec3; 3],
     uv: &[[f32; 2]; 3],
@@ -567,7 +614,7 @@ fn check_inputs(cam: &Camera, world_from_cam: &Pose, window: Rect) -> Result<(),
 }
 
 /// Walk the visible tiles and triangles, calling `sink` for every covered pixel.
-pub(crate) fn rasterize<S: FnMut(Frag)>(
+pub(crate) fn rasterize<S: PixelSink>(
     map: &MapView,
     cam: &Camera,
     world_from_cam: &Pose,
@@ -606,10 +653,11 @@ pub(crate) fn rasterize<S: FnMut(Frag)>(
 
 /// Bilinear sample of a texture (stride = width) at texture pixel `(u, v)`,
 /// clamped to the edge texels; 8-bit weights, rounded.
-#[inline]
+#[inline(always)]
 fn sample_bilinear(tex: &[u8], tw: usize, th: usize, u_q16: i64, v_q16: i64) -> u8 {
-    let u = u_q16.clamp(0, (tw as i64 - 1) << 16);
-    let v = v_q16.clamp(0, (th as i64 - 1) << 16);
+    // max/min rather than clamp: no bounds-order check per pixel.
+    let u = u_q16.max(0).min((tw as i64 - 1) << 16);
+    let v = v_q16.max(0).min((th as i64 - 1) << 16);
     let (x0, y0) = ((u >> 16) as usize, (v >> 16) as usize);
     let fx = ((u >> 8) & 0xFF) as u32;
     let fy = ((v >> 8) & 0xFF) as u32;
@@ -655,24 +703,17 @@ pub fn render_window(
     mdepth.fill(DEPTH_NONE);
     let tex = map.texture();
     let (tw, th) = (tex.width(), tex.height());
-    let tex_slice = map.texture_bytes();
-    let mut written = 0u32;
-    let mut sink = |f: Frag| {
-        let d = f.depth;
-        if let Some(slot) = depth.get_mut(f.idx) {
-            if d < *slot {
-                *slot = d;
-                if let Some(m) = mdepth.get_mut(f.idx) {
-                    *m = if f.mask { d } else { DEPTH_NONE };
-                }
-                if let Some(p) = inten.get_mut(f.idx) {
-                    *p = sample_bilinear(tex_slice, tw, th, f.u_q16, f.v_q16);
-                }
-                written += 1;
-            }
-        }
+    let mut sink = ZBuffer {
+        intensity: inten,
+        depth,
+        mask_depth: mdepth,
+        tex: map.texture_bytes(),
+        tw,
+        th,
+        written: 0,
     };
     let mut stats = rasterize(map, cam, world_from_cam, window, &mut sink)?;
+    let written = sink.written;
     stats.pixels_written = written;
     if written == 0 {
         return Err(FailureCode::RasterNothingVisible);
