@@ -57,8 +57,8 @@ pub const TEMPLATE_MASK_RADIUS_PX: usize = 3;
 /// Template mask: a background pixel is kept when it is farther than a nearby
 /// mask pixel by more than this absolute jump, metres...
 pub const TEMPLATE_MASK_JUMP_M: f32 = 0.05;
-/// ...plus this fraction of the mask pixel's depth (the jump threshold grows with range).
-pub const TEMPLATE_MASK_JUMP_REL: f32 = 0.02;
+/// ...plus the mask pixel's depth divided by this (50 → 2 %: the threshold grows with range).
+pub const TEMPLATE_MASK_JUMP_REL_DIV: u32 = 50;
 
 // ---- defaults (paper §III, §IV) ------------------------------------------
 
@@ -99,10 +99,11 @@ const _: () = assert!(DEFAULT_N_CORR as usize <= MAX_CORR);
 const _: () = assert!(DEFAULT_N_ITER as usize <= MAX_ITER);
 const _: () = assert!(DEFAULT_RANSAC_ITER as usize <= MAX_RANSAC_ITER);
 const _: () = assert!(DEFAULT_TEMPLATE_PX as usize <= MAX_TEMPLATE_PX);
-// 28.4 edge setup: window + 2·guard band, in 1/16 px, times itself must stay far inside i64
-// (and inside i32 for the per-row terms, see fsw-docs/budgets/numeric.md).
+// 28.4 edge setup runs in i64 on absolute coordinates (< 2^18, so edge terms < 2^41);
+// a window-relative variant would fit i32: see fsw-docs/budgets/numeric.md.
 const _: () = assert!((MAX_RENDER_PX as i64 + 2 * RASTER_GUARD_PX as i64 + 16) * 16 < (1 << 15));
 const _: () = assert!(MAX_MAP_TILES <= MAX_MAP_TRIANGLES);
+const _: () = assert!(((MAX_IMAGE_DIM as i64 + 2 * RASTER_GUARD_PX as i64 + 16) * 16) < (1 << 18));
 const _: () = assert!(MAX_TEXTURE_DIM * MAX_TEXTURE_DIM <= u32::MAX as usize);
 // 255² · 256² must fit a u32 for exact integer NCC sums (see fsw-docs/budgets/numeric.md).
 const _: () = assert!((255u64 * 255 * (MAX_TEMPLATE_PX * MAX_TEMPLATE_PX) as u64) < (1u64 << 32));
@@ -320,11 +321,13 @@ impl Params {
 mod tests {
     use super::*;
 
+    /// Verifies: VTSM-CFG-002
     #[test]
     fn paper_params_are_valid() {
         assert_eq!(Params::paper().validate(), Ok(()));
     }
 
+    /// Verifies: VTSM-CFG-003
     #[test]
     fn each_out_of_range_field_has_its_own_error() {
         type Case = (fn(&mut Params), ParamField);

@@ -68,6 +68,9 @@ const OFF_HEADER_CRC: usize = 148;
 
 // ---- CRC-32 (IEEE 802.3, reflected, poly 0xEDB88320) ------------------------
 
+// Const evaluation: `i < 256` is the loop bound, so `t[i]` is in range (and an
+// out-of-range index would fail the build, not the flight code).
+#[allow(clippy::indexing_slicing)]
 const fn crc_table() -> [u32; 256] {
     let mut t = [0u32; 256];
     let mut i = 0;
@@ -361,7 +364,8 @@ impl<'a> MapView<'a> {
         }
         let tri_off = self.layout.off(SEC_TRIANGLES);
         for i in 0..self.triangle_count as usize {
-            let flags = rd_u32(self.bytes, tri_off + i * TRIANGLE_BYTES + 12).ok_or(F::MapTruncated)?;
+            let flags =
+                rd_u32(self.bytes, tri_off + i * TRIANGLE_BYTES + 12).ok_or(F::MapTruncated)?;
             if flags & !FLAG_MASK != 0 {
                 return Err(F::MapInconsistent);
             }
@@ -489,6 +493,17 @@ impl<'a> MapView<'a> {
     /// The gray texture (stride = width).
     pub fn texture(&self) -> GrayView<'a> {
         self.texture
+    }
+
+    /// The texture's texels, row-major with stride = width (`width · height` bytes).
+    pub fn texture_bytes(&self) -> &'a [u8] {
+        let s = self
+            .layout
+            .sec
+            .get(SEC_TEXTURE)
+            .copied()
+            .unwrap_or_default();
+        self.bytes.get(s.off..s.off + s.len).unwrap_or(&[])
     }
 
     /// Number of vertices of the sampling mask M̂.
@@ -659,7 +674,8 @@ pub fn encode(src: &MapSource, out: &mut [u8]) -> Result<usize, FailureCode> {
     for (t, m) in src.triangles.iter().zip(src.mask) {
         if *m {
             for v in t {
-                *buf.get_mut(o_vert + *v as usize).ok_or(F::MapEncodeBufferTooSmall)? = 1;
+                *buf.get_mut(o_vert + *v as usize)
+                    .ok_or(F::MapEncodeBufferTooSmall)? = 1;
             }
         }
     }
@@ -676,7 +692,11 @@ pub fn encode(src: &MapSource, out: &mut [u8]) -> Result<usize, FailureCode> {
 
     // Counting sort by tile; counters live in the tiles' count fields.
     let centroid_cell = |t: &[u32; 3]| -> Result<usize, FailureCode> {
-        let (a, b, c) = (vertex_of(src, t[0])?, vertex_of(src, t[1])?, vertex_of(src, t[2])?);
+        let (a, b, c) = (
+            vertex_of(src, t[0])?,
+            vertex_of(src, t[1])?,
+            vertex_of(src, t[2])?,
+        );
         let (x, y) = ((a.x + b.x + c.x) / 3.0, (a.y + b.y + c.y) / 3.0);
         Ok(plan.cell_of(x, y, ts))
     };
@@ -723,7 +743,10 @@ pub fn encode(src: &MapSource, out: &mut [u8]) -> Result<usize, FailureCode> {
     for k in 0..tiles {
         let o = o_tiles + k * TILE_BYTES;
         if rd_u32(buf, o + 28) == Some(0) {
-            let (cx, cy) = ((k % plan.tiles_x as usize) as f32, (k / plan.tiles_x as usize) as f32);
+            let (cx, cy) = (
+                (k % plan.tiles_x as usize) as f32,
+                (k / plan.tiles_x as usize) as f32,
+            );
             let p = Vec3::new(
                 (plan.min.x + cx * ts).min(plan.max.x),
                 (plan.min.y + cy * ts).min(plan.max.y),
@@ -774,13 +797,19 @@ pub fn encode(src: &MapSource, out: &mut [u8]) -> Result<usize, FailureCode> {
     wr_vec3(buf, 52, &plan.min)?;
     wr_vec3(buf, 64, &plan.max)?;
     for (i, s) in real.sec.iter().enumerate() {
-        let crc = crc32(buf.get(s.off..s.off + s.len).ok_or(F::MapEncodeBufferTooSmall)?);
+        let crc = crc32(
+            buf.get(s.off..s.off + s.len)
+                .ok_or(F::MapEncodeBufferTooSmall)?,
+        );
         let e = OFF_SECTIONS + 12 * i;
         wr_u32(buf, e, s.off as u32)?;
         wr_u32(buf, e + 4, s.len as u32)?;
         wr_u32(buf, e + 8, crc)?;
     }
-    let hcrc = crc32(buf.get(..OFF_HEADER_CRC).ok_or(F::MapEncodeBufferTooSmall)?);
+    let hcrc = crc32(
+        buf.get(..OFF_HEADER_CRC)
+            .ok_or(F::MapEncodeBufferTooSmall)?,
+    );
     wr_u32(buf, OFF_HEADER_CRC, hcrc)?;
     Ok(real.total)
 }
@@ -808,4 +837,4 @@ pub fn reseal(bytes: &mut [u8]) -> Result<(), FailureCode> {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

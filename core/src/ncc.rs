@@ -265,7 +265,7 @@ impl ScratchSizes {
         while k < levels {
             window += (ww >> k) * (wh >> k);
             template += 2 * (tw >> k) * (th >> k);
-            runs += (th >> k) * (((tw >> k) + 1) / 2);
+            runs += (th >> k) * (tw >> k).div_ceil(2);
             k += 1;
         }
         let lc = levels - 1;
@@ -1070,4 +1070,871 @@ pub fn score_at(
         scratch,
     )
     .map(|(m, _)| m.exact)
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use crate::rng::Rng;
+    use proptest::prelude::*;
+    use std::vec;
+    use std::vec::Vec;
+
+    /// Owned scratch for tests.
+    struct Bufs {
+        w: Vec<u8>,
+        t: Vec<u8>,
+        i: Vec<u32>,
+        r: Vec<Run>,
+    }
+
+    impl Bufs {
+        fn new(tw: usize, th: usize, ww: usize, wh: usize, mode: Search) -> Self {
+            let s = ScratchSizes::new(tw, th, ww, wh, mode);
+            Self {
+                w: vec![0; s.window],
+                t: vec![0; s.template],
+                i: vec![0; s.integral],
+                r: vec![Run::default(); s.runs],
+            }
+        }
+        fn scratch(&mut self) -> Scratch<'_> {
+            Scratch {
+                window: &mut self.w,
+                template: &mut self.t,
+                integral: &mut self.i,
+                runs: &mut self.r,
+            }
+        }
+    }
+
+    fn view(px: &[u8], w: usize, h: usize) -> GrayView<'_> {
+        GrayView::new(px, w, h, w).unwrap()
+    }
+
+    fn random_px(n: usize, rng: &mut Rng) -> Vec<u8> {
+        (0..n).map(|_| rng.below(256) as u8).collect()
+    }
+
+    /// Smooth random texture (bilinear value noise, two octaves), `w × h`.
+    fn textured(w: usize, h: usize, rng: &mut Rng) -> Vec<u8> {
+        let mut acc = vec![0f64; w * h];
+        for (cell, amp) in [(12usize, 1.0f64), (4, 0.5), (2, 0.25)] {
+            let gw = w / cell + 2;
+            let grid: Vec<f64> = (0..gw * (h / cell + 2))
+                .map(|_| f64::from(rng.uniform(-1.0, 1.0)))
+                .collect();
+            for y in 0..h {
+                for x in 0..w {
+                    let (fx, fy) = (x as f64 / cell as f64, y as f64 / cell as f64);
+                    let (x0, y0) = (fx as usize, fy as usize);
+                    let (tx, ty) = (fx - x0 as f64, fy - y0 as f64);
+                    let g = |i: usize, j: usize| grid[j * gw + i];
+                    let top = g(x0, y0) * (1.0 - tx) + g(x0 + 1, y0) * tx;
+                    let bot = g(x0, y0 + 1) * (1.0 - tx) + g(x0 + 1, y0 + 1) * tx;
+                    acc[y * w + x] += amp * (top * (1.0 - ty) + bot * ty);
+                }
+            }
+        }
+        acc.iter()
+            .map(|v| (128.0 + 70.0 * v).round().clamp(0.0, 255.0) as u8)
+            .collect()
+    }
+
+    fn crop(img: &[u8], iw: usize, x: usize, y: usize, w: usize, h: usize) -> Vec<u8> {
+        (0..h)
+            .flat_map(|r| img[(y + r) * iw + x..(y + r) * iw + x + w].iter().copied())
+            .collect()
+    }
+
+    /// Two-pass floating-point zero-mean NCC over the kept pixels (the reference).
+    #[allow(clippy::too_many_arguments)]
+    fn ref_score(
+        t: &[u8],
+        tw: usize,
+        th: usize,
+        mask: Option<&[u8]>,
+        img: &[u8],
+        iw: usize,
+        x: usize,
+        y: usize,
+    ) -> Option<f64> {
+        let keep = |i: usize| mask.is_none_or(|m| m[i] != 0);
+        let (mut n, mut mt, mut mf) = (0.0, 0.0, 0.0);
+        for r in 0..th {
+            for c in 0..tw {
+                if keep(r * tw + c) {
+                    n += 1.0;
+                    mt += f64::from(t[r * tw + c]);
+                    mf += f64::from(img[(y + r) * iw + x + c]);
+                }
+            }
+        }
+        mt /= n;
+        mf /= n;
+        let (mut sft, mut stt, mut sff) = (0.0, 0.0, 0.0);
+        for r in 0..th {
+            for c in 0..tw {
+                if keep(r * tw + c) {
+                    let a = f64::from(t[r * tw + c]) - mt;
+                    let b = f64::from(img[(y + r) * iw + x + c]) - mf;
+                    sft += a * b;
+                    stt += a * a;
+                    sff += b * b;
+                }
+            }
+        }
+        if stt <= 1e-9 || sff <= 1e-9 {
+            return None;
+        }
+        Some(sft / (stt * sff).sqrt())
+    }
+
+    /// Reference filters, written independently of `filter_region`.
+    fn ref_filter(img: &[u8], w: usize, h: usize, f: Filter) -> Vec<u8> {
+        let at = |x: i64, y: i64| -> i64 {
+            let x = x.clamp(0, w as i64 - 1) as usize;
+            let y = y.clamp(0, h as i64 - 1) as usize;
+            i64::from(img[y * w + x])
+        };
+        let sx = [[-1, 0, 1], [-2, 0, 2], [-1, 0, 1]];
+        let sy = [[-1, -2, -1], [0, 0, 0], [1, 2, 1]];
+        let lp = [[0, 1, 0], [1, -4, 1], [0, 1, 0]];
+        let conv = |k: &[[i64; 3]; 3], x: i64, y: i64| -> i64 {
+            let mut s = 0;
+            for (j, row) in k.iter().enumerate() {
+                for (i, c) in row.iter().enumerate() {
+                    s += c * at(x + i as i64 - 1, y + j as i64 - 1);
+                }
+            }
+            s
+        };
+        let mut out = vec![0u8; w * h];
+        for y in 0..h as i64 {
+            for x in 0..w as i64 {
+                let v = match f {
+                    Filter::Gray => at(x, y),
+                    Filter::Sobel => (conv(&sx, x, y).abs() + conv(&sy, x, y).abs()) / 8,
+                    Filter::Laplacian => conv(&lp, x, y).div_euclid(8) + 128,
+                };
+                assert!((0..=255).contains(&v), "filter output {v} out of 8 bits");
+                out[y as usize * w + x as usize] = v as u8;
+            }
+        }
+        out
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn score_one(
+        t: &[u8],
+        tw: usize,
+        th: usize,
+        mask: Option<&[u8]>,
+        img: &[u8],
+        iw: usize,
+        ih: usize,
+        x: usize,
+        y: usize,
+        f: Filter,
+    ) -> Result<Score, FailureCode> {
+        let mut b = Bufs::new(tw, th, tw, th, Search::Exhaustive);
+        score_at(
+            view(t, tw, th),
+            mask.map(|m| view(m, tw, th)),
+            view(img, iw, ih),
+            x as i32,
+            y as i32,
+            f,
+            &mut b.scratch(),
+        )
+    }
+
+    /// Verifies: VTSM-NCC-001
+    #[test]
+    fn scores_equal_f64_reference_on_random_images() {
+        let mut rng = Rng::new(11);
+        let mut worst = 0.0f64;
+        for case in 0..200 {
+            let tw = 16 + rng.below(25) as usize;
+            let th = 16 + rng.below(25) as usize;
+            let (iw, ih) = (
+                tw + 1 + rng.below(30) as usize,
+                th + 1 + rng.below(30) as usize,
+            );
+            let img = random_px(iw * ih, &mut rng);
+            let t = random_px(tw * th, &mut rng);
+            let (x, y) = (
+                rng.below((iw - tw + 1) as u32) as usize,
+                rng.below((ih - th + 1) as u32) as usize,
+            );
+            let s = score_one(&t, tw, th, None, &img, iw, ih, x, y, Filter::Gray).unwrap();
+            let r = ref_score(&t, tw, th, None, &img, iw, x, y).unwrap();
+            worst = worst.max((s.to_f64() - r).abs());
+            assert!(
+                (s.to_f64() - r).abs() < 1e-9,
+                "case {case}: {} vs {r}",
+                s.to_f64()
+            );
+            assert_eq!(s.to_f32(), s.to_f64() as f32);
+        }
+        std::println!("max |exact - f64 reference| = {worst:e}");
+    }
+
+    /// Verifies: VTSM-NCC-001, VTSM-NCC-006
+    #[test]
+    fn filtered_scores_equal_reference_on_reference_filtered_images() {
+        let mut rng = Rng::new(12);
+        for f in [Filter::Gray, Filter::Sobel, Filter::Laplacian] {
+            for _ in 0..30 {
+                let (tw, th) = (16 + rng.below(20) as usize, 16 + rng.below(20) as usize);
+                let (iw, ih) = (
+                    tw + 2 + rng.below(20) as usize,
+                    th + 2 + rng.below(20) as usize,
+                );
+                let img = textured(iw, ih, &mut rng);
+                let t = random_px(tw * th, &mut rng);
+                let (x, y) = (
+                    rng.below((iw - tw + 1) as u32) as usize,
+                    rng.below((ih - th + 1) as u32) as usize,
+                );
+                let fi = ref_filter(&img, iw, ih, f);
+                let ft = ref_filter(&t, tw, th, f);
+                let s = score_one(&t, tw, th, None, &img, iw, ih, x, y, f);
+                match ref_score(&ft, tw, th, None, &fi, iw, x, y) {
+                    Some(r) => assert!((s.unwrap().to_f64() - r).abs() < 1e-9, "{f:?}"),
+                    None => assert!(s.is_err(), "{f:?}"),
+                }
+            }
+        }
+    }
+
+    /// Verifies: VTSM-NCC-006
+    #[test]
+    fn filter_region_equals_reference_filter_inside_and_at_borders() {
+        let mut rng = Rng::new(13);
+        let (w, h) = (37, 29);
+        let img = random_px(w * h, &mut rng);
+        for f in [Filter::Gray, Filter::Sobel, Filter::Laplacian] {
+            let full = ref_filter(&img, w, h, f);
+            for _ in 0..20 {
+                let (x, y) = (rng.below(30) as usize, rng.below(20) as usize);
+                let (rw, rh) = (
+                    1 + rng.below((w - x) as u32) as usize,
+                    1 + rng.below((h - y) as u32) as usize,
+                );
+                let mut out = vec![0u8; rw * rh];
+                filter_region(
+                    &view(&img, w, h),
+                    Rect::new(x as i32, y as i32, rw as u32, rh as u32),
+                    f,
+                    &mut out,
+                )
+                .unwrap();
+                assert_eq!(out, crop(&full, w, x, y, rw, rh), "{f:?}");
+            }
+        }
+        // Extremes of the 8-bit mappings: a vertical 0/255 step.
+        let step: Vec<u8> = (0..16 * 16)
+            .map(|i| if i % 16 < 8 { 0 } else { 255 })
+            .collect();
+        let mut out = vec![0u8; 256];
+        filter_region(
+            &view(&step, 16, 16),
+            Rect::new(0, 0, 16, 16),
+            Filter::Laplacian,
+            &mut out,
+        )
+        .unwrap();
+        assert_eq!(
+            (out[7], out[8]),
+            (((255 >> 3) + 128) as u8, ((-255i32 >> 3) + 128) as u8)
+        );
+        filter_region(
+            &view(&step, 16, 16),
+            Rect::new(0, 0, 16, 16),
+            Filter::Sobel,
+            &mut out,
+        )
+        .unwrap();
+        assert_eq!(out[7], (4 * 255 / 8) as u8);
+    }
+
+    /// Verifies: VTSM-NCC-002
+    #[test]
+    fn identical_patch_scores_one_and_negated_patch_minus_one() {
+        let mut rng = Rng::new(14);
+        for _ in 0..50 {
+            let (tw, th) = (16 + rng.below(30) as usize, 16 + rng.below(30) as usize);
+            let (iw, ih) = (tw + 10, th + 10);
+            let img = random_px(iw * ih, &mut rng);
+            let (x, y) = (rng.below(11) as usize, rng.below(11) as usize);
+            let t = crop(&img, iw, x, y, tw, th);
+            let neg: Vec<u8> = t.iter().map(|v| 255 - v).collect();
+            let s = score_one(&t, tw, th, None, &img, iw, ih, x, y, Filter::Gray).unwrap();
+            assert_eq!(s.to_f64(), 1.0);
+            assert_eq!(s.to_f32(), 1.0);
+            let s = score_one(&neg, tw, th, None, &img, iw, ih, x, y, Filter::Gray).unwrap();
+            assert_eq!(s.to_f64(), -1.0);
+        }
+    }
+
+    /// Verifies: VTSM-NCC-003
+    #[test]
+    fn score_is_invariant_to_gain_and_offset() {
+        let mut rng = Rng::new(15);
+        for _ in 0..50 {
+            let (tw, th) = (16 + rng.below(30) as usize, 16 + rng.below(30) as usize);
+            let (iw, ih) = (tw + 7, th + 5);
+            let img = random_px(iw * ih, &mut rng);
+            let t: Vec<u8> = (0..tw * th).map(|_| rng.below(60) as u8).collect();
+            let gain = 1 + rng.below(3);
+            let off = rng.below(70);
+            let t2: Vec<u8> = t
+                .iter()
+                .map(|&v| (u32::from(v) * gain + off) as u8)
+                .collect();
+            let (x, y) = (rng.below(8) as usize, rng.below(6) as usize);
+            let a = score_one(&t, tw, th, None, &img, iw, ih, x, y, Filter::Gray).unwrap();
+            let b = score_one(&t2, tw, th, None, &img, iw, ih, x, y, Filter::Gray).unwrap();
+            assert!((a.to_f64() - b.to_f64()).abs() < 1e-12);
+            // The same holds on the image side, and the exact order sees the scores as equal
+            // when only the window changes by gain and offset.
+            let img2: Vec<u8> = img.iter().map(|&v| (u32::from(v) / 2 + 40) as u8).collect();
+            let c = score_one(&t, tw, th, None, &img2, iw, ih, x, y, Filter::Gray).unwrap();
+            let r = ref_score(&t, tw, th, None, &img2, iw, x, y).unwrap();
+            assert!((c.to_f64() - r).abs() < 1e-9);
+        }
+    }
+
+    /// Verifies: VTSM-NCC-004
+    #[test]
+    fn exhaustive_argmax_equals_reference_argmax() {
+        let mut rng = Rng::new(16);
+        for case in 0..40 {
+            let (tw, th) = (16 + rng.below(8) as usize, 16 + rng.below(8) as usize);
+            let (iw, ih) = (
+                tw + 20 + rng.below(20) as usize,
+                th + 20 + rng.below(20) as usize,
+            );
+            let img = if case % 2 == 0 {
+                random_px(iw * ih, &mut rng)
+            } else {
+                textured(iw, ih, &mut rng)
+            };
+            let t = random_px(tw * th, &mut rng);
+            let mut best = (f64::MIN, 0, 0);
+            for y in 0..=ih - th {
+                for x in 0..=iw - tw {
+                    let r = ref_score(&t, tw, th, None, &img, iw, x, y).unwrap();
+                    if r > best.0 {
+                        best = (r, x, y);
+                    }
+                }
+            }
+            let mut b = Bufs::new(tw, th, iw, ih, Search::Exhaustive);
+            let (m, st) = match_template(
+                view(&t, tw, th),
+                None,
+                view(&img, iw, ih),
+                Rect::new(0, 0, iw as u32, ih as u32),
+                Filter::Gray,
+                Search::Exhaustive,
+                &mut b.scratch(),
+            )
+            .unwrap();
+            assert_eq!((m.x, m.y), (best.1 as i32, best.2 as i32), "case {case}");
+            assert!((m.exact.to_f64() - best.0).abs() < 1e-9);
+            // Work counters: every position once, N MACs each, plus the sub-pixel probe.
+            let positions = ((iw - tw + 1) * (ih - th + 1)) as u64;
+            assert!(st.positions_scored >= positions && st.positions_scored <= positions + 9);
+            assert_eq!(st.macs, st.positions_scored * (tw * th) as u64);
+        }
+    }
+
+    /// Verifies: VTSM-NCC-005
+    #[test]
+    fn masked_score_equals_reference_restricted_to_mask() {
+        let mut rng = Rng::new(17);
+        for case in 0..60 {
+            let (tw, th) = (16 + rng.below(20) as usize, 16 + rng.below(20) as usize);
+            let (iw, ih) = (tw + 12, th + 9);
+            let img = random_px(iw * ih, &mut rng);
+            let t = random_px(tw * th, &mut rng);
+            // Blobby masks (runs) and speckled ones (many short runs).
+            let mask: Vec<u8> = (0..tw * th)
+                .map(|i| {
+                    let keep = if case % 2 == 0 {
+                        let (x, y) = (
+                            (i % tw) as i64 - tw as i64 / 2,
+                            (i / tw) as i64 - th as i64 / 2,
+                        );
+                        x * x + y * y < (tw * th / 5) as i64
+                    } else {
+                        rng.below(3) != 0
+                    };
+                    if keep {
+                        255
+                    } else {
+                        0
+                    }
+                })
+                .collect();
+            let mut best = (f64::MIN, 0, 0);
+            for y in 0..=ih - th {
+                for x in 0..=iw - tw {
+                    let r = ref_score(&t, tw, th, Some(&mask), &img, iw, x, y).unwrap();
+                    let s = score_one(&t, tw, th, Some(&mask), &img, iw, ih, x, y, Filter::Gray)
+                        .unwrap();
+                    assert!((s.to_f64() - r).abs() < 1e-9, "case {case} at ({x},{y})");
+                    if r > best.0 {
+                        best = (r, x, y);
+                    }
+                }
+            }
+            // Dropped pixels really do not count: change them and nothing moves.
+            let t_changed: Vec<u8> = t
+                .iter()
+                .zip(&mask)
+                .map(|(&v, &m)| if m == 0 { 255 - v } else { v })
+                .collect();
+            let mut b = Bufs::new(tw, th, iw, ih, Search::Exhaustive);
+            for tt in [&t, &t_changed] {
+                let (m, _) = match_template(
+                    view(tt, tw, th),
+                    Some(view(&mask, tw, th)),
+                    view(&img, iw, ih),
+                    Rect::new(0, 0, iw as u32, ih as u32),
+                    Filter::Gray,
+                    Search::Exhaustive,
+                    &mut b.scratch(),
+                )
+                .unwrap();
+                assert_eq!((m.x, m.y), (best.1 as i32, best.2 as i32), "case {case}");
+            }
+        }
+    }
+
+    /// Verifies: VTSM-NCC-007
+    #[test]
+    fn bit_budget_holds_at_the_extremes() {
+        let l = MAX_TEMPLATE_PX;
+        // All-255 template: flat, rejected (not NaN).
+        let all = vec![255u8; l * l];
+        assert_eq!(
+            score_one(&all, l, l, None, &all, l, l, 0, 0, Filter::Gray),
+            Err(FailureCode::NccTemplateFlat)
+        );
+        // 255 everywhere but one pixel: Σft = 255²·(N−1) ≈ 4.26e9, next to the u32 limit.
+        let mut t = all.clone();
+        t[l * l / 2 + 17] = 0;
+        let s = score_one(&t, l, l, None, &t, l, l, 0, 0, Filter::Gray).unwrap();
+        assert_eq!(s.to_f64(), 1.0);
+        let n = (l * l) as i64;
+        assert_eq!(
+            s.var_t,
+            n * 255 * 255 * (n - 1) - (255 * (n - 1)) * (255 * (n - 1))
+        );
+        // A window of all 255 but a different dark pixel: exact against the reference.
+        let mut w = all.clone();
+        w[3] = 0;
+        let s = score_one(&t, l, l, None, &w, l, l, 0, 0, Filter::Gray).unwrap();
+        let r = ref_score(&t, l, l, None, &w, l, 0, 0).unwrap();
+        assert!((s.to_f64() - r).abs() < 1e-9, "{} vs {r}", s.to_f64());
+        // Largest variances: a 0/255 checkerboard against itself and its negative, masked full.
+        let cb: Vec<u8> = (0..l * l)
+            .map(|i| if (i / l + i % l) % 2 == 0 { 255 } else { 0 })
+            .collect();
+        let neg: Vec<u8> = cb.iter().map(|v| 255 - v).collect();
+        let full = vec![255u8; l * l];
+        let s = score_one(&cb, l, l, Some(&full), &cb, l, l, 0, 0, Filter::Gray).unwrap();
+        assert_eq!(s.to_f64(), 1.0);
+        // var_t = N·Σt² − (Σt)² = 255²·N²/4 = 255²·2³⁰, the largest value any 256² template reaches.
+        assert_eq!(s.var_t, 255 * 255 * (1 << 30));
+        assert_eq!(s.var_f, s.var_t);
+        let s = score_one(&neg, l, l, None, &cb, l, l, 0, 0, Filter::Gray).unwrap();
+        assert_eq!(s.to_f64(), -1.0);
+        assert_eq!(s.num, -255 * 255 * (1 << 30));
+    }
+
+    /// Verifies: VTSM-NCC-007
+    #[test]
+    fn exact_order_agrees_with_wide_reference() {
+        let mut rng = Rng::new(18);
+        let big = |rng: &mut Rng| (rng.next_u64() >> 16) as i64; // < 2^48
+        for _ in 0..20_000 {
+            let vt = 1 + big(&mut rng);
+            let a = Score {
+                num: big(&mut rng) - (1 << 47),
+                var_f: 1 + big(&mut rng),
+                var_t: vt,
+            };
+            let b = Score {
+                num: big(&mut rng) - (1 << 47),
+                var_f: 1 + big(&mut rng),
+                var_t: vt,
+            };
+            // Reference: compare sign·num²/var_f with 256-bit-free big-float-free logic:
+            // split each side into (hi, lo) limbs computed with u128 via a different route.
+            let key = |s: &Score, other: &Score| -> (u128, u128) {
+                let n = s.num.unsigned_abs() as u128;
+                let v = other.var_f as u128;
+                // n²·v = n·(n·v); n·v < 2^96 so split it into 48-bit halves.
+                let nv = n * v;
+                let (h, l) = (nv >> 48, nv & ((1 << 48) - 1));
+                let (ph, pl) = (n * h, n * l); // value = ph·2^48 + pl
+                let lo = pl & ((1 << 48) - 1);
+                let hi = ph + (pl >> 48);
+                (hi, lo)
+            };
+            let (ka, kb) = (key(&a, &b), key(&b, &a));
+            let want = match (a.num.signum(), b.num.signum()) {
+                (x, y) if x != y => x.cmp(&y),
+                (0, _) => Ordering::Equal,
+                (1, _) => ka.cmp(&kb),
+                _ => kb.cmp(&ka),
+            };
+            assert_eq!(cmp_scores(&a, &b), want);
+            if (a.to_f64() - b.to_f64()).abs() > 1e-12 {
+                assert_eq!(
+                    cmp_scores(&a, &b),
+                    a.to_f64().partial_cmp(&b.to_f64()).unwrap()
+                );
+            }
+        }
+    }
+
+    /// Verifies: VTSM-NCC-008
+    #[test]
+    fn each_bad_input_has_its_own_failure_code() {
+        let mut rng = Rng::new(19);
+        let img = random_px(64 * 64, &mut rng);
+        let t = random_px(20 * 20, &mut rng);
+        let all = Rect::new(0, 0, 64, 64);
+        let run = |t: &[u8],
+                   tw: usize,
+                   mask: Option<&[u8]>,
+                   img: &[u8],
+                   iw: usize,
+                   ih: usize,
+                   r: Rect,
+                   b: &mut Bufs| {
+            match_template(
+                view(t, tw, tw),
+                mask.map(|m| view(m, tw, tw)),
+                view(img, iw, ih),
+                r,
+                Filter::Gray,
+                Search::CoarseToFine,
+                &mut b.scratch(),
+            )
+            .map(|(m, _)| m)
+        };
+        let mut b = Bufs::new(20, 20, 64, 64, Search::CoarseToFine);
+        let flat = vec![9u8; 400];
+        assert_eq!(
+            run(&flat, 20, None, &img, 64, 64, all, &mut b),
+            Err(FailureCode::NccTemplateFlat)
+        );
+        let flat_img = vec![200u8; 64 * 64];
+        assert_eq!(
+            run(&t, 20, None, &flat_img, 64, 64, all, &mut b),
+            Err(FailureCode::NccWindowFlat)
+        );
+        assert_eq!(
+            run(&t, 20, None, &img, 64, 64, Rect::new(70, 0, 30, 30), &mut b),
+            Err(FailureCode::NccWindowOutsideImage)
+        );
+        assert_eq!(
+            run(&t, 20, None, &img, 64, 64, Rect::new(0, 0, 0, 30), &mut b),
+            Err(FailureCode::NccWindowOutsideImage)
+        );
+        assert_eq!(
+            run(
+                &t,
+                20,
+                None,
+                &img,
+                64,
+                64,
+                Rect::new(50, 50, 30, 30),
+                &mut b
+            ),
+            Err(FailureCode::NccTemplateLargerThanWindow)
+        );
+        let mut small = Bufs::new(20, 20, 40, 40, Search::CoarseToFine);
+        assert_eq!(
+            run(&t, 20, None, &img, 64, 64, all, &mut small),
+            Err(FailureCode::NccScratchTooSmall)
+        );
+        let mut ex_small = Bufs::new(20, 20, 64, 64, Search::CoarseToFine);
+        ex_small.i.truncate(10);
+        assert_eq!(
+            run(&t, 20, None, &img, 64, 64, all, &mut ex_small),
+            Err(FailureCode::NccScratchTooSmall)
+        );
+        let mut mask = vec![0u8; 400];
+        mask[..10].fill(255);
+        assert_eq!(
+            run(&t, 20, Some(&mask), &img, 64, 64, all, &mut b),
+            Err(FailureCode::NccMaskEmpty)
+        );
+        let tiny = random_px(8 * 8, &mut rng);
+        assert_eq!(
+            run(&tiny, 8, None, &img, 64, 64, all, &mut b),
+            Err(FailureCode::NccTemplateSizeInvalid)
+        );
+        let wide = random_px(1100 * 20, &mut rng);
+        let mut bw = Bufs::new(20, 20, 1100, 20, Search::CoarseToFine);
+        assert_eq!(
+            run(
+                &t,
+                20,
+                None,
+                &wide,
+                1100,
+                20,
+                Rect::new(0, 0, 1100, 20),
+                &mut bw
+            ),
+            Err(FailureCode::NccWindowTooLarge)
+        );
+        for c in [
+            FailureCode::NccTemplateFlat,
+            FailureCode::NccWindowFlat,
+            FailureCode::NccWindowTooLarge,
+            FailureCode::NccTemplateSizeInvalid,
+        ] {
+            assert_eq!(c.group(), 0x05);
+        }
+        // A search rectangle partly outside the image is clipped, not rejected.
+        let m = run(
+            &t,
+            20,
+            None,
+            &img,
+            64,
+            64,
+            Rect::new(-10, -10, 50, 50),
+            &mut b,
+        )
+        .unwrap();
+        assert!(m.x >= 0 && m.y >= 0 && m.x <= 20 && m.y <= 20);
+    }
+
+    /// Verifies: VTSM-NCC-009
+    #[test]
+    fn runner_up_reports_a_second_copy_and_ties_go_to_raster_order() {
+        let mut rng = Rng::new(20);
+        let (iw, ih, l) = (120usize, 90usize, 24usize);
+        for mode in [Search::Exhaustive, Search::CoarseToFine] {
+            let mut img = textured(iw, ih, &mut rng);
+            let t = textured(l, l, &mut rng);
+            for (x, y) in [(70usize, 50usize), (10, 12)] {
+                for r in 0..l {
+                    img[(y + r) * iw + x..(y + r) * iw + x + l]
+                        .copy_from_slice(&t[r * l..r * l + l]);
+                }
+            }
+            let mut b = Bufs::new(l, l, iw, ih, mode);
+            let (m, _) = match_template(
+                view(&t, l, l),
+                None,
+                view(&img, iw, ih),
+                Rect::new(0, 0, iw as u32, ih as u32),
+                Filter::Gray,
+                mode,
+                &mut b.scratch(),
+            )
+            .unwrap();
+            assert_eq!((m.x, m.y, m.score), (10, 12, 1.0), "{mode:?}");
+            assert_eq!(m.runner_up, 1.0, "{mode:?}");
+        }
+        // A single copy in noise: the runner-up is far below the peak.
+        let img = random_px(iw * ih, &mut rng);
+        let t = crop(&img, iw, 40, 30, l, l);
+        let mut b = Bufs::new(l, l, iw, ih, Search::Exhaustive);
+        let (m, _) = match_template(
+            view(&t, l, l),
+            None,
+            view(&img, iw, ih),
+            Rect::new(0, 0, iw as u32, ih as u32),
+            Filter::Gray,
+            Search::Exhaustive,
+            &mut b.scratch(),
+        )
+        .unwrap();
+        assert_eq!((m.x, m.y), (40, 30));
+        assert!(m.runner_up < 0.5 && m.runner_up > -1.0, "{}", m.runner_up);
+    }
+
+    /// Verifies: VTSM-NCC-010
+    #[test]
+    fn sub_template_is_the_centred_half_crop_and_matches_in_place() {
+        assert_eq!(sub_template_rect(256, 256), Rect::new(64, 64, 128, 128));
+        assert_eq!(sub_template_rect(128, 96), Rect::new(32, 24, 64, 48));
+        assert_eq!(sub_template_rect(33, 17), Rect::new(8, 4, 16, 8));
+        let mut rng = Rng::new(21);
+        let (iw, ih) = (160usize, 140usize);
+        let img = textured(iw, ih, &mut rng);
+        let t = crop(&img, iw, 50, 40, 64, 64);
+        let tv = view(&t, 64, 64);
+        let sub = sub_template(&tv).unwrap();
+        assert_eq!((sub.width(), sub.height()), (32, 32));
+        assert_eq!(sub.get(0, 0), Some(img[(40 + 16) * iw + 50 + 16]));
+        let mut b = Bufs::new(32, 32, iw, ih, Search::CoarseToFine);
+        let (m, _) = match_template(
+            sub,
+            None,
+            view(&img, iw, ih),
+            Rect::new(0, 0, iw as u32, ih as u32),
+            Filter::Sobel,
+            Search::CoarseToFine,
+            &mut b.scratch(),
+        )
+        .unwrap();
+        assert_eq!((m.x, m.y), (66, 56));
+    }
+
+    /// Verifies: VTSM-NCC-011
+    #[test]
+    fn sub_pixel_refinement_recovers_fractional_shifts() {
+        // A smooth analytic pattern sampled at a fractional offset.
+        let pat = |x: f64, y: f64| {
+            128.0
+                + 60.0 * ((x * 0.21).sin() * (y * 0.17).cos())
+                + 40.0 * ((x * 0.07 + y * 0.11).sin())
+        };
+        let (iw, ih, l) = (100usize, 90usize, 32usize);
+        for (sx, sy) in [(0.3f64, -0.2f64), (-0.4, 0.1), (0.0, 0.45)] {
+            let (x0, y0) = (37.0 + sx, 29.0 + sy);
+            let img: Vec<u8> = (0..iw * ih)
+                .map(|i| pat((i % iw) as f64, (i / iw) as f64).round() as u8)
+                .collect();
+            let t: Vec<u8> = (0..l * l)
+                .map(|i| pat((i % l) as f64 + x0, (i / l) as f64 + y0).round() as u8)
+                .collect();
+            for mode in [Search::Exhaustive, Search::CoarseToFine] {
+                let mut b = Bufs::new(l, l, iw, ih, mode);
+                let (m, _) = match_template(
+                    view(&t, l, l),
+                    None,
+                    view(&img, iw, ih),
+                    Rect::new(0, 0, iw as u32, ih as u32),
+                    Filter::Gray,
+                    mode,
+                    &mut b.scratch(),
+                )
+                .unwrap();
+                assert!(
+                    (f64::from(m.sub_x) - x0).abs() < 0.15,
+                    "{mode:?} {} vs {x0}",
+                    m.sub_x
+                );
+                assert!(
+                    (f64::from(m.sub_y) - y0).abs() < 0.15,
+                    "{mode:?} {} vs {y0}",
+                    m.sub_y
+                );
+            }
+        }
+    }
+
+    /// Verifies: VTSM-NCC-012
+    #[test]
+    fn coarse_to_fine_agrees_with_exhaustive_on_textured_cases() {
+        let mut rng = Rng::new(22);
+        let cases = 200;
+        let mut agree = 0;
+        let mut work = (0u64, 0u64);
+        for case in 0..cases {
+            let (l, iw, ih) = match case % 10 {
+                0 => (128usize, 208usize, 200usize),
+                1..=5 => (64, 150, 140),
+                _ => (32, 120, 110),
+            };
+            let img = textured(iw, ih, &mut rng);
+            let (tx, ty) = (
+                rng.below((iw - l + 1) as u32) as usize,
+                rng.below((ih - l + 1) as u32) as usize,
+            );
+            // Cut the template under gain, offset and noise, as a synthetic render would differ.
+            let gain = rng.uniform(0.7, 1.2);
+            let off = rng.uniform(-20.0, 20.0);
+            let t: Vec<u8> = crop(&img, iw, tx, ty, l, l)
+                .iter()
+                .map(|&v| {
+                    (f32::from(v) * gain + off + rng.uniform(-12.0, 12.0))
+                        .round()
+                        .clamp(0.0, 255.0) as u8
+                })
+                .collect();
+            let run = |mode| {
+                let mut b = Bufs::new(l, l, iw, ih, mode);
+                match_template(
+                    view(&t, l, l),
+                    None,
+                    view(&img, iw, ih),
+                    Rect::new(0, 0, iw as u32, ih as u32),
+                    Filter::Gray,
+                    mode,
+                    &mut b.scratch(),
+                )
+                .unwrap()
+            };
+            let (e, es) = run(Search::Exhaustive);
+            let (c, cs) = run(Search::CoarseToFine);
+            work.0 += es.macs;
+            work.1 += cs.macs;
+            if (e.x, e.y) == (c.x, c.y) {
+                assert_eq!(e.exact, c.exact);
+                agree += 1;
+            }
+        }
+        let rate = f64::from(agree) / f64::from(cases);
+        std::println!(
+            "coarse-to-fine == exhaustive on {agree}/{cases} = {:.1} %; MACs {:.3e} vs {:.3e}",
+            rate * 100.0,
+            work.1 as f64,
+            work.0 as f64
+        );
+        assert!(rate >= 0.99, "agreement {rate}");
+        assert!(work.1 * 5 < work.0);
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(300))]
+        /// Verifies: VTSM-NCC-008
+        #[test]
+        fn never_panics_and_scores_stay_in_range(
+            tw in 12usize..40, th in 12usize..40, iw in 1usize..90, ih in 1usize..90,
+            sx in -20i32..100, sy in -20i32..100, sw in 0u32..120, sh in 0u32..120,
+            seed in any::<u64>(), levels in 0u32..256, flat in any::<bool>(),
+            masked in any::<bool>(), filt in 0u8..3, exhaustive in any::<bool>(), short in any::<bool>(),
+        ) {
+            let mut rng = Rng::new(seed);
+            let img: Vec<u8> = if flat { vec![levels as u8; iw * ih] } else { random_px(iw * ih, &mut rng) };
+            let t: Vec<u8> = (0..tw * th).map(|_| rng.below(levels + 1) as u8).collect();
+            let mask: Vec<u8> = (0..tw * th).map(|_| if rng.below(4) == 0 { 0 } else { 255 }).collect();
+            let mode = if exhaustive { Search::Exhaustive } else { Search::CoarseToFine };
+            let filter = [Filter::Gray, Filter::Sobel, Filter::Laplacian][usize::from(filt)];
+            let mut b = Bufs::new(tw, th, sw as usize, sh as usize, mode);
+            if short { b.i.truncate(b.i.len() / 2); }
+            let r = match_template(
+                view(&t, tw, th), masked.then(|| view(&mask, tw, th)), view(&img, iw, ih),
+                Rect::new(sx, sy, sw, sh), filter, mode, &mut b.scratch(),
+            );
+            match r {
+                Ok((m, st)) => {
+                    prop_assert!(m.score.is_finite() && (-1.0..=1.0).contains(&m.score));
+                    prop_assert!(m.runner_up.is_finite() && (-1.0..=1.0).contains(&m.runner_up));
+                    prop_assert!((m.sub_x - m.x as f32).abs() <= 0.5 && (m.sub_y - m.y as f32).abs() <= 0.5);
+                    prop_assert!(m.x >= sx.max(0) && m.y >= sy.max(0));
+                    prop_assert!(m.x as usize + tw <= iw && m.y as usize + th <= ih);
+                    prop_assert!(st.positions_scored > 0 && usize::from(st.levels) <= MAX_LEVELS);
+                }
+                Err(e) => prop_assert_eq!(e.group(), 0x05),
+            }
+        }
+    }
 }

