@@ -452,3 +452,34 @@ fn load_raw(path: &Path, appearance: bool) -> Result<RawMesh> {
         ))
     }
 }
+
+/// From the simulator's mapping output (same fields, texture as a tuple).
+impl From<crate::mapping::MeshData> for MeshData {
+    fn from(m: crate::mapping::MeshData) -> Self {
+        let (width, height, pixels) = m.texture;
+        Self {
+            vertices: m.vertices,
+            triangles: m.triangles,
+            uvs: m.uvs,
+            mask: m.mask,
+            texture: Gray8 {
+                width,
+                height,
+                pixels,
+            },
+        }
+    }
+}
+
+/// To the simulator's mapping form.
+impl From<MeshData> for crate::mapping::MeshData {
+    fn from(m: MeshData) -> Self {
+        Self {
+            vertices: m.vertices,
+            triangles: m.triangles,
+            uvs: m.uvs,
+            mask: m.mask,
+            texture: (m.texture.width, m.texture.height, m.texture.pixels),
+        }
+    }
+}
