@@ -23,7 +23,7 @@
 
 use crate::error::{Error, Result};
 use crate::io::image::Gray8;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 use vtsm_core::config::MAX_IMAGE_DIM;
 use vtsm_core::map::{self, MapSource};
@@ -305,7 +305,8 @@ fn encode_with_core(mesh: &MeshData, tile_size_m: f32) -> Result<Vec<u8>> {
 /// Vertices bucketed on a grid of [`MASK_MATCH_TOL_M`] cells, for matching by position.
 struct VertexIndex<'a> {
     vertices: &'a [[f32; 3]],
-    cells: BTreeMap<[i64; 3], Vec<u32>>,
+    // Only looked up, never iterated, so a hash map keeps results deterministic.
+    cells: HashMap<[i64; 3], Vec<u32>>,
 }
 
 impl<'a> VertexIndex<'a> {
@@ -321,7 +322,7 @@ impl<'a> VertexIndex<'a> {
     }
 
     fn new(vertices: &'a [[f32; 3]]) -> Self {
-        let mut cells: BTreeMap<[i64; 3], Vec<u32>> = BTreeMap::new();
+        let mut cells: HashMap<[i64; 3], Vec<u32>> = HashMap::with_capacity(vertices.len());
         for (i, v) in vertices.iter().enumerate() {
             cells.entry(Self::cell(v)).or_default().push(i as u32);
         }
@@ -449,5 +450,36 @@ fn load_raw(path: &Path, appearance: bool) -> Result<RawMesh> {
             path,
             "unknown mesh format (expected a .obj or .ply file)",
         ))
+    }
+}
+
+/// From the simulator's mapping output (same fields, texture as a tuple).
+impl From<crate::mapping::MeshData> for MeshData {
+    fn from(m: crate::mapping::MeshData) -> Self {
+        let (width, height, pixels) = m.texture;
+        Self {
+            vertices: m.vertices,
+            triangles: m.triangles,
+            uvs: m.uvs,
+            mask: m.mask,
+            texture: Gray8 {
+                width,
+                height,
+                pixels,
+            },
+        }
+    }
+}
+
+/// To the simulator's mapping form.
+impl From<MeshData> for crate::mapping::MeshData {
+    fn from(m: MeshData) -> Self {
+        Self {
+            vertices: m.vertices,
+            triangles: m.triangles,
+            uvs: m.uvs,
+            mask: m.mask,
+            texture: (m.texture.width, m.texture.height, m.texture.pixels),
+        }
     }
 }
