@@ -1840,11 +1840,10 @@ mod tests {
         }
     }
 
-    /// Verifies: VTSM-NCC-012
-    #[test]
-    fn coarse_to_fine_agrees_with_exhaustive_on_textured_cases() {
-        let mut rng = Rng::new(22);
-        let cases = 200;
+    /// Agreement of coarse-to-fine with exhaustive search on `cases` textured
+    /// matches (template cut under gain, offset and noise), and the MACs of both.
+    fn agreement(seed: u64, cases: u32, filter: Filter, masked: bool) -> (u32, u64, u64) {
+        let mut rng = Rng::new(seed);
         let mut agree = 0;
         let mut work = (0u64, 0u64);
         for case in 0..cases {
@@ -1858,7 +1857,6 @@ mod tests {
                 rng.below((iw - l + 1) as u32) as usize,
                 rng.below((ih - l + 1) as u32) as usize,
             );
-            // Cut the template under gain, offset and noise, as a synthetic render would differ.
             let gain = rng.uniform(0.7, 1.2);
             let off = rng.uniform(-20.0, 20.0);
             let t: Vec<u8> = crop(&img, iw, tx, ty, l, l)
@@ -1869,14 +1867,25 @@ mod tests {
                         .clamp(0.0, 255.0) as u8
                 })
                 .collect();
+            // A disc-shaped "rock" mask keeping about 60 % of the template.
+            let mask: Vec<u8> = (0..l * l)
+                .map(|i| {
+                    let (x, y) = ((i % l) as i64 - l as i64 / 2, (i / l) as i64 - l as i64 / 2);
+                    if 5 * (x * x + y * y) < 4 * (l * l / 4) as i64 {
+                        255
+                    } else {
+                        0
+                    }
+                })
+                .collect();
             let run = |mode| {
                 let mut b = Bufs::new(l, l, iw, ih, mode);
                 match_template(
                     view(&t, l, l),
-                    None,
+                    masked.then(|| view(&mask, l, l)),
                     view(&img, iw, ih),
                     Rect::new(0, 0, iw as u32, ih as u32),
-                    Filter::Gray,
+                    filter,
                     mode,
                     &mut b.scratch(),
                 )
@@ -1891,15 +1900,41 @@ mod tests {
                 agree += 1;
             }
         }
+        (agree, work.0, work.1)
+    }
+
+    /// Verifies: VTSM-NCC-012
+    #[test]
+    fn coarse_to_fine_agrees_with_exhaustive_on_textured_cases() {
+        let cases = 200;
+        let (agree, ex, ctf) = agreement(22, cases, Filter::Gray, false);
         let rate = f64::from(agree) / f64::from(cases);
         std::println!(
-            "coarse-to-fine == exhaustive on {agree}/{cases} = {:.1} %; MACs {:.3e} vs {:.3e}",
-            rate * 100.0,
-            work.1 as f64,
-            work.0 as f64
+            "gray: coarse-to-fine == exhaustive on {agree}/{cases} = {:.1} %; MACs {ctf:.3e} vs {ex:.3e}",
+            rate * 100.0
         );
         assert!(rate >= 0.99, "agreement {rate}");
-        assert!(work.1 * 5 < work.0);
+        assert!(ctf * 5 < ex);
+    }
+
+    /// Verifies: VTSM-NCC-012
+    #[test]
+    fn coarse_to_fine_agrees_with_exhaustive_in_every_domain_and_masked() {
+        for (filter, masked) in [
+            (Filter::Gray, true),
+            (Filter::Sobel, false),
+            (Filter::Laplacian, false),
+            (Filter::Sobel, true),
+        ] {
+            let cases = 100;
+            let (agree, ex, ctf) = agreement(23, cases, filter, masked);
+            let rate = f64::from(agree) / f64::from(cases);
+            std::println!(
+                "{filter:?} masked={masked}: coarse-to-fine == exhaustive on {agree}/{cases} = {:.1} %; MACs {ctf:.3e} vs {ex:.3e}",
+                rate * 100.0
+            );
+            assert!(rate >= 0.95, "{filter:?} masked={masked}: agreement {rate}");
+        }
     }
 
     proptest! {
