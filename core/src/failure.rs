@@ -138,6 +138,10 @@ failure_codes! {
         "The best score is below the acceptance threshold; the match is rejected.";
     NccAmbiguous = 0x0508, Info, Same, "NCC_AMBIGUOUS",
         "The runner-up peak scores too close to the best one; the match is rejected as ambiguous.";
+    NccWindowTooLarge = 0x0509, Fatal, Never, "NCC_WINDOW_TOO_LARGE",
+        "The search window is larger than config::MAX_SEARCH_PX; nothing is matched.";
+    NccTemplateSizeInvalid = 0x050A, Fatal, Never, "NCC_TEMPLATE_SIZE_INVALID",
+        "The template side is outside MIN_TEMPLATE_PX..=MAX_TEMPLATE_PX or its mask differs in size; nothing is matched.";
     // 0x06xx stereo
     StereoEpipolarViolation = 0x0601, Info, Same, "STEREO_EPIPOLAR_VIOLATION",
         "Left and right peaks differ by more than epsilon rows; the pair is rejected (Valid).";
@@ -145,6 +149,8 @@ failure_codes! {
         "Disparity is non-positive or below the plausible minimum; the pair is rejected.";
     StereoRigInvalid = 0x0603, Fatal, Never, "STEREO_RIG_INVALID",
         "Camera intrinsics or baseline are non-finite or non-positive; nothing is triangulated.";
+    StereoPixelNonFinite = 0x0604, Info, Same, "STEREO_PIXEL_NON_FINITE",
+        "A left or right peak coordinate is NaN or infinite; the pair is rejected.";
     // 0x07xx pose
     PoseTooFewPoints = 0x0701, Degraded, Same, "POSE_TOO_FEW_POINTS",
         "Fewer than three correspondences; no transform can be estimated.";
@@ -169,6 +175,10 @@ failure_codes! {
         "No vertex of the sampling mask is in view from the prior; relocalization cannot start.";
     RelocNotStarted = 0x0807, Fatal, Never, "RELOC_NOT_STARTED",
         "An outcome was requested before the relocalizer was started.";
+    RelocSampleOutOfView = 0x0808, Info, Same, "RELOC_SAMPLE_OUT_OF_VIEW",
+        "No drawn mask vertex projected inside both images from the viewpoint; the attempt is skipped.";
+    RelocSampleOccluded = 0x0809, Info, Same, "RELOC_SAMPLE_OCCLUDED",
+        "The sampled vertex is hidden behind other surface in the virtual view; the attempt is skipped.";
     // 0x09xx hardware
     HalCameraTimeout = 0x0901, Degraded, Same, "HAL_CAMERA_TIMEOUT",
         "The stereo camera did not deliver a frame within its timeout; capture again.";
@@ -180,6 +190,22 @@ failure_codes! {
         "A telemetry frame could not be written; it is counted as dropped.";
     HalPriorUnavailable = 0x0905, Degraded, Same, "HAL_PRIOR_UNAVAILABLE",
         "The pose prior source had no valid estimate; ask again.";
+    HalCameraFault = 0x0906, Degraded, Same, "HAL_CAMERA_FAULT",
+        "The stereo camera reported corrupted data or a device fault; the frame is discarded.";
+    HalCameraRetriesExhausted = 0x0907, Fatal, NewInput, "HAL_CAMERA_RETRIES_EXHAUSTED",
+        "Every capture attempt allowed by the runner failed; no frame is available for this run.";
+    HalStorageRetriesExhausted = 0x0908, Fatal, NewInput, "HAL_STORAGE_RETRIES_EXHAUSTED",
+        "Every read attempt of the map product allowed by the runner failed; the map is not used.";
+    HalMapTooLarge = 0x0909, Fatal, Never, "HAL_MAP_TOO_LARGE",
+        "The stored map product is empty or longer than the buffer given to the runner; nothing is read.";
+    HalFrameInfoInvalid = 0x090A, Fatal, NewInput, "HAL_FRAME_INFO_INVALID",
+        "The camera's frame info disagrees with the buffers or the expected size; the frame is rejected.";
+    HalTelemetryPayloadTooLong = 0x090B, Info, Never, "HAL_TELEMETRY_PAYLOAD_TOO_LONG",
+        "A telemetry payload is longer than the frame format allows; nothing is written.";
+    HalClockFault = 0x090C, Degraded, Same, "HAL_CLOCK_FAULT",
+        "The clock could not be read or went backwards; the step is not timed.";
+    HalPriorInvalid = 0x090D, Degraded, NewInput, "HAL_PRIOR_INVALID",
+        "The pose prior has a non-finite pose or a covariance that is not symmetric non-negative; it is rejected.";
 }
 
 impl FailureCode {
@@ -286,6 +312,7 @@ impl FailureLog {
 mod tests {
     use super::*;
 
+    /// Verifies: VTSM-FAIL-001
     #[test]
     fn codes_are_unique_nonzero_and_grouped() {
         for (i, a) in FailureCode::ALL.iter().enumerate() {
@@ -300,6 +327,7 @@ mod tests {
         assert_eq!(FailureCode::from_u16(0), None);
     }
 
+    /// Verifies: VTSM-FAIL-003
     #[test]
     fn counters_saturate_and_ring_keeps_last_events() {
         let mut log = FailureLog::new();

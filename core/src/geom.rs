@@ -297,6 +297,7 @@ mod tests {
         Pose::new(UnitQuaternion::from_scaled_axis(axis * angle), t)
     }
 
+    /// Verifies: VTSM-GEOM-001
     #[test]
     fn composition_and_inversion_round_trip() {
         let mut rng = Rng::new(11);
@@ -321,6 +322,7 @@ mod tests {
         }
     }
 
+    /// Verifies: VTSM-GEOM-002
     #[test]
     fn projection_round_trips_and_stereo_disparity_matches_depth() {
         let cam = Camera::from_hfov(640, 480, 77.0).unwrap();
@@ -343,6 +345,7 @@ mod tests {
         assert!(cam.project(&Vec3::new(f32::NAN, 0.0, 1.0)).is_none());
     }
 
+    /// Verifies: VTSM-GEOM-003
     #[test]
     fn rejects_bad_cameras_and_poses() {
         assert!(Camera::new(0.0, 1.0, 0.0, 0.0, 10, 10).is_err());

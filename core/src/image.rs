@@ -259,6 +259,7 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    /// Verifies: VTSM-IMG-001
     #[test]
     fn rejects_each_inconsistent_layout() {
         let buf = [0u8; 100];
@@ -291,6 +292,7 @@ mod tests {
         );
     }
 
+    /// Verifies: VTSM-IMG-003
     #[test]
     fn sub_view_reads_the_right_pixels() {
         let buf: [u16; 20] = core::array::from_fn(|i| i as u16);
@@ -305,6 +307,7 @@ mod tests {
     }
 
     proptest! {
+        /// Verifies: VTSM-IMG-002, VTSM-IMG-001
         #[test]
         fn accessors_never_panic(len in 0usize..400, w in 0usize..40, h in 0usize..40, s in 0usize..50,
                                  x in 0usize..60, y in 0usize..60, rx in -5i32..50, ry in -5i32..50,

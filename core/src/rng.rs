@@ -120,6 +120,7 @@ mod tests {
         0x4b7d_e00a_57f8_e6ea,
     ];
 
+    /// Verifies: VTSM-RNG-001
     #[test]
     fn same_seed_gives_same_sequence_and_golden_vector() {
         let mut a = Rng::new(42);
@@ -137,6 +138,7 @@ mod tests {
         );
     }
 
+    /// Verifies: VTSM-RNG-002
     #[test]
     fn uniformity_chi_square_and_mean() {
         let mut rng = Rng::new(7);

@@ -1,0 +1,498 @@
+//! Bounded runner: gathers the inputs of one relocalization from the devices
+//! and drives the core with the clock.
+//!
+//! Inputs: the five devices, caller-owned buffers (two images, the map
+//! product) and a [`RunnerConfig`]. Outputs: checked [`Inputs`] views into
+//! those buffers, a [`FailureLog`] of every device fault, and telemetry frames.
+//!
+//! Bounds: every device call is retried at most [`RunnerConfig::attempts`]
+//! times (≤ [`MAX_DEVICE_ATTEMPTS`]) and only for transient kinds
+//! ([`ErrorKind::is_transient`]); the map product is read in
+//! `chunk_len`-byte pieces (≤ `buf.len() / chunk_len + 1` pieces) and
+//! re-read whole at most `product_attempts` times when its check fails;
+//! [`Runner::drive`] calls the engine at most `max_steps` times.
+//!
+//! INTEGRATION POINT (core::reloc): the engine is called from
+//! [`Runner::drive`] through a closure, `|now| relocalizer.step(now)`, and the
+//! map check passed to [`Runner::acquire`] is
+//! `|b| core::map::MapView::new_checked(b).map(|_| ())`. Both land with the
+//! engine and the map product; nothing else in this module changes then.
+
+use crate::camera::{FrameInfo, StereoCamera};
+use crate::clock::Clock;
+use crate::error::{failure_code, Device, Error, ErrorKind};
+use crate::prior::{PosePrior, PriorEstimate};
+use crate::store::MapStore;
+use crate::telemetry::{
+    failure_counters_payload, failure_event_payload, FrameKind, Telemetry, MAX_PAYLOAD,
+};
+use vtsm_core::failure::{FailureLog, Retry};
+use vtsm_core::image::GrayView;
+use vtsm_core::FailureCode;
+
+/// Cap on attempts of one device operation.
+pub const MAX_DEVICE_ATTEMPTS: u8 = 16;
+/// Cap on whole-product reads of the map.
+pub const MAX_PRODUCT_ATTEMPTS: u8 = 8;
+
+/// Retry and size settings of the runner. Checked by [`RunnerConfig::validate`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RunnerConfig {
+    /// Attempts per device operation (capture, one chunk read), 1..=MAX_DEVICE_ATTEMPTS.
+    pub attempts: u8,
+    /// Whole-product reads when the map check fails, 1..=MAX_PRODUCT_ATTEMPTS.
+    pub product_attempts: u8,
+    /// Bytes per `read_range` call, ≥ 1.
+    pub chunk_len: u32,
+    /// Capture timeout handed to the camera, ticks.
+    pub capture_timeout_ticks: u64,
+    /// Expected image size (width, height) from the calibration.
+    pub image_size: (u32, u32),
+}
+
+impl RunnerConfig {
+    /// `Err(ConfigParamOutOfRange)` if a field is outside its documented range.
+    pub fn validate(&self) -> Result<(), FailureCode> {
+        let ok = (1..=MAX_DEVICE_ATTEMPTS).contains(&self.attempts)
+            && (1..=MAX_PRODUCT_ATTEMPTS).contains(&self.product_attempts)
+            && self.chunk_len >= 1
+            && self.image_size.0 >= 1
+            && self.image_size.1 >= 1;
+        if ok {
+            Ok(())
+        } else {
+            Err(FailureCode::ConfigParamOutOfRange)
+        }
+    }
+}
+
+/// Work done by a capture.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CaptureReport {
+    /// `capture` calls made.
+    pub attempts: u8,
+    /// Of those, failed with [`ErrorKind::Timeout`].
+    pub timeouts: u8,
+    /// Of those, failed with [`ErrorKind::Truncated`].
+    pub truncated: u8,
+    /// Of those, failed with any other kind.
+    pub faults: u8,
+}
+
+/// Work done reading the map product.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ReadReport {
+    /// Product length in bytes.
+    pub len: u32,
+    /// Whole-product passes started.
+    pub product_attempts: u8,
+    /// `read_range` calls made.
+    pub reads: u32,
+    /// Of those, failed.
+    pub failed_reads: u32,
+}
+
+fn time_or_zero<K: Clock>(clock: &mut K, log: &mut FailureLog) -> u64 {
+    match clock.now_ticks() {
+        Ok(t) => t,
+        Err(_) => {
+            log.record(FailureCode::HalClockFault, 0, 0);
+            0
+        }
+    }
+}
+
+/// Capture one stereo pair with bounded retries on transient faults.
+///
+/// Each failed attempt is recorded in `log` with its device failure code. A
+/// non-transient fault ends the capture with that code; running out of
+/// attempts ends it with [`FailureCode::HalCameraRetriesExhausted`]. A frame
+/// whose [`FrameInfo`] disagrees with `cfg.image_size` or the buffers is
+/// rejected with [`FailureCode::HalFrameInfoInvalid`] (not retried: the camera
+/// broke its contract).
+pub fn capture_pair<C: StereoCamera>(
+    cam: &mut C,
+    left: &mut [u8],
+    right: &mut [u8],
+    cfg: &RunnerConfig,
+    now_ticks: u64,
+    log: &mut FailureLog,
+) -> Result<(FrameInfo, CaptureReport), FailureCode> {
+    cfg.validate()?;
+    let mut rep = CaptureReport::default();
+    for attempt in 0..cfg.attempts {
+        rep.attempts = attempt + 1;
+        match cam.capture(left, right, cfg.capture_timeout_ticks) {
+            Ok(info) => {
+                if let Err(code) = info.views(cfg.image_size, left, right) {
+                    log.record(code, now_ticks, info.sequence);
+                    return Err(FailureCode::HalFrameInfoInvalid);
+                }
+                return Ok((info, rep));
+            }
+            Err(e) => {
+                let kind = e.kind();
+                let code = failure_code(Device::Camera, kind);
+                log.record(code, now_ticks, u32::from(attempt));
+                match kind {
+                    ErrorKind::Timeout => rep.timeouts += 1,
+                    ErrorKind::Truncated => rep.truncated += 1,
+                    _ => rep.faults += 1,
+                }
+                if !kind.is_transient() {
+                    return Err(code);
+                }
+            }
+        }
+    }
+    log.record(
+        FailureCode::HalCameraRetriesExhausted,
+        now_ticks,
+        u32::from(rep.attempts),
+    );
+    Err(FailureCode::HalCameraRetriesExhausted)
+}
+
+/// Read the whole map product into the front of `buf` once, chunk by chunk,
+/// with bounded retries per chunk. Returns the product length.
+///
+/// Fails with [`FailureCode::HalMapTooLarge`] if the product is empty or
+/// longer than `buf` (nothing is read), with the device's code for a
+/// non-transient fault, and with [`FailureCode::HalStorageRetriesExhausted`]
+/// when a chunk fails `cfg.attempts` times.
+pub fn read_map_once<S: MapStore>(
+    store: &mut S,
+    buf: &mut [u8],
+    cfg: &RunnerConfig,
+    now_ticks: u64,
+    log: &mut FailureLog,
+    rep: &mut ReadReport,
+) -> Result<usize, FailureCode> {
+    cfg.validate()?;
+    let len32 = match store.len() {
+        Ok(l) => l,
+        Err(e) => {
+            let code = failure_code(Device::MapStore, e.kind());
+            log.record(code, now_ticks, 0);
+            return Err(code);
+        }
+    };
+    rep.len = len32;
+    let len = usize::try_from(len32).map_err(|_| FailureCode::HalMapTooLarge)?;
+    let product = match buf.get_mut(..len) {
+        Some(p) if len > 0 => p,
+        _ => {
+            log.record(FailureCode::HalMapTooLarge, now_ticks, len32);
+            return Err(FailureCode::HalMapTooLarge);
+        }
+    };
+    let chunk = usize::try_from(cfg.chunk_len).unwrap_or(usize::MAX);
+    let mut offset: u32 = 0;
+    for piece in product.chunks_mut(chunk) {
+        let mut done = false;
+        for _ in 0..cfg.attempts {
+            rep.reads = rep.reads.saturating_add(1);
+            match store.read_range(offset, piece) {
+                Ok(()) => {
+                    done = true;
+                    break;
+                }
+                Err(e) => {
+                    rep.failed_reads = rep.failed_reads.saturating_add(1);
+                    let code = failure_code(Device::MapStore, e.kind());
+                    log.record(code, now_ticks, offset);
+                    if !e.kind().is_transient() {
+                        return Err(code);
+                    }
+                }
+            }
+        }
+        if !done {
+            log.record(FailureCode::HalStorageRetriesExhausted, now_ticks, offset);
+            return Err(FailureCode::HalStorageRetriesExhausted);
+        }
+        // piece.len() <= len <= u32::MAX, so this cannot wrap past the product.
+        offset = offset.saturating_add(u32::try_from(piece.len()).unwrap_or(u32::MAX));
+    }
+    Ok(len)
+}
+
+/// Read the map product and check it with `verify`; re-read the whole product
+/// (at most `cfg.product_attempts` passes) while the check fails with a code
+/// whose retry hint is not [`Retry::Never`] — undetected storage corruption
+/// shows up here as a CRC mismatch.
+pub fn read_map_verified<S: MapStore, V: FnMut(&[u8]) -> Result<(), FailureCode>>(
+    store: &mut S,
+    buf: &mut [u8],
+    cfg: &RunnerConfig,
+    now_ticks: u64,
+    log: &mut FailureLog,
+    mut verify: V,
+) -> Result<(usize, ReadReport), FailureCode> {
+    cfg.validate()?;
+    let mut rep = ReadReport::default();
+    let mut last = FailureCode::HalStorageRetriesExhausted;
+    for pass in 0..cfg.product_attempts {
+        rep.product_attempts = pass + 1;
+        let len = read_map_once(store, buf, cfg, now_ticks, log, &mut rep)?;
+        let product = buf.get(..len).ok_or(FailureCode::HalMapTooLarge)?;
+        match verify(product) {
+            Ok(()) => return Ok((len, rep)),
+            Err(code) => {
+                log.record(code, now_ticks, u32::from(pass));
+                last = code;
+                if code.retry() == Retry::Never {
+                    return Err(code);
+                }
+            }
+        }
+    }
+    Err(last)
+}
+
+/// Caller-owned memory the runner fills.
+#[derive(Debug)]
+pub struct Buffers<'b> {
+    /// Left image, at least one full frame.
+    pub left: &'b mut [u8],
+    /// Right image, at least one full frame.
+    pub right: &'b mut [u8],
+    /// Map product, at least its stored length.
+    pub map: &'b mut [u8],
+}
+
+/// The checked inputs of one relocalization, borrowing the [`Buffers`].
+#[derive(Clone, Copy, Debug)]
+pub struct Inputs<'b> {
+    /// Left image.
+    pub left: GrayView<'b>,
+    /// Right image.
+    pub right: GrayView<'b>,
+    /// Frame metadata of the pair.
+    pub frame: FrameInfo,
+    /// The verified map product bytes.
+    pub map: &'b [u8],
+    /// The checked pose prior.
+    pub prior: PriorEstimate,
+    /// Clock time when acquisition started.
+    pub start_ticks: u64,
+    /// Capture work.
+    pub capture: CaptureReport,
+    /// Map read work.
+    pub map_read: ReadReport,
+}
+
+/// Status a step closure returns to [`Runner::drive`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum StepStatus {
+    /// More work remains.
+    Continue,
+    /// The engine has an outcome.
+    Done,
+}
+
+/// How [`Runner::drive`] ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DriveReport {
+    /// Steps called.
+    pub steps: u32,
+    /// Ticks from the first to the last clock read.
+    pub elapsed_ticks: u64,
+    /// Cycle-counter difference over the run, if the clock has one.
+    pub cycles: Option<u64>,
+    /// Whether the engine reported [`StepStatus::Done`].
+    pub done: bool,
+}
+
+/// The devices and the failure log of one relocalization run.
+#[derive(Debug)]
+pub struct Runner<C, K, S, P, T> {
+    /// Stereo camera.
+    pub camera: C,
+    /// System clock.
+    pub clock: K,
+    /// Map storage.
+    pub store: S,
+    /// Pose prior source.
+    pub prior: P,
+    /// Telemetry downlink.
+    pub telemetry: T,
+    /// Retry and size settings.
+    pub cfg: RunnerConfig,
+    /// Every fault seen so far.
+    pub log: FailureLog,
+    /// Telemetry frames that could not be sent (saturating).
+    pub telemetry_dropped: u32,
+}
+
+impl<C, K, S, P, T> Runner<C, K, S, P, T>
+where
+    C: StereoCamera,
+    K: Clock,
+    S: MapStore,
+    P: PosePrior,
+    T: Telemetry,
+{
+    /// A runner over these devices. `cfg` is checked by every operation.
+    pub fn new(camera: C, clock: K, store: S, prior: P, telemetry: T, cfg: RunnerConfig) -> Self {
+        Self {
+            camera,
+            clock,
+            store,
+            prior,
+            telemetry,
+            cfg,
+            log: FailureLog::new(),
+            telemetry_dropped: 0,
+        }
+    }
+
+    /// Read the clock; a clock fault is logged and reads as 0.
+    pub fn now(&mut self) -> u64 {
+        time_or_zero(&mut self.clock, &mut self.log)
+    }
+
+    /// Gather everything one relocalization needs: the map product (checked
+    /// with `verify_map`), a stereo pair and the pose prior.
+    ///
+    /// Order: map first (slowest, and useless to capture without it), then the
+    /// prior, then the images, so the pair is as close as possible in time to
+    /// the prior it is matched against.
+    pub fn acquire<'b, V: FnMut(&[u8]) -> Result<(), FailureCode>>(
+        &mut self,
+        bufs: Buffers<'b>,
+        verify_map: V,
+    ) -> Result<Inputs<'b>, FailureCode> {
+        self.cfg.validate()?;
+        let start = self.now();
+        let (len, map_read) = read_map_verified(
+            &mut self.store,
+            bufs.map,
+            &self.cfg,
+            start,
+            &mut self.log,
+            verify_map,
+        )?;
+        let prior = match self.prior.latest() {
+            Ok(p) => p,
+            Err(e) => {
+                let code = failure_code(Device::PosePrior, e.kind());
+                self.log.record(code, start, 0);
+                return Err(code);
+            }
+        };
+        if let Err(code) = prior.check() {
+            self.log.record(code, start, 0);
+            return Err(code);
+        }
+        let now = self.now();
+        let (frame, capture) = capture_pair(
+            &mut self.camera,
+            bufs.left,
+            bufs.right,
+            &self.cfg,
+            now,
+            &mut self.log,
+        )?;
+        let left: &'b [u8] = bufs.left;
+        let right: &'b [u8] = bufs.right;
+        let map: &'b [u8] = bufs.map;
+        let (left, right) = frame.views(self.cfg.image_size, left, right)?;
+        Ok(Inputs {
+            left,
+            right,
+            frame,
+            map: map.get(..len).ok_or(FailureCode::HalMapTooLarge)?,
+            prior,
+            start_ticks: start,
+            capture,
+            map_read,
+        })
+    }
+
+    /// Call `step(now)` until it returns [`StepStatus::Done`], at most
+    /// `max_steps` times and while fewer than `budget_ticks` have elapsed.
+    ///
+    /// Running out of steps or ticks records and returns
+    /// [`FailureCode::RelocBudgetExhausted`] together with the report; an
+    /// error from `step` is returned as is. INTEGRATION POINT: `step` is
+    /// `|now| relocalizer.step(now)` mapped to [`StepStatus`].
+    pub fn drive<F: FnMut(u64) -> Result<StepStatus, FailureCode>>(
+        &mut self,
+        max_steps: u32,
+        budget_ticks: u64,
+        mut step: F,
+    ) -> (DriveReport, Result<(), FailureCode>) {
+        let start = self.now();
+        let c0 = self.clock.cycles();
+        let mut rep = DriveReport {
+            steps: 0,
+            elapsed_ticks: 0,
+            cycles: None,
+            done: false,
+        };
+        let mut result = Err(FailureCode::RelocBudgetExhausted);
+        let mut now = start;
+        for _ in 0..max_steps {
+            if now.saturating_sub(start) >= budget_ticks {
+                break;
+            }
+            rep.steps += 1;
+            let status = step(now);
+            now = self.now().max(now);
+            match status {
+                Ok(StepStatus::Continue) => {}
+                Ok(StepStatus::Done) => {
+                    rep.done = true;
+                    result = Ok(());
+                    break;
+                }
+                Err(code) => {
+                    self.log.record(code, now, rep.steps);
+                    result = Err(code);
+                    break;
+                }
+            }
+        }
+        rep.elapsed_ticks = now.saturating_sub(start);
+        rep.cycles = match (c0, self.clock.cycles()) {
+            (Some(a), Some(b)) => Some(b.wrapping_sub(a)),
+            _ => None,
+        };
+        if !rep.done && result == Err(FailureCode::RelocBudgetExhausted) {
+            self.log
+                .record(FailureCode::RelocBudgetExhausted, now, rep.steps);
+        }
+        (rep, result)
+    }
+
+    /// Send one frame; a failure is counted and logged, never retried.
+    pub fn send(&mut self, kind: u8, payload: &[u8]) {
+        if self.telemetry.send(kind, payload).is_err() {
+            self.telemetry_dropped = self.telemetry_dropped.saturating_add(1);
+            let now = self.now();
+            self.log
+                .record(FailureCode::HalTelemetryWrite, now, u32::from(kind));
+        }
+    }
+
+    /// Downlink the failure log: one counters frame, then the recent events
+    /// oldest first (at most the ring length of frames).
+    pub fn send_failure_log(&mut self) {
+        let mut payload = [0u8; MAX_PAYLOAD];
+        let n = failure_counters_payload(&self.log, &mut payload);
+        let log = self.log.clone();
+        self.send(
+            FrameKind::FailureCounters as u8,
+            payload.get(..n).unwrap_or(&[]),
+        );
+        for e in log.recent() {
+            self.send(FrameKind::FailureEvent as u8, &failure_event_payload(&e));
+        }
+    }
+}

@@ -1,0 +1,45 @@
+//! Map storage: random-access reads of the map product (design §4) from
+//! non-volatile memory, into caller buffers.
+
+use crate::error::ErrorType;
+
+/// Read-only storage holding one map product.
+pub trait MapStore: ErrorType {
+    /// Length of the stored map product in bytes.
+    ///
+    /// # Contract
+    /// * Constant while the store is open; `Ok(0)` means no product is stored.
+    fn len(&mut self) -> Result<u32, Self::Error>;
+
+    /// Whether no product is stored (`len() == 0`).
+    ///
+    /// # Contract
+    /// * Same errors as [`MapStore::len`].
+    fn is_empty(&mut self) -> Result<bool, Self::Error> {
+        Ok(self.len()? == 0)
+    }
+
+    /// Read `buf.len()` bytes starting at byte `offset` of the product.
+    ///
+    /// # Contract
+    /// * On `Ok(())` all of `buf` is filled with bytes `offset..offset+buf.len()`.
+    /// * A range that does not lie inside `0..len()` is an error of kind
+    ///   [`Other`](crate::ErrorKind::Other); nothing is read.
+    /// * A short read is kind [`Truncated`](crate::ErrorKind::Truncated), a
+    ///   detected media error (ECC) is [`Corrupted`](crate::ErrorKind::Corrupted),
+    ///   a busy device that did not answer in time is
+    ///   [`Timeout`](crate::ErrorKind::Timeout). After an error the contents of
+    ///   `buf` are unspecified.
+    /// * Undetected corruption is possible: callers check the product's CRCs.
+    /// * Never writes outside `buf`; keeps no reference to it.
+    fn read_range(&mut self, offset: u32, buf: &mut [u8]) -> Result<(), Self::Error>;
+}
+
+impl<T: MapStore + ?Sized> MapStore for &mut T {
+    fn len(&mut self) -> Result<u32, Self::Error> {
+        T::len(self)
+    }
+    fn read_range(&mut self, offset: u32, buf: &mut [u8]) -> Result<(), Self::Error> {
+        T::read_range(self, offset, buf)
+    }
+}
