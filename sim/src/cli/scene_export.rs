@@ -88,8 +88,10 @@ pub fn run(args: &Args) -> Result<u8> {
     let light = scene.lighting(hours);
     let shadow_s = t1.elapsed().as_secs_f64();
     let t2 = Instant::now();
+    let cpu2 = process_cpu_s();
     let (rig, truth, pair) = scene.capture(&light, &cap);
     let pair_s = t2.elapsed().as_secs_f64();
+    let pair_cpu_s = process_cpu_s().zip(cpu2).map(|(b, a)| b - a);
     let t3 = Instant::now();
     let map_light = if (map_hours - hours).abs() < 1e-6 {
         light.clone()
@@ -123,6 +125,9 @@ pub fn run(args: &Args) -> Result<u8> {
          stereo pair {pair_s:.2} s, map {map_s:.2} s, write {write_s:.2} s",
         rayon::current_num_threads()
     );
+    if let Some(c) = pair_cpu_s {
+        println!("stereo pair CPU time (all threads): {c:.2} s");
+    }
     println!(
         "wrote {} ({} {}x{}, {} triangles, sun el {:.1}° az {:.1}°)",
         args.out.display(),
@@ -134,4 +139,15 @@ pub fn run(args: &Args) -> Result<u8> {
         light.sun.azimuth_deg
     );
     Ok(0)
+}
+
+/// CPU time (user + system) of this process so far, seconds, from `/proc/self/stat`
+/// (Linux; `None` elsewhere). Wall time on a shared machine overstates the cost.
+fn process_cpu_s() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the parenthesised command name; utime and stime are fields 14 and 15.
+    let rest = stat.rsplit_once(')')?.1;
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks: f64 = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
 }
