@@ -7,8 +7,8 @@
 //! [`RenderOptions`]. Output: an 8-bit gray image, row-major, stride = width.
 //!
 //! Shading: Lambertian sun term × cast shadow (soft-edged by the sun's angular radius)
-//! + sky ambient × sky visibility; camera exposure keyed to sunlit flat ground, gamma
-//! 2.2, optional vignetting, seeded Gaussian read + shot noise, `s × s` supersampling.
+//! plus sky ambient × sky visibility; camera exposure keyed to sunlit flat ground, gamma
+//! 2.2, optional vignetting, seeded Gaussian read and shot noise, `s × s` supersampling.
 //! Rays march the heightfield with space skipping from max-filtered heights
 //! ([`Terrain::max_height_near`]), then bisect to the surface. Rows render in parallel
 //! with rayon; every pixel depends only on its coordinates and the seed, so output is

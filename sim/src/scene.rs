@@ -368,7 +368,7 @@ impl Scene {
 /// A prior pose as in the paper's evaluation (design §8): truth perturbed by a translation
 /// of 10–20 cm in a random direction and a rotation of up to 1.5° about a random axis.
 pub fn perturbed_prior(truth: &Pose, seed: u64) -> Pose {
-    let mut rng = Rng::new(seed).fork(0x5052_494F_52);
+    let mut rng = Rng::new(seed).fork(0x50_5249_4F52);
     let dt = rng.unit_vector3() * rng.uniform(0.10, 0.20);
     let axis = rng.unit_vector3();
     let angle = rng.uniform(-1.5, 1.5).to_radians();

@@ -366,7 +366,7 @@ pub fn place_rocks(model: &CfaModel, seed: u64, half_x: f32, half_y: f32) -> Vec
         let d = (la + (lb - la) * i as f64 / n as f64).exp();
         let f = model.number_density(d) * d;
         if let Some((pd, pf)) = prev {
-            let ds_log = (d as f64).ln() - f64::ln(pd);
+            let ds_log = d.ln() - f64::ln(pd);
             acc += 0.5 * (f + pf) * ds_log;
         }
         prev = Some((d, f));
@@ -528,7 +528,7 @@ impl Terrain {
         // Sample tubes: horizontal cylinders lying on the ground, bright.
         for (t, c) in TUBE_XY_M.iter().enumerate() {
             let ang = 0.6 + 1.3 * t as f32;
-            let (s, co) = (ang as f32).sin_cos();
+            let (s, co) = ang.sin_cos();
             let b = TUBE_LENGTH_M;
             let i0 = ((c[0] - b - x0) / cell_m).floor().max(0.0) as usize;
             let j0 = ((c[1] - b - y0) / cell_m).floor().max(0.0) as usize;

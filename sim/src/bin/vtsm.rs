@@ -42,6 +42,8 @@ enum MapCommand {
 enum SceneCommand {
     /// Export a simulated scene as the files `vtsm relocalize` reads.
     Export(cli::scene_export::Args),
+    /// Contact sheet PNG of the three terrains at am, noon and pm.
+    Sheet(cli::scene_sheet::Args),
 }
 
 fn main() -> ExitCode {
@@ -53,6 +55,7 @@ fn main() -> ExitCode {
         Command::Eval(a) => cli::eval::run(a),
         Command::Map(MapCommand::Build(a)) => cli::map_build::run(a),
         Command::Scene(SceneCommand::Export(a)) => cli::scene_export::run(a),
+        Command::Scene(SceneCommand::Sheet(a)) => cli::scene_sheet::run(a),
         Command::Budget(a) => cli::budget::run(a),
     };
     match result {

@@ -10,6 +10,7 @@ pub mod map_build;
 pub mod ncc;
 pub mod relocalize;
 pub mod scene_export;
+pub mod scene_sheet;
 
 /// Print a one-line error to stderr and return the bad-input exit code.
 pub fn report(e: &Error) -> u8 {

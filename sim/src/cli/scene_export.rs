@@ -1,12 +1,153 @@
-//! `vtsm scene export`.
+//! `vtsm scene export`: render one capture of a simulated depot and write the files
+//! `vtsm relocalize` reads (design §5), plus `scene.json` describing the scene.
+
+use crate::error::{Error, Result};
+use crate::scene::export::{existing, write_scene, SceneFiles};
+use crate::scene::{parse_hours, perturbed_prior, Capture, Profile, Scene, STOPS_PER_CIRCLE};
+use crate::terrain::TerrainKind;
+use std::path::PathBuf;
+use std::time::Instant;
 
 /// Arguments of `vtsm scene export`.
 #[derive(Debug, Clone, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Terrain: flagstone, cfa6 or cfa2.
+    #[arg(long)]
+    pub terrain: String,
+    /// Capture time of the stereo pair: am, noon, pm or local solar hours (e.g. 15.5).
+    #[arg(long)]
+    pub hours: String,
+    /// Time of the mapping images baked into the map texture (default am = 9.5 h).
+    #[arg(long, default_value = "am")]
+    pub map_hours: String,
+    /// Output directory (created if missing).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Seed of the depot, map noise, sensor noise and prior.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Profile: paper, demo or test.
+    #[arg(long, default_value = "demo")]
+    pub profile: String,
+    /// Stop of the capture grid, 0..30 (0..15 around tube 0, 15..30 around tube 1).
+    #[arg(long, default_value_t = 0)]
+    pub stop: u32,
+    /// Tube the cameras look at: 0 or 1.
+    #[arg(long, default_value_t = 0)]
+    pub look_at: u32,
+    /// Stereo baseline in metres: 0.40 or 0.20.
+    #[arg(long, default_value_t = 0.40)]
+    pub baseline: f32,
+    /// Overwrite files already in DIR.
+    #[arg(long)]
+    pub force: bool,
+}
 
 /// Run the command; returns the exit code.
-pub fn run(_args: &Args) -> crate::Result<u8> {
-    Err(crate::Error::msg(
-        "`vtsm scene export` is not available in this build",
-    ))
+pub fn run(args: &Args) -> Result<u8> {
+    let kind = TerrainKind::parse(&args.terrain).ok_or_else(|| {
+        Error::msg(format!(
+            "unknown terrain `{}` (flagstone, cfa6, cfa2)",
+            args.terrain
+        ))
+    })?;
+    let hours = parse_hours(&args.hours).ok_or_else(|| {
+        Error::msg(format!(
+            "bad --hours `{}` (am, noon, pm or 0..24)",
+            args.hours
+        ))
+    })?;
+    let map_hours = parse_hours(&args.map_hours).ok_or_else(|| {
+        Error::msg(format!(
+            "bad --map-hours `{}` (am, noon, pm or 0..24)",
+            args.map_hours
+        ))
+    })?;
+    let profile = Profile::parse(&args.profile).ok_or_else(|| {
+        Error::msg(format!(
+            "unknown profile `{}` (paper, demo, test)",
+            args.profile
+        ))
+    })?;
+    if args.stop >= 2 * STOPS_PER_CIRCLE || args.look_at > 1 {
+        return Err(Error::msg("--stop must be 0..30 and --look-at 0 or 1"));
+    }
+    if !(args.baseline.is_finite() && args.baseline > 0.0 && args.baseline < 2.0) {
+        return Err(Error::msg("--baseline must be in (0, 2) metres"));
+    }
+    if !args.force {
+        if let Some(p) = existing(&args.out).first() {
+            return Err(Error::file(p, "already exists (use --force to overwrite)"));
+        }
+    }
+    let t0 = Instant::now();
+    let scene = Scene::new(kind, args.seed, profile);
+    let terrain_s = t0.elapsed().as_secs_f64();
+    let cap = Capture::from_index(args.stop, args.look_at, args.baseline);
+    let t1 = Instant::now();
+    let light = scene.lighting(hours);
+    let shadow_s = t1.elapsed().as_secs_f64();
+    let t2 = Instant::now();
+    let cpu2 = process_cpu_s();
+    let (rig, truth, pair) = scene.capture(&light, &cap);
+    let pair_s = t2.elapsed().as_secs_f64();
+    let pair_cpu_s = process_cpu_s().zip(cpu2).map(|(b, a)| b - a);
+    let t3 = Instant::now();
+    let map_light = if (map_hours - hours).abs() < 1e-6 {
+        light.clone()
+    } else {
+        scene.lighting(map_hours)
+    };
+    let map = scene.map(&map_light);
+    let map_s = t3.elapsed().as_secs_f64();
+    let prior = perturbed_prior(&truth, args.seed);
+    let meta = serde_json::json!({
+        "terrain": kind.name(), "seed": args.seed, "profile": profile.name(),
+        "hours": hours, "map_hours": map_hours, "stop": args.stop, "look_at": args.look_at,
+        "baseline_m": args.baseline, "sun_elevation_deg": light.sun.elevation_deg,
+        "sun_azimuth_deg": light.sun.azimuth_deg, "triangles": map.triangles.len(),
+        "masked_triangles": map.mask.iter().filter(|&&m| m).count(),
+    });
+    let files = SceneFiles {
+        map: &map,
+        rig: &rig,
+        left: &pair.left,
+        right: &pair.right,
+        prior: &prior,
+        truth: &truth,
+        meta,
+    };
+    let t4 = Instant::now();
+    write_scene(&args.out, &files, args.force)?;
+    let write_s = t4.elapsed().as_secs_f64();
+    println!(
+        "timing (wall, {} threads): terrain {terrain_s:.2} s, shadow map {shadow_s:.2} s, \
+         stereo pair {pair_s:.2} s, map {map_s:.2} s, write {write_s:.2} s",
+        rayon::current_num_threads()
+    );
+    if let Some(c) = pair_cpu_s {
+        println!("stereo pair CPU time (all threads): {c:.2} s");
+    }
+    println!(
+        "wrote {} ({} {}x{}, {} triangles, sun el {:.1}° az {:.1}°)",
+        args.out.display(),
+        profile.name(),
+        rig.cam.width,
+        rig.cam.height,
+        map.triangles.len(),
+        light.sun.elevation_deg,
+        light.sun.azimuth_deg
+    );
+    Ok(0)
+}
+
+/// CPU time (user + system) of this process so far, seconds, from `/proc/self/stat`
+/// (Linux; `None` elsewhere). Wall time on a shared machine overstates the cost.
+fn process_cpu_s() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the parenthesised command name; utime and stime are fields 14 and 15.
+    let rest = stat.rsplit_once(')')?.1;
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks: f64 = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
 }
