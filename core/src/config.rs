@@ -33,6 +33,33 @@ pub const MAX_ATTEMPTS_PER_ITER: usize = 100_000;
 /// Events kept in the failure log's ring.
 pub const FAILURE_RING_LEN: usize = 32;
 
+// ---- map product and rasterizer (core::map, core::raster) ----------------
+
+/// Largest number of vertices in a map product. A depot map is ~10⁵–10⁶.
+pub const MAX_MAP_VERTICES: usize = 1 << 22;
+/// Largest number of triangles in a map product.
+pub const MAX_MAP_TRIANGLES: usize = 1 << 22;
+/// Largest number of tiles (cells of the x-y tiling grid) in a map product.
+pub const MAX_MAP_TILES: usize = 1 << 16;
+/// Largest texture side (pixels) in a map product.
+pub const MAX_TEXTURE_DIM: usize = 16384;
+/// Largest render window side (pixels): a template.
+pub const MAX_RENDER_PX: usize = MAX_TEMPLATE_PX;
+/// Guard band (pixels) around the render window: geometry is clipped in camera
+/// space to the window grown by this much, so fixed-point edge setup stays in range.
+pub const RASTER_GUARD_PX: i32 = 256;
+/// Near clipping plane of the virtual camera, metres.
+pub const RASTER_NEAR_M: f32 = 0.05;
+/// Far limit of the virtual camera, metres (depth format range, see numeric.md).
+pub const RASTER_FAR_M: f32 = 60_000.0;
+/// Template mask: search radius (pixels, Chebyshev) for a nearer mask pixel.
+pub const TEMPLATE_MASK_RADIUS_PX: usize = 3;
+/// Template mask: a background pixel is kept when it is farther than a nearby
+/// mask pixel by more than this absolute jump, metres...
+pub const TEMPLATE_MASK_JUMP_M: f32 = 0.05;
+/// ...plus the mask pixel's depth divided by this (50 → 2 %: the threshold grows with range).
+pub const TEMPLATE_MASK_JUMP_REL_DIV: u32 = 50;
+
 // ---- defaults (paper §III, §IV) ------------------------------------------
 
 /// N_corr: correspondences per iteration.
@@ -72,6 +99,12 @@ const _: () = assert!(DEFAULT_N_CORR as usize <= MAX_CORR);
 const _: () = assert!(DEFAULT_N_ITER as usize <= MAX_ITER);
 const _: () = assert!(DEFAULT_RANSAC_ITER as usize <= MAX_RANSAC_ITER);
 const _: () = assert!(DEFAULT_TEMPLATE_PX as usize <= MAX_TEMPLATE_PX);
+// 28.4 edge setup runs in i64 on absolute coordinates (< 2^18, so edge terms < 2^41);
+// a window-relative variant would fit i32: see fsw-docs/budgets/numeric.md.
+const _: () = assert!((MAX_RENDER_PX as i64 + 2 * RASTER_GUARD_PX as i64 + 16) * 16 < (1 << 15));
+const _: () = assert!(MAX_MAP_TILES <= MAX_MAP_TRIANGLES);
+const _: () = assert!(((MAX_IMAGE_DIM as i64 + 2 * RASTER_GUARD_PX as i64 + 16) * 16) < (1 << 18));
+const _: () = assert!(MAX_TEXTURE_DIM * MAX_TEXTURE_DIM <= u32::MAX as usize);
 // 255² · 256² must fit a u32 for exact integer NCC sums (see fsw-docs/budgets/numeric.md).
 const _: () = assert!((255u64 * 255 * (MAX_TEMPLATE_PX * MAX_TEMPLATE_PX) as u64) < (1u64 << 32));
 

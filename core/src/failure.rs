@@ -138,6 +138,10 @@ failure_codes! {
         "The best score is below the acceptance threshold; the match is rejected.";
     NccAmbiguous = 0x0508, Info, Same, "NCC_AMBIGUOUS",
         "The runner-up peak scores too close to the best one; the match is rejected as ambiguous.";
+    NccWindowTooLarge = 0x0509, Fatal, Never, "NCC_WINDOW_TOO_LARGE",
+        "The search window is larger than config::MAX_SEARCH_PX; nothing is matched.";
+    NccTemplateSizeInvalid = 0x050A, Fatal, Never, "NCC_TEMPLATE_SIZE_INVALID",
+        "The template side is outside MIN_TEMPLATE_PX..=MAX_TEMPLATE_PX or its mask differs in size; nothing is matched.";
     // 0x06xx stereo
     StereoEpipolarViolation = 0x0601, Info, Same, "STEREO_EPIPOLAR_VIOLATION",
         "Left and right peaks differ by more than epsilon rows; the pair is rejected (Valid).";
@@ -145,6 +149,8 @@ failure_codes! {
         "Disparity is non-positive or below the plausible minimum; the pair is rejected.";
     StereoRigInvalid = 0x0603, Fatal, Never, "STEREO_RIG_INVALID",
         "Camera intrinsics or baseline are non-finite or non-positive; nothing is triangulated.";
+    StereoPixelNonFinite = 0x0604, Info, Same, "STEREO_PIXEL_NON_FINITE",
+        "A left or right peak coordinate is NaN or infinite; the pair is rejected.";
     // 0x07xx pose
     PoseTooFewPoints = 0x0701, Degraded, Same, "POSE_TOO_FEW_POINTS",
         "Fewer than three correspondences; no transform can be estimated.";
@@ -169,6 +175,10 @@ failure_codes! {
         "No vertex of the sampling mask is in view from the prior; relocalization cannot start.";
     RelocNotStarted = 0x0807, Fatal, Never, "RELOC_NOT_STARTED",
         "An outcome was requested before the relocalizer was started.";
+    RelocSampleOutOfView = 0x0808, Info, Same, "RELOC_SAMPLE_OUT_OF_VIEW",
+        "No drawn mask vertex projected inside both images from the viewpoint; the attempt is skipped.";
+    RelocSampleOccluded = 0x0809, Info, Same, "RELOC_SAMPLE_OCCLUDED",
+        "The sampled vertex is hidden behind other surface in the virtual view; the attempt is skipped.";
     // 0x09xx hardware
     HalCameraTimeout = 0x0901, Degraded, Same, "HAL_CAMERA_TIMEOUT",
         "The stereo camera did not deliver a frame within its timeout; capture again.";

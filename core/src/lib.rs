@@ -48,3 +48,5 @@ pub mod rng;
 pub mod stereo;
 
 pub use failure::FailureCode;
+/// The nalgebra version the core is built with, so callers use the same types.
+pub use nalgebra;

@@ -1,1 +1,840 @@
-//! Placeholder: filled in by its stage.
+//! The depot map product (design §4): one versioned little-endian binary that
+//! the core reads through a borrowed byte slice.
+//!
+//! Inputs: the bytes of a product ([`MapView::new_checked`]) or a mesh in memory
+//! ([`MapSource`], encoded by [`encode`] into a caller buffer). Outputs: checked,
+//! panic-free accessors for vertices, triangles (with the M̂ mask bit), per-corner
+//! UVs, tiles with 3D bounds for frustum culling, the gray texture and the list of
+//! mask vertices. Bounds: every count is capped by `config::MAX_MAP_*` and
+//! `config::MAX_TEXTURE_DIM`; validation and encoding are O(vertices + triangles +
+//! tiles + texels), each a loop over a capped count.
+//!
+//! # Layout (version 1)
+//!
+//! | offset | field |
+//! |---|---|
+//! | 0 | magic `b"VTSMMAP\0"` |
+//! | 8 | version u32 = 1 |
+//! | 12 | header length u32 = [`HEADER_LEN`] |
+//! | 16..44 | vertex, triangle, tile, mask-vertex counts; texture width, height; tiles_x, tiles_y (u32) |
+//! | 48 | tile size, metres (f32) |
+//! | 52..76 | bounds min xyz, max xyz (f32) |
+//! | 76..148 | six sections × (offset u32, length u32, CRC-32 u32) |
+//! | 148 | CRC-32 of bytes 0..148 |
+//!
+//! Sections follow the header contiguously in this order: tiles (32 B: min xyz,
+//! max xyz f32, first triangle u32, triangle count u32), vertices (12 B: xyz f32,
+//! world metres), triangles (16 B: three vertex indices u32, flags u32 with bit 0 =
+//! member of M̂, other bits zero), UVs (24 B: three corners × (x, y) f32 in texture
+//! pixels, x right, y down, pixel centres on integers), texture (width·height bytes,
+//! row-major, stride = width), mask vertices (u32 vertex indices, strictly increasing).
+//! Triangles are sorted by tile; tile `ty·tiles_x + tx` covers the cell of the x-y
+//! grid holding the triangle's centroid, and its box bounds all its triangles.
+//! Every byte is covered by a CRC, so any single corrupted byte is detected.
+
+use crate::config::{MAX_MAP_TILES, MAX_MAP_TRIANGLES, MAX_MAP_VERTICES, MAX_TEXTURE_DIM};
+use crate::failure::FailureCode;
+use crate::geom::Vec3;
+use crate::image::GrayView;
+
+/// First eight bytes of every map product.
+pub const MAGIC: [u8; 8] = *b"VTSMMAP\0";
+/// Format version written and accepted by this build.
+pub const VERSION: u32 = 1;
+/// Length of the header in bytes (including its own CRC).
+pub const HEADER_LEN: usize = 152;
+/// Bytes per tile record.
+pub const TILE_BYTES: usize = 32;
+/// Bytes per vertex record.
+pub const VERTEX_BYTES: usize = 12;
+/// Bytes per triangle record.
+pub const TRIANGLE_BYTES: usize = 16;
+/// Bytes per triangle UV record.
+pub const UV_BYTES: usize = 24;
+/// Bytes per mask-vertex record.
+pub const MASK_VERTEX_BYTES: usize = 4;
+/// Triangle flag: the triangle belongs to the sampling mask M̂.
+pub const FLAG_MASK: u32 = 1;
+
+const SECTIONS: usize = 6;
+const SEC_TILES: usize = 0;
+const SEC_VERTICES: usize = 1;
+const SEC_TRIANGLES: usize = 2;
+const SEC_UVS: usize = 3;
+const SEC_TEXTURE: usize = 4;
+const SEC_MASK: usize = 5;
+const OFF_SECTIONS: usize = 76;
+const OFF_HEADER_CRC: usize = 148;
+
+// ---- CRC-32 (IEEE 802.3, reflected, poly 0xEDB88320) ------------------------
+
+// Const evaluation: `i < 256` is the loop bound, so `t[i]` is in range (and an
+// out-of-range index would fail the build, not the flight code).
+#[allow(clippy::indexing_slicing)]
+const fn crc_table() -> [u32; 256] {
+    let mut t = [0u32; 256];
+    let mut i = 0;
+    while i < 256 {
+        let mut c = i as u32;
+        let mut k = 0;
+        while k < 8 {
+            c = if c & 1 != 0 {
+                0xEDB8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+            k += 1;
+        }
+        t[i] = c;
+        i += 1;
+    }
+    t
+}
+
+static CRC_TABLE: [u32; 256] = crc_table();
+
+/// CRC-32 (IEEE 802.3, the zlib/PNG one) of `bytes`. `crc32(b"123456789") == 0xCBF43926`.
+pub fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = 0xFFFF_FFFFu32;
+    for b in bytes {
+        let idx = ((c ^ u32::from(*b)) & 0xFF) as usize;
+        c = CRC_TABLE.get(idx).copied().unwrap_or(0) ^ (c >> 8);
+    }
+    !c
+}
+
+// ---- little-endian helpers ----------------------------------------------------
+
+#[inline]
+fn rd_u32(b: &[u8], off: usize) -> Option<u32> {
+    let s = b.get(off..off.checked_add(4)?)?;
+    let mut a = [0u8; 4];
+    a.copy_from_slice(s);
+    Some(u32::from_le_bytes(a))
+}
+
+#[inline]
+fn rd_f32(b: &[u8], off: usize) -> Option<f32> {
+    rd_u32(b, off).map(f32::from_bits)
+}
+
+#[inline]
+fn rd_vec3(b: &[u8], off: usize) -> Option<Vec3> {
+    Some(Vec3::new(
+        rd_f32(b, off)?,
+        rd_f32(b, off + 4)?,
+        rd_f32(b, off + 8)?,
+    ))
+}
+
+#[inline]
+fn wr_u32(b: &mut [u8], off: usize, v: u32) -> Result<(), FailureCode> {
+    let s = b
+        .get_mut(off..off + 4)
+        .ok_or(FailureCode::MapEncodeBufferTooSmall)?;
+    s.copy_from_slice(&v.to_le_bytes());
+    Ok(())
+}
+
+#[inline]
+fn wr_f32(b: &mut [u8], off: usize, v: f32) -> Result<(), FailureCode> {
+    wr_u32(b, off, v.to_bits())
+}
+
+fn wr_vec3(b: &mut [u8], off: usize, v: &Vec3) -> Result<(), FailureCode> {
+    wr_f32(b, off, v.x)?;
+    wr_f32(b, off + 4, v.y)?;
+    wr_f32(b, off + 8, v.z)
+}
+
+fn vec_finite(v: &Vec3) -> bool {
+    v.x.is_finite() && v.y.is_finite() && v.z.is_finite()
+}
+
+fn inside(p: &Vec3, min: &Vec3, max: &Vec3) -> bool {
+    p.x >= min.x && p.y >= min.y && p.z >= min.z && p.x <= max.x && p.y <= max.y && p.z <= max.z
+}
+
+// ---- public records ----------------------------------------------------------
+
+/// One triangle of the map.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Triangle {
+    /// Vertex indices (validated `< vertex_count`).
+    pub v: [u32; 3],
+    /// Texture coordinates per corner, in texture pixels: x right, y down,
+    /// pixel centres on integers (so `(0,0)` is the centre of the top-left texel).
+    pub uv: [[f32; 2]; 3],
+    /// Member of the sampling mask M̂.
+    pub mask: bool,
+}
+
+/// One tile: a contiguous run of triangles and the 3D box that bounds them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Tile {
+    /// Lower corner of the box, world metres.
+    pub min: Vec3,
+    /// Upper corner of the box, world metres.
+    pub max: Vec3,
+    /// Index of the tile's first triangle.
+    pub first_triangle: u32,
+    /// Number of triangles in the tile (may be 0 for an empty grid cell).
+    pub triangle_count: u32,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct Section {
+    off: usize,
+    len: usize,
+}
+
+/// Sizes and offsets of every section, derived from the counts only.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Layout {
+    sec: [Section; SECTIONS],
+    total: usize,
+}
+
+impl Layout {
+    fn new(v: usize, t: usize, tiles: usize, masks: usize, tw: usize, th: usize) -> Self {
+        let lens = [
+            tiles * TILE_BYTES,
+            v * VERTEX_BYTES,
+            t * TRIANGLE_BYTES,
+            t * UV_BYTES,
+            tw * th,
+            masks * MASK_VERTEX_BYTES,
+        ];
+        let mut sec = [Section::default(); SECTIONS];
+        let mut off = HEADER_LEN;
+        for (s, len) in sec.iter_mut().zip(lens) {
+            *s = Section { off, len };
+            off += len;
+        }
+        Self { sec, total: off }
+    }
+
+    fn off(&self, i: usize) -> usize {
+        self.sec.get(i).map_or(0, |s| s.off)
+    }
+}
+
+/// A validated map product. Construction checks everything once; afterwards
+/// every accessor is O(1), cannot panic and returns `None` only for an index
+/// outside its count.
+#[derive(Clone, Copy, Debug)]
+pub struct MapView<'a> {
+    bytes: &'a [u8],
+    layout: Layout,
+    vertex_count: u32,
+    triangle_count: u32,
+    tile_count: u32,
+    mask_vertex_count: u32,
+    tiles_x: u32,
+    tiles_y: u32,
+    tile_size_m: f32,
+    min: Vec3,
+    max: Vec3,
+    texture: GrayView<'a>,
+}
+
+impl<'a> MapView<'a> {
+    /// Check a map product and return a view of it.
+    ///
+    /// Checks, in order: length of the header ([`FailureCode::MapTruncated`]),
+    /// magic ([`FailureCode::MapBadMagic`]), version ([`FailureCode::MapUnsupportedVersion`]),
+    /// header CRC ([`FailureCode::MapCrcMismatch`]), counts against the `config`
+    /// caps ([`FailureCode::MapCountOutOfRange`]), section table against the
+    /// layout implied by the counts ([`FailureCode::MapInconsistent`]), total length
+    /// ([`FailureCode::MapTruncated`] if short, [`FailureCode::MapInconsistent`] if
+    /// trailing bytes), section CRCs, then content: finite vertices, UVs and
+    /// bounds ([`FailureCode::MapNonFinite`]), vertex and triangle indices
+    /// ([`FailureCode::MapIndexOutOfRange`]), tile runs covering the triangles in
+    /// order, boxes bounding their triangles, vertices inside the header bounds,
+    /// triangle flags, strictly increasing mask vertices ([`FailureCode::MapInconsistent`]).
+    ///
+    /// # Errors
+    /// The first failed check's code, as above.
+    pub fn new_checked(bytes: &'a [u8]) -> Result<Self, FailureCode> {
+        use FailureCode as F;
+        if bytes.len() < HEADER_LEN {
+            return Err(F::MapTruncated);
+        }
+        if bytes.get(0..8) != Some(&MAGIC[..]) {
+            return Err(F::MapBadMagic);
+        }
+        let h = |off: usize| rd_u32(bytes, off).ok_or(F::MapTruncated);
+        if h(8)? != VERSION {
+            return Err(F::MapUnsupportedVersion);
+        }
+        let head = bytes.get(..OFF_HEADER_CRC).ok_or(F::MapTruncated)?;
+        if crc32(head) != h(OFF_HEADER_CRC)? {
+            return Err(F::MapCrcMismatch);
+        }
+        if h(12)? as usize != HEADER_LEN {
+            return Err(F::MapInconsistent);
+        }
+        let (vc, tc, kc, mc) = (h(16)?, h(20)?, h(24)?, h(28)?);
+        let (tw, th, tx, ty) = (h(32)?, h(36)?, h(40)?, h(44)?);
+        let counts_ok = (3..=MAX_MAP_VERTICES as u32).contains(&vc)
+            && (1..=MAX_MAP_TRIANGLES as u32).contains(&tc)
+            && (1..=MAX_MAP_TILES as u32).contains(&kc)
+            && mc <= vc
+            && (1..=MAX_TEXTURE_DIM as u32).contains(&tw)
+            && (1..=MAX_TEXTURE_DIM as u32).contains(&th)
+            && (1..=MAX_MAP_TILES as u32).contains(&tx)
+            && (1..=MAX_MAP_TILES as u32).contains(&ty);
+        if !counts_ok {
+            return Err(F::MapCountOutOfRange);
+        }
+        if u64::from(tx) * u64::from(ty) != u64::from(kc) {
+            return Err(F::MapInconsistent);
+        }
+        let tile_size_m = f32::from_bits(h(48)?);
+        let min = rd_vec3(bytes, 52).ok_or(F::MapTruncated)?;
+        let max = rd_vec3(bytes, 64).ok_or(F::MapTruncated)?;
+        if !(tile_size_m.is_finite() && vec_finite(&min) && vec_finite(&max)) {
+            return Err(F::MapNonFinite);
+        }
+        if tile_size_m <= 0.0 || !(min.x <= max.x && min.y <= max.y && min.z <= max.z) {
+            return Err(F::MapInconsistent);
+        }
+        let layout = Layout::new(
+            vc as usize,
+            tc as usize,
+            kc as usize,
+            mc as usize,
+            tw as usize,
+            th as usize,
+        );
+        for (i, s) in layout.sec.iter().enumerate() {
+            let e = OFF_SECTIONS + 12 * i;
+            if h(e)? as usize != s.off || h(e + 4)? as usize != s.len {
+                return Err(F::MapInconsistent);
+            }
+        }
+        if bytes.len() < layout.total {
+            return Err(F::MapTruncated);
+        }
+        if bytes.len() > layout.total {
+            return Err(F::MapInconsistent);
+        }
+        for (i, s) in layout.sec.iter().enumerate() {
+            let body = bytes.get(s.off..s.off + s.len).ok_or(F::MapTruncated)?;
+            if crc32(body) != h(OFF_SECTIONS + 12 * i + 8)? {
+                return Err(F::MapCrcMismatch);
+            }
+        }
+        let tex_sec = layout.sec.get(SEC_TEXTURE).copied().unwrap_or_default();
+        let tex_bytes = bytes
+            .get(tex_sec.off..tex_sec.off + tex_sec.len)
+            .ok_or(F::MapTruncated)?;
+        let texture = GrayView::new(tex_bytes, tw as usize, th as usize, tw as usize)
+            .map_err(|_| F::MapCountOutOfRange)?;
+        let view = Self {
+            bytes,
+            layout,
+            vertex_count: vc,
+            triangle_count: tc,
+            tile_count: kc,
+            mask_vertex_count: mc,
+            tiles_x: tx,
+            tiles_y: ty,
+            tile_size_m,
+            min,
+            max,
+            texture,
+        };
+        view.check_content()?;
+        Ok(view)
+    }
+
+    fn check_content(&self) -> Result<(), FailureCode> {
+        use FailureCode as F;
+        for i in 0..self.vertex_count {
+            let p = self.vertex(i).ok_or(F::MapTruncated)?;
+            if !vec_finite(&p) {
+                return Err(F::MapNonFinite);
+            }
+            if !inside(&p, &self.min, &self.max) {
+                return Err(F::MapInconsistent);
+            }
+        }
+        let tri_off = self.layout.off(SEC_TRIANGLES);
+        for i in 0..self.triangle_count as usize {
+            let flags =
+                rd_u32(self.bytes, tri_off + i * TRIANGLE_BYTES + 12).ok_or(F::MapTruncated)?;
+            if flags & !FLAG_MASK != 0 {
+                return Err(F::MapInconsistent);
+            }
+            let t = self.triangle(i as u32).ok_or(F::MapTruncated)?;
+            if t.v.iter().any(|v| *v >= self.vertex_count) {
+                return Err(F::MapIndexOutOfRange);
+            }
+            if !t.uv.iter().flatten().all(|c| c.is_finite()) {
+                return Err(F::MapNonFinite);
+            }
+        }
+        let mut next = 0u32;
+        for k in 0..self.tile_count {
+            let tile = self.tile(k).ok_or(F::MapTruncated)?;
+            if !(vec_finite(&tile.min) && vec_finite(&tile.max)) {
+                return Err(F::MapNonFinite);
+            }
+            if tile.first_triangle != next {
+                return Err(F::MapInconsistent);
+            }
+            let end = tile
+                .first_triangle
+                .checked_add(tile.triangle_count)
+                .filter(|e| *e <= self.triangle_count)
+                .ok_or(F::MapIndexOutOfRange)?;
+            for i in tile.first_triangle..end {
+                let t = self.triangle(i).ok_or(F::MapTruncated)?;
+                for v in t.v {
+                    let p = self.vertex(v).ok_or(F::MapIndexOutOfRange)?;
+                    if !inside(&p, &tile.min, &tile.max) {
+                        return Err(F::MapInconsistent);
+                    }
+                }
+            }
+            next = end;
+        }
+        if next != self.triangle_count {
+            return Err(F::MapInconsistent);
+        }
+        let mut prev: Option<u32> = None;
+        for k in 0..self.mask_vertex_count {
+            let v = self.mask_vertex(k).ok_or(F::MapTruncated)?;
+            if v >= self.vertex_count {
+                return Err(F::MapIndexOutOfRange);
+            }
+            if prev.is_some_and(|p| v <= p) {
+                return Err(F::MapInconsistent);
+            }
+            prev = Some(v);
+        }
+        Ok(())
+    }
+
+    /// Number of vertices.
+    pub fn vertex_count(&self) -> u32 {
+        self.vertex_count
+    }
+
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> u32 {
+        self.triangle_count
+    }
+
+    /// Number of tiles (`tiles_x · tiles_y`, empty cells included).
+    pub fn tile_count(&self) -> u32 {
+        self.tile_count
+    }
+
+    /// Tiling grid: cells along x, cells along y, cell size in metres.
+    pub fn tile_grid(&self) -> (u32, u32, f32) {
+        (self.tiles_x, self.tiles_y, self.tile_size_m)
+    }
+
+    /// Bounds of all vertices (min, max), world metres.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        (self.min, self.max)
+    }
+
+    /// Vertex `i` in world metres.
+    #[inline]
+    pub fn vertex(&self, i: u32) -> Option<Vec3> {
+        if i >= self.vertex_count {
+            return None;
+        }
+        rd_vec3(
+            self.bytes,
+            self.layout.off(SEC_VERTICES) + i as usize * VERTEX_BYTES,
+        )
+    }
+
+    /// Triangle `i` with its UVs and mask bit.
+    #[inline]
+    pub fn triangle(&self, i: u32) -> Option<Triangle> {
+        if i >= self.triangle_count {
+            return None;
+        }
+        let t = self.layout.off(SEC_TRIANGLES) + i as usize * TRIANGLE_BYTES;
+        let u = self.layout.off(SEC_UVS) + i as usize * UV_BYTES;
+        let b = self.bytes;
+        let c = |k: usize| -> Option<[f32; 2]> {
+            Some([rd_f32(b, u + 8 * k)?, rd_f32(b, u + 8 * k + 4)?])
+        };
+        Some(Triangle {
+            v: [rd_u32(b, t)?, rd_u32(b, t + 4)?, rd_u32(b, t + 8)?],
+            uv: [c(0)?, c(1)?, c(2)?],
+            mask: rd_u32(b, t + 12)? & FLAG_MASK != 0,
+        })
+    }
+
+    /// Tile `i`.
+    #[inline]
+    pub fn tile(&self, i: u32) -> Option<Tile> {
+        if i >= self.tile_count {
+            return None;
+        }
+        let o = self.layout.off(SEC_TILES) + i as usize * TILE_BYTES;
+        Some(Tile {
+            min: rd_vec3(self.bytes, o)?,
+            max: rd_vec3(self.bytes, o + 12)?,
+            first_triangle: rd_u32(self.bytes, o + 24)?,
+            triangle_count: rd_u32(self.bytes, o + 28)?,
+        })
+    }
+
+    /// The gray texture (stride = width).
+    pub fn texture(&self) -> GrayView<'a> {
+        self.texture
+    }
+
+    /// The texture's texels, row-major with stride = width (`width · height` bytes).
+    pub fn texture_bytes(&self) -> &'a [u8] {
+        let s = self
+            .layout
+            .sec
+            .get(SEC_TEXTURE)
+            .copied()
+            .unwrap_or_default();
+        self.bytes.get(s.off..s.off + s.len).unwrap_or(&[])
+    }
+
+    /// Number of vertices of the sampling mask M̂.
+    pub fn mask_vertex_count(&self) -> u32 {
+        self.mask_vertex_count
+    }
+
+    /// The `k`-th vertex index of M̂ (indices are strictly increasing in `k`).
+    pub fn mask_vertex(&self, k: u32) -> Option<u32> {
+        if k >= self.mask_vertex_count {
+            return None;
+        }
+        rd_u32(
+            self.bytes,
+            self.layout.off(SEC_MASK) + k as usize * MASK_VERTEX_BYTES,
+        )
+    }
+}
+
+// ---- encoder -----------------------------------------------------------------
+
+/// A textured mesh in memory, to be encoded into a map product.
+#[derive(Clone, Copy, Debug)]
+pub struct MapSource<'s> {
+    /// Vertex positions, world metres.
+    pub vertices: &'s [[f32; 3]],
+    /// Triangles as vertex indices.
+    pub triangles: &'s [[u32; 3]],
+    /// Texture coordinates per triangle corner, OBJ convention: normalized [0, 1],
+    /// v = 0 at the bottom row of the texture image.
+    pub uvs: &'s [[[f32; 2]; 3]],
+    /// Per triangle: member of the sampling mask M̂.
+    pub mask: &'s [bool],
+    /// Gray texture.
+    pub texture: GrayView<'s>,
+    /// Side of a tile of the x-y grid, metres.
+    pub tile_size_m: f32,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Plan {
+    min: Vec3,
+    max: Vec3,
+    tiles_x: u32,
+    tiles_y: u32,
+    layout: Layout,
+}
+
+impl Plan {
+    fn cell_of(&self, x: f32, y: f32, tile: f32) -> usize {
+        let cx = libm::floorf((x - self.min.x) / tile);
+        let cy = libm::floorf((y - self.min.y) / tile);
+        // Float-to-int `as` saturates and maps NaN to 0; the clamp keeps the cell in the grid.
+        let cx = (cx as i64).clamp(0, i64::from(self.tiles_x) - 1) as usize;
+        let cy = (cy as i64).clamp(0, i64::from(self.tiles_y) - 1) as usize;
+        cy * self.tiles_x as usize + cx
+    }
+}
+
+fn vertex_of(src: &MapSource, i: u32) -> Result<Vec3, FailureCode> {
+    let p = src
+        .vertices
+        .get(i as usize)
+        .ok_or(FailureCode::MapIndexOutOfRange)?;
+    Ok(Vec3::new(p[0], p[1], p[2]))
+}
+
+fn plan(src: &MapSource) -> Result<Plan, FailureCode> {
+    use FailureCode as F;
+    let (nv, nt) = (src.vertices.len(), src.triangles.len());
+    if !(3..=MAX_MAP_VERTICES).contains(&nv) || !(1..=MAX_MAP_TRIANGLES).contains(&nt) {
+        return Err(F::MapCountOutOfRange);
+    }
+    if src.uvs.len() != nt || src.mask.len() != nt {
+        return Err(F::MapInconsistent);
+    }
+    let (tw, th) = (src.texture.width(), src.texture.height());
+    if tw > MAX_TEXTURE_DIM || th > MAX_TEXTURE_DIM {
+        return Err(F::MapCountOutOfRange);
+    }
+    if !src.tile_size_m.is_finite() || src.tile_size_m <= 0.0 {
+        return Err(F::MapInconsistent);
+    }
+    let mut min = Vec3::repeat(f32::INFINITY);
+    let mut max = Vec3::repeat(f32::NEG_INFINITY);
+    for p in src.vertices {
+        let p = Vec3::new(p[0], p[1], p[2]);
+        if !vec_finite(&p) {
+            return Err(F::MapNonFinite);
+        }
+        min = min.inf(&p);
+        max = max.sup(&p);
+    }
+    let mut mask_tris = 0usize;
+    for ((t, uv), m) in src.triangles.iter().zip(src.uvs).zip(src.mask) {
+        if t.iter().any(|v| *v as usize >= nv) {
+            return Err(F::MapIndexOutOfRange);
+        }
+        if !uv.iter().flatten().all(|c| c.is_finite()) {
+            return Err(F::MapNonFinite);
+        }
+        mask_tris += usize::from(*m);
+    }
+    let cells = |lo: f32, hi: f32| -> Result<u32, FailureCode> {
+        let n = libm::floorf((hi - lo) / src.tile_size_m) + 1.0;
+        if !(n.is_finite() && n <= MAX_MAP_TILES as f32) {
+            return Err(F::MapCountOutOfRange);
+        }
+        Ok((n as u32).max(1))
+    };
+    let (tiles_x, tiles_y) = (cells(min.x, max.x)?, cells(min.y, max.y)?);
+    let tiles = tiles_x as usize * tiles_y as usize;
+    if tiles > MAX_MAP_TILES {
+        return Err(F::MapCountOutOfRange);
+    }
+    let masks_max = nv.min(3 * mask_tris);
+    Ok(Plan {
+        min,
+        max,
+        tiles_x,
+        tiles_y,
+        layout: Layout::new(nv, nt, tiles, masks_max, tw, th),
+    })
+}
+
+/// Size of the output buffer [`encode`] needs for `src`, in bytes. This is an
+/// upper bound: it counts the mask-vertex list at its largest,
+/// `min(vertices, 3 · mask triangles)` entries; [`encode`] returns the exact length.
+///
+/// # Errors
+/// As [`encode`], except [`FailureCode::MapEncodeBufferTooSmall`].
+pub fn encoded_len(src: &MapSource) -> Result<usize, FailureCode> {
+    Ok(plan(src)?.layout.total)
+}
+
+/// Encode `src` into `out` (at least [`encoded_len`] bytes) and return the
+/// length of the product, `out[..n]`. No allocation: the per-tile counting sort
+/// keeps its counters in the tile section and the mask-vertex deduplication marks
+/// vertices in the vertex section before the vertices are written.
+///
+/// Triangles are grouped by the grid cell of their centroid (stable within a
+/// cell); UVs are converted from OBJ convention to texture pixels (see [`Triangle`]).
+///
+/// # Errors
+/// [`FailureCode::MapCountOutOfRange`] (counts, texture size or tile grid above
+/// the caps), [`FailureCode::MapInconsistent`] (slice lengths disagree, bad tile
+/// size), [`FailureCode::MapNonFinite`], [`FailureCode::MapIndexOutOfRange`],
+/// [`FailureCode::MapEncodeBufferTooSmall`]. Nothing is written on a check failure
+/// other than the buffer-size one, which writes nothing either.
+pub fn encode(src: &MapSource, out: &mut [u8]) -> Result<usize, FailureCode> {
+    use FailureCode as F;
+    let plan = plan(src)?;
+    let lay = plan.layout;
+    let buf = out.get_mut(..lay.total).ok_or(F::MapEncodeBufferTooSmall)?;
+    buf.fill(0);
+    let nv = src.vertices.len();
+    let ts = src.tile_size_m;
+    let (o_tiles, o_vert, o_tri, o_uv, o_tex, o_mask) = (
+        lay.off(SEC_TILES),
+        lay.off(SEC_VERTICES),
+        lay.off(SEC_TRIANGLES),
+        lay.off(SEC_UVS),
+        lay.off(SEC_TEXTURE),
+        lay.off(SEC_MASK),
+    );
+
+    // Mask vertices: one mark byte per vertex in the (not yet written) vertex section.
+    for (t, m) in src.triangles.iter().zip(src.mask) {
+        if *m {
+            for v in t {
+                *buf.get_mut(o_vert + *v as usize)
+                    .ok_or(F::MapEncodeBufferTooSmall)? = 1;
+            }
+        }
+    }
+    let mut masks = 0usize;
+    for v in 0..nv {
+        if buf.get(o_vert + v).copied() == Some(1) {
+            wr_u32(buf, o_mask + masks * MASK_VERTEX_BYTES, v as u32)?;
+            masks += 1;
+        }
+    }
+    for (i, p) in src.vertices.iter().enumerate() {
+        wr_vec3(buf, o_vert + i * VERTEX_BYTES, &Vec3::new(p[0], p[1], p[2]))?;
+    }
+
+    // Counting sort by tile; counters live in the tiles' count fields.
+    let centroid_cell = |t: &[u32; 3]| -> Result<usize, FailureCode> {
+        let (a, b, c) = (
+            vertex_of(src, t[0])?,
+            vertex_of(src, t[1])?,
+            vertex_of(src, t[2])?,
+        );
+        let (x, y) = ((a.x + b.x + c.x) / 3.0, (a.y + b.y + c.y) / 3.0);
+        Ok(plan.cell_of(x, y, ts))
+    };
+    let tiles = plan.tiles_x as usize * plan.tiles_y as usize;
+    for t in src.triangles {
+        let o = o_tiles + centroid_cell(t)? * TILE_BYTES + 28;
+        let n = rd_u32(buf, o).ok_or(F::MapEncodeBufferTooSmall)?;
+        wr_u32(buf, o, n + 1)?;
+    }
+    let mut first = 0u32;
+    for k in 0..tiles {
+        let o = o_tiles + k * TILE_BYTES;
+        let n = rd_u32(buf, o + 28).ok_or(F::MapEncodeBufferTooSmall)?;
+        wr_vec3(buf, o, &Vec3::repeat(f32::INFINITY))?;
+        wr_vec3(buf, o + 12, &Vec3::repeat(f32::NEG_INFINITY))?;
+        wr_u32(buf, o + 24, first)?;
+        wr_u32(buf, o + 28, 0)?;
+        first += n;
+    }
+    let (tw, th) = (src.texture.width() as f32, src.texture.height() as f32);
+    for ((t, uv), m) in src.triangles.iter().zip(src.uvs).zip(src.mask) {
+        let o = o_tiles + centroid_cell(t)? * TILE_BYTES;
+        let first = rd_u32(buf, o + 24).ok_or(F::MapEncodeBufferTooSmall)?;
+        let n = rd_u32(buf, o + 28).ok_or(F::MapEncodeBufferTooSmall)?;
+        wr_u32(buf, o + 28, n + 1)?;
+        let slot = (first + n) as usize;
+        let mut lo = rd_vec3(buf, o).ok_or(F::MapEncodeBufferTooSmall)?;
+        let mut hi = rd_vec3(buf, o + 12).ok_or(F::MapEncodeBufferTooSmall)?;
+        let to = o_tri + slot * TRIANGLE_BYTES;
+        let uo = o_uv + slot * UV_BYTES;
+        for (c, (v, st)) in t.iter().zip(uv).enumerate() {
+            let p = vertex_of(src, *v)?;
+            lo = lo.inf(&p);
+            hi = hi.sup(&p);
+            wr_u32(buf, to + 4 * c, *v)?;
+            wr_f32(buf, uo + 8 * c, st[0] * tw - 0.5)?;
+            wr_f32(buf, uo + 8 * c + 4, (1.0 - st[1]) * th - 0.5)?;
+        }
+        wr_u32(buf, to + 12, if *m { FLAG_MASK } else { 0 })?;
+        wr_vec3(buf, o, &lo)?;
+        wr_vec3(buf, o + 12, &hi)?;
+    }
+    // Empty cells get a degenerate box at the cell's corner on the map floor.
+    for k in 0..tiles {
+        let o = o_tiles + k * TILE_BYTES;
+        if rd_u32(buf, o + 28) == Some(0) {
+            let (cx, cy) = (
+                (k % plan.tiles_x as usize) as f32,
+                (k / plan.tiles_x as usize) as f32,
+            );
+            let p = Vec3::new(
+                (plan.min.x + cx * ts).min(plan.max.x),
+                (plan.min.y + cy * ts).min(plan.max.y),
+                plan.min.z,
+            );
+            wr_vec3(buf, o, &p)?;
+            wr_vec3(buf, o + 12, &p)?;
+        }
+    }
+
+    // Texture rows.
+    let w = src.texture.width();
+    for y in 0..src.texture.height() {
+        let row = src.texture.row(y).ok_or(F::MapInconsistent)?;
+        buf.get_mut(o_tex + y * w..o_tex + (y + 1) * w)
+            .ok_or(F::MapEncodeBufferTooSmall)?
+            .copy_from_slice(row);
+    }
+
+    // Header with the exact mask count.
+    let real = Layout::new(
+        nv,
+        src.triangles.len(),
+        tiles,
+        masks,
+        src.texture.width(),
+        src.texture.height(),
+    );
+    buf.get_mut(0..8)
+        .ok_or(F::MapEncodeBufferTooSmall)?
+        .copy_from_slice(&MAGIC);
+    let fields = [
+        VERSION,
+        HEADER_LEN as u32,
+        nv as u32,
+        src.triangles.len() as u32,
+        tiles as u32,
+        masks as u32,
+        src.texture.width() as u32,
+        src.texture.height() as u32,
+        plan.tiles_x,
+        plan.tiles_y,
+        ts.to_bits(),
+    ];
+    for (i, f) in fields.iter().enumerate() {
+        wr_u32(buf, 8 + 4 * i, *f)?;
+    }
+    wr_vec3(buf, 52, &plan.min)?;
+    wr_vec3(buf, 64, &plan.max)?;
+    for (i, s) in real.sec.iter().enumerate() {
+        let crc = crc32(
+            buf.get(s.off..s.off + s.len)
+                .ok_or(F::MapEncodeBufferTooSmall)?,
+        );
+        let e = OFF_SECTIONS + 12 * i;
+        wr_u32(buf, e, s.off as u32)?;
+        wr_u32(buf, e + 4, s.len as u32)?;
+        wr_u32(buf, e + 8, crc)?;
+    }
+    let hcrc = crc32(
+        buf.get(..OFF_HEADER_CRC)
+            .ok_or(F::MapEncodeBufferTooSmall)?,
+    );
+    wr_u32(buf, OFF_HEADER_CRC, hcrc)?;
+    Ok(real.total)
+}
+
+/// Recompute every CRC of a product in place (header last). For tools and tests
+/// that edit a product on purpose; a product edited without this is rejected.
+///
+/// # Errors
+/// [`FailureCode::MapTruncated`] if `bytes` is shorter than its header or sections say.
+pub fn reseal(bytes: &mut [u8]) -> Result<(), FailureCode> {
+    use FailureCode as F;
+    if bytes.len() < HEADER_LEN {
+        return Err(F::MapTruncated);
+    }
+    for i in 0..SECTIONS {
+        let e = OFF_SECTIONS + 12 * i;
+        let off = rd_u32(bytes, e).ok_or(F::MapTruncated)? as usize;
+        let len = rd_u32(bytes, e + 4).ok_or(F::MapTruncated)? as usize;
+        let end = off.checked_add(len).ok_or(F::MapTruncated)?;
+        let crc = crc32(bytes.get(off..end).ok_or(F::MapTruncated)?);
+        wr_u32(bytes, e + 8, crc).map_err(|_| F::MapTruncated)?;
+    }
+    let hcrc = crc32(bytes.get(..OFF_HEADER_CRC).ok_or(F::MapTruncated)?);
+    wr_u32(bytes, OFF_HEADER_CRC, hcrc).map_err(|_| F::MapTruncated)
+}
+
+#[cfg(test)]
+pub(crate) mod tests;

@@ -1,1 +1,1940 @@
-//! Placeholder: filled in by its stage.
+//! Integer zero-mean normalized cross-correlation (the `Match` step, paper §III-D).
+//!
+//! Finds an 8-bit template (optionally masked: 255 keep / 0 drop, any non-zero
+//! value keeps) inside a caller-bounded search window of an 8-bit image and
+//! returns the top-left offset of the best match, its zero-mean NCC score (the
+//! quantity OpenCV calls `TM_CCOEFF_NORMED`), a sub-pixel refinement and the
+//! best score outside the main peak's neighbourhood (the runner-up).
+//!
+//! Every sum is exact integer arithmetic: window sums and sums of squares come
+//! from u32 integral images (wrapping arithmetic, exact because every true window
+//! sum is below 2³²), the numerator and variances are i64, candidates are
+//! compared by `sign(num)·num²/var_f` through an exact 192-bit cross
+//! multiplication (no square root), and the final score is one correctly rounded
+//! IEEE f64 division and square root of exact integers, so it is bit-identical on
+//! every target. The bit budget is in `fsw-docs/budgets/numeric.md`.
+//!
+//! Template variants: [`sub_template_rect`] gives the centred ℓ/2 crop; [`Filter`]
+//! selects the gray, Sobel or Laplacian domain, each mapped back to 8 bits so the
+//! one correlation kernel serves all three.
+//!
+//! Search: [`Search::Exhaustive`] scores every position (the oracle);
+//! [`Search::CoarseToFine`] scores every position of a 2×-box pyramid's coarsest
+//! level, keeps [`MAX_CANDIDATES`] separated peaks, refines each by ±
+//! [`REFINE_RADIUS_PX`] at each finer level and picks the winner at full resolution.
+//!
+//! Bounds: template sides in `MIN_TEMPLATE_PX..=MAX_TEMPLATE_PX`, window sides up
+//! to `MAX_SEARCH_PX`, at most [`MAX_LEVELS`] pyramid levels; all memory is the
+//! caller's [`Scratch`], sized by [`ScratchSizes`]. No allocation, no panic, no NaN.
+
+use core::cmp::Ordering;
+
+use crate::config::{MAX_SEARCH_PX, MAX_TEMPLATE_PX, MIN_TEMPLATE_PX};
+use crate::failure::FailureCode;
+use crate::image::{GrayView, Rect};
+
+/// Largest number of pyramid levels (level 0 = full resolution).
+pub const MAX_LEVELS: usize = 4;
+/// A coarser level is added only while the template's shorter side stays at least this.
+pub const MIN_COARSE_PX: usize = 16;
+/// Coarse candidates kept and refined by the coarse-to-fine search.
+pub const MAX_CANDIDATES: usize = 8;
+/// Refinement radius (pixels of the finer level) around each up-scaled candidate
+/// at the intermediate levels.
+pub const REFINE_RADIUS_PX: usize = 2;
+/// Refinement radius at full resolution (the half-resolution peak is already
+/// within a pixel or so of the true one; hill climbing covers the rest).
+pub const FINAL_REFINE_RADIUS_PX: usize = 1;
+/// Re-centring steps allowed when a refined peak lies on its region's border.
+pub const MAX_CLIMB_STEPS: usize = 4;
+/// Candidates carried into the full-resolution verification.
+pub const MAX_FINAL_CANDIDATES: usize = 4;
+/// Non-maximum-suppression radius between coarse candidates (coarse pixels).
+pub const COARSE_NMS_RADIUS_PX: usize = 2;
+/// Fewest kept template pixels a (masked) template may have at any level.
+pub const MIN_MASK_PX: u32 = 16;
+/// Lanes of the correlation kernel's accumulator (a multiple of every SIMD width in use).
+const LANES: usize = 16;
+
+/// Image domain in which template and window are correlated (paper §III-D).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Filter {
+    /// Raw gray levels.
+    Gray,
+    /// Sobel magnitude `(|gx| + |gy|) / 8` (exactly 0..=255, no saturation needed).
+    Sobel,
+    /// 4-neighbour Laplacian `floor(lap / 8) + 128` (exactly 0..=255).
+    Laplacian,
+}
+
+/// Search strategy.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Search {
+    /// Score every position at full resolution (the test oracle).
+    Exhaustive,
+    /// Pyramid search with several coarse candidates, verified at full resolution.
+    #[default]
+    CoarseToFine,
+}
+
+/// Exact integer terms of one zero-mean NCC score.
+///
+/// `num = N·Σft − Σf·Σt`, `var_f = N·Σf² − (Σf)²`, `var_t = N·Σt² − (Σt)²`,
+/// score `= num / √(var_f·var_t)`; all sums over the kept template pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Score {
+    /// Numerator, |num| < 2⁴⁸.
+    pub num: i64,
+    /// Window variance term, 0 ≤ var_f < 2⁴⁸.
+    pub var_f: i64,
+    /// Template variance term, 0 ≤ var_t < 2⁴⁸.
+    pub var_t: i64,
+}
+
+impl Score {
+    /// The score as f64: exact integers, one correctly rounded product conversion,
+    /// square root and division, so the value is the same on every IEEE target.
+    /// Exactly ±1 when `num² = var_f·var_t`; 0 when either variance is zero.
+    pub fn to_f64(&self) -> f64 {
+        if self.var_f <= 0 || self.var_t <= 0 {
+            return 0.0;
+        }
+        let prod = (self.var_f as u128) * (self.var_t as u128);
+        let n2 = u128::from(self.num.unsigned_abs()) * u128::from(self.num.unsigned_abs());
+        if n2 >= prod {
+            // Cauchy–Schwarz gives n2 <= prod; equality is a perfect (anti)correlation.
+            return if self.num < 0 { -1.0 } else { 1.0 };
+        }
+        let r = self.num as f64 / libm::sqrt(prod as f64);
+        r.clamp(-1.0, 1.0)
+    }
+
+    /// The score as f32 (the f64 value rounded once).
+    pub fn to_f32(&self) -> f32 {
+        self.to_f64() as f32
+    }
+}
+
+/// `a·b` as a 192-bit number `(high 128 bits, low 64 bits)`, exact.
+fn mul_wide(a: u128, b: u64) -> (u128, u64) {
+    let p0 = (a as u64 as u128) * u128::from(b);
+    let p1 = (a >> 64) * u128::from(b);
+    // p1 <= (2^64-1)^2 and the carry < 2^64, so the sum cannot overflow.
+    (p1 + (p0 >> 64), p0 as u64)
+}
+
+/// Exact order of two scores of the same template (same `var_t`), by
+/// `sign(num)·num²/var_f`, with no division and no square root.
+pub fn cmp_scores(a: &Score, b: &Score) -> Ordering {
+    let (sa, sb) = (a.num.signum(), b.num.signum());
+    if sa != sb {
+        return sa.cmp(&sb);
+    }
+    if sa == 0 {
+        return Ordering::Equal;
+    }
+    let na = u128::from(a.num.unsigned_abs());
+    let nb = u128::from(b.num.unsigned_abs());
+    let la = mul_wide(na * na, b.var_f.unsigned_abs());
+    let lb = mul_wide(nb * nb, a.var_f.unsigned_abs());
+    if sa > 0 {
+        la.cmp(&lb)
+    } else {
+        lb.cmp(&la)
+    }
+}
+
+/// Result of one template search.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Match {
+    /// Column of the best match's top-left corner, image coordinates.
+    pub x: i32,
+    /// Row of the best match's top-left corner, image coordinates.
+    pub y: i32,
+    /// Zero-mean NCC of the best match (`exact.to_f32()`).
+    pub score: f32,
+    /// Sub-pixel top-left column (3-point parabola on the exact scores).
+    pub sub_x: f32,
+    /// Sub-pixel top-left row.
+    pub sub_y: f32,
+    /// Best score among candidates farther than [`peak_radius_px`] from the winner
+    /// (Chebyshev distance); −1 when there is none.
+    pub runner_up: f32,
+    /// Exact integer terms of the best score.
+    pub exact: Score,
+}
+
+/// Work done by one search.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct MatchStats {
+    /// Positions whose correlation was computed (all levels).
+    pub positions_scored: u64,
+    /// Positions skipped because the window had zero variance there.
+    pub flat_positions: u64,
+    /// Multiply-accumulates of the correlation kernel (all levels).
+    pub macs: u64,
+    /// Pyramid levels used (1 = full resolution only).
+    pub levels: u8,
+    /// Coarse candidates that were refined.
+    pub candidates: u8,
+}
+
+/// One run of kept pixels in a row of a masked template: columns `x0..x1` of `row`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Run {
+    /// Template row.
+    pub row: u16,
+    /// First kept column.
+    pub x0: u16,
+    /// One past the last kept column.
+    pub x1: u16,
+}
+
+/// Caller-provided working memory; size it with [`ScratchSizes`].
+#[derive(Debug)]
+pub struct Scratch<'a> {
+    /// Window pixels, every pyramid level.
+    pub window: &'a mut [u8],
+    /// Template pixels and masks, every pyramid level.
+    pub template: &'a mut [u8],
+    /// Integral images of window sums and sums of squares.
+    pub integral: &'a mut [u32],
+    /// Runs of kept pixels of masked templates.
+    pub runs: &'a mut [Run],
+}
+
+/// Element counts each [`Scratch`] buffer needs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ScratchSizes {
+    /// `Scratch::window` length (bytes).
+    pub window: usize,
+    /// `Scratch::template` length (bytes).
+    pub template: usize,
+    /// `Scratch::integral` length (u32 elements).
+    pub integral: usize,
+    /// `Scratch::runs` length (runs).
+    pub runs: usize,
+}
+
+/// Pyramid levels the coarse-to-fine search uses for a `tw × th` template:
+/// halve while the shorter side stays at least [`MIN_COARSE_PX`], at most [`MAX_LEVELS`].
+pub const fn pyramid_levels(tw: usize, th: usize) -> usize {
+    let m = if tw < th { tw } else { th };
+    let mut levels = 1;
+    while levels < MAX_LEVELS && (m >> levels) >= MIN_COARSE_PX {
+        levels += 1;
+    }
+    levels
+}
+
+/// Radius (full-resolution pixels, Chebyshev) of the main peak's neighbourhood,
+/// outside which the runner-up is sought: an eighth of the shorter template side, at least 2.
+pub const fn peak_radius_px(tw: usize, th: usize) -> usize {
+    let m = if tw < th { tw } else { th };
+    if m / 8 > 2 {
+        m / 8
+    } else {
+        2
+    }
+}
+
+const fn max_usize(a: usize, b: usize) -> usize {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+impl ScratchSizes {
+    /// Sizes for a `tw × th` template in a `ww × wh` window with `mode`.
+    pub const fn new(tw: usize, th: usize, ww: usize, wh: usize, mode: Search) -> Self {
+        let levels = match mode {
+            Search::Exhaustive => 1,
+            Search::CoarseToFine => pyramid_levels(tw, th),
+        };
+        let (mut window, mut template, mut runs) = (0, 0, 0);
+        let mut k = 0;
+        while k < levels {
+            window += (ww >> k) * (wh >> k);
+            template += 2 * (tw >> k) * (th >> k);
+            runs += (th >> k) * (tw >> k).div_ceil(2);
+            k += 1;
+        }
+        let lc = levels - 1;
+        let coarse = ((ww >> lc) + 1) * ((wh >> lc) + 1);
+        let refine = (tw + 2 * REFINE_RADIUS_PX + 1) * (th + 2 * REFINE_RADIUS_PX + 1);
+        Self {
+            window,
+            template,
+            integral: 2 * max_usize(coarse, refine),
+            runs,
+        }
+    }
+
+    /// Sizes for the largest template and window of `config` in `mode`.
+    pub const fn max(mode: Search) -> Self {
+        Self::new(
+            MAX_TEMPLATE_PX,
+            MAX_TEMPLATE_PX,
+            MAX_SEARCH_PX,
+            MAX_SEARCH_PX,
+            mode,
+        )
+    }
+
+    /// Whether every buffer of `s` is at least this large.
+    pub fn fits(&self, s: &Scratch) -> bool {
+        s.window.len() >= self.window
+            && s.template.len() >= self.template
+            && s.integral.len() >= self.integral
+            && s.runs.len() >= self.runs
+    }
+}
+
+/// The centred ℓ/2 sub-template of a `w × h` template (paper §III-D):
+/// `w/2 × h/2` pixels starting at `((w − w/2)/2, (h − h/2)/2)`.
+pub const fn sub_template_rect(w: usize, h: usize) -> Rect {
+    let (sw, sh) = (w / 2, h / 2);
+    Rect::new(
+        ((w - sw) / 2) as i32,
+        ((h - sh) / 2) as i32,
+        sw as u32,
+        sh as u32,
+    )
+}
+
+/// The centred ℓ/2 sub-template view of `template` (same crop for its mask).
+pub fn sub_template<'a>(template: &GrayView<'a>) -> Option<GrayView<'a>> {
+    template.sub(sub_template_rect(template.width(), template.height()))
+}
+
+#[inline]
+fn px_at(row: &[u8], x: usize) -> i32 {
+    row.get(x).map_or(0, |&v| i32::from(v))
+}
+
+/// Apply `filter` to the pixels of `region` of `src`, writing `region.w × region.h`
+/// bytes row-major into `out`. Neighbours outside `src` are replicated from its
+/// border, so a region's output equals the same pixels of the filtered whole image.
+///
+/// # Errors
+/// [`FailureCode::NccWindowOutsideImage`] if `region` is not inside `src`;
+/// [`FailureCode::NccScratchTooSmall`] if `out` is too short.
+pub fn filter_region(
+    src: &GrayView,
+    region: Rect,
+    filter: Filter,
+    out: &mut [u8],
+) -> Result<(), FailureCode> {
+    if region.w == 0 || region.h == 0 || !src.rect().contains(&region) {
+        return Err(FailureCode::NccWindowOutsideImage);
+    }
+    let (rx, ry, rw, rh) = (
+        region.x as usize,
+        region.y as usize,
+        region.w as usize,
+        region.h as usize,
+    );
+    let out = out
+        .get_mut(..rw * rh)
+        .ok_or(FailureCode::NccScratchTooSmall)?;
+    let (iw, ih) = (src.width(), src.height());
+    for (dy, orow) in out.chunks_exact_mut(rw).enumerate() {
+        let y = ry + dy;
+        let empty: &[u8] = &[];
+        let r0 = src.row(y).unwrap_or(empty);
+        if filter == Filter::Gray {
+            if let Some(s) = r0.get(rx..rx + rw) {
+                orow.copy_from_slice(s);
+            }
+            continue;
+        }
+        let rm = src.row(y.saturating_sub(1)).unwrap_or(empty);
+        let rp = src.row((y + 1).min(ih - 1)).unwrap_or(empty);
+        for (dx, o) in orow.iter_mut().enumerate() {
+            let x = rx + dx;
+            let (xm, xp) = (x.saturating_sub(1), (x + 1).min(iw - 1));
+            *o = match filter {
+                Filter::Sobel => {
+                    let gx = px_at(rm, xp) + 2 * px_at(r0, xp) + px_at(rp, xp)
+                        - px_at(rm, xm)
+                        - 2 * px_at(r0, xm)
+                        - px_at(rp, xm);
+                    let gy = px_at(rp, xm) + 2 * px_at(rp, x) + px_at(rp, xp)
+                        - px_at(rm, xm)
+                        - 2 * px_at(rm, x)
+                        - px_at(rm, xp);
+                    // |gx| + |gy| <= 2040, so /8 is at most 255.
+                    ((gx.abs() + gy.abs()) >> 3).min(255) as u8
+                }
+                Filter::Laplacian => {
+                    let lap = px_at(rm, x) + px_at(rp, x) + px_at(r0, xm) + px_at(r0, xp)
+                        - 4 * px_at(r0, x);
+                    // lap in [-1020, 1020]: floor(lap/8) in [-128, 127].
+                    ((lap >> 3) + 128).clamp(0, 255) as u8
+                }
+                Filter::Gray => px_at(r0, x) as u8,
+            };
+        }
+    }
+    Ok(())
+}
+
+/// 2× box downsample (rounded mean of each 2×2 block) of `sw × sh` `src` into `dst`.
+fn downsample(src: &[u8], sw: usize, sh: usize, dst: &mut [u8]) {
+    let (dw, dh) = (sw / 2, sh / 2);
+    if dw == 0 || dh == 0 {
+        return;
+    }
+    for (y, drow) in dst.chunks_exact_mut(dw).take(dh).enumerate() {
+        let r0 = src.get(2 * y * sw..2 * y * sw + 2 * dw);
+        let r1 = src.get((2 * y + 1) * sw..(2 * y + 1) * sw + 2 * dw);
+        if let (Some(r0), Some(r1)) = (r0, r1) {
+            for ((d, a), b) in drow
+                .iter_mut()
+                .zip(r0.chunks_exact(2))
+                .zip(r1.chunks_exact(2))
+            {
+                let s: u16 = a.iter().chain(b.iter()).map(|&v| u16::from(v)).sum();
+                *d = ((s + 2) >> 2) as u8;
+            }
+        }
+    }
+}
+
+/// One pyramid level of the template.
+#[derive(Clone, Copy, Debug)]
+struct Tpl<'s> {
+    /// Pixels, zero where the mask drops them.
+    px: &'s [u8],
+    /// Runs of kept pixels; `None` for an unmasked template.
+    runs: Option<&'s [Run]>,
+    w: usize,
+    h: usize,
+    n: i64,
+    st: i64,
+    var_t: i64,
+}
+
+/// One pyramid level of the window.
+#[derive(Clone, Copy, Debug)]
+struct Win<'s> {
+    px: &'s [u8],
+    w: usize,
+    h: usize,
+}
+
+impl Win<'_> {
+    /// Last valid top-left column and row for a `tw × th` template.
+    fn last_pos(&self, tw: usize, th: usize) -> (usize, usize) {
+        (self.w.saturating_sub(tw), self.h.saturating_sub(th))
+    }
+}
+
+/// Σ t·f of the template at `(px, py)` of the window; exact (< 2³², see numeric.md).
+///
+/// Fixed 16-lane blocks with one accumulator array carried across rows: this is
+/// the shape LLVM turns into widening SIMD multiply-adds on every target.
+fn dot_at(t: &Tpl, win: &Win, px: usize, py: usize) -> u32 {
+    let mut acc = [0u32; LANES];
+    let mut tail = 0u32;
+    for (r, trow) in t.px.chunks_exact(t.w).take(t.h).enumerate() {
+        let start = (py + r) * win.w + px;
+        let Some(frow) = win.px.get(start..start + t.w) else {
+            continue;
+        };
+        let tc = trow.chunks_exact(LANES);
+        let fc = frow.chunks_exact(LANES);
+        for (&p, &q) in tc.remainder().iter().zip(fc.remainder()) {
+            tail = tail.wrapping_add(u32::from(p) * u32::from(q));
+        }
+        for (a, b) in tc.zip(fc) {
+            let (Ok(a), Ok(b)) = (<&[u8; LANES]>::try_from(a), <&[u8; LANES]>::try_from(b)) else {
+                continue;
+            };
+            for ((c, &p), &q) in acc.iter_mut().zip(a.iter()).zip(b.iter()) {
+                *c = c.wrapping_add(u32::from(p) * u32::from(q));
+            }
+        }
+    }
+    acc.iter().fold(tail, |s, v| s.wrapping_add(*v))
+}
+
+/// Integral images (sum and sum of squares) of a rectangle of a window level.
+struct Integral<'s> {
+    sum: &'s [u32],
+    sq: &'s [u32],
+    /// Row length of the tables (region width + 1).
+    w1: usize,
+}
+
+impl<'s> Integral<'s> {
+    /// Build the tables of `rw × rh` pixels of `win` starting at `(x0, y0)` in `buf`.
+    ///
+    /// u32 wrapping: the tables themselves may wrap, but a window sum is a signed
+    /// combination of four entries, which is exact modulo 2³², and every true
+    /// window sum (≤ 65 536·255² < 2³²) is below 2³², so the result is exact.
+    fn build(
+        win: &Win,
+        x0: usize,
+        y0: usize,
+        rw: usize,
+        rh: usize,
+        buf: &'s mut [u32],
+    ) -> Result<Self, FailureCode> {
+        let w1 = rw + 1;
+        let n = w1 * (rh + 1);
+        let (sum, rest) = buf
+            .split_at_mut_checked(n)
+            .ok_or(FailureCode::NccScratchTooSmall)?;
+        let sq = rest.get_mut(..n).ok_or(FailureCode::NccScratchTooSmall)?;
+        fill_table(win, x0, y0, rw, rh, sum, false);
+        fill_table(win, x0, y0, rw, rh, sq, true);
+        Ok(Self { sum, sq, w1 })
+    }
+
+    /// (Σf, Σf²) over `w × h` pixels at region coordinates `(x, y)`.
+    #[inline]
+    fn rect(&self, x: usize, y: usize, w: usize, h: usize) -> (u32, u32) {
+        let i00 = y * self.w1 + x;
+        let i01 = i00 + w;
+        let i10 = (y + h) * self.w1 + x;
+        let i11 = i10 + w;
+        let g = |t: &[u32], i: usize| t.get(i).copied().unwrap_or(0);
+        let s = g(self.sum, i11)
+            .wrapping_sub(g(self.sum, i10))
+            .wrapping_sub(g(self.sum, i01))
+            .wrapping_add(g(self.sum, i00));
+        let q = g(self.sq, i11)
+            .wrapping_sub(g(self.sq, i10))
+            .wrapping_sub(g(self.sq, i01))
+            .wrapping_add(g(self.sq, i00));
+        (s, q)
+    }
+}
+
+fn fill_table(win: &Win, x0: usize, y0: usize, rw: usize, rh: usize, tab: &mut [u32], sq: bool) {
+    let w1 = rw + 1;
+    if let Some(first) = tab.get_mut(..w1) {
+        first.fill(0);
+    }
+    for r in 0..rh {
+        let (head, tail) = tab.split_at_mut((r + 1) * w1);
+        let (Some(prev), Some(cur)) = (head.get(r * w1..), tail.get_mut(..w1)) else {
+            return;
+        };
+        let start = (y0 + r) * win.w + x0;
+        let Some(frow) = win.px.get(start..start + rw) else {
+            return;
+        };
+        let mut run = 0u32;
+        if let Some(c0) = cur.first_mut() {
+            *c0 = 0;
+        }
+        for ((c, &p), &f) in cur.iter_mut().skip(1).zip(prev.iter().skip(1)).zip(frow) {
+            let v = u32::from(f);
+            run = run.wrapping_add(if sq { v * v } else { v });
+            *c = p.wrapping_add(run);
+        }
+    }
+}
+
+/// Score every position `(x, y)` with `x0 ≤ x ≤ x1`, `y0 ≤ y ≤ y1` (all valid
+/// top-left positions) and hand each non-flat one to `sink`.
+#[allow(clippy::too_many_arguments)]
+fn eval_positions<F: FnMut(usize, usize, Score)>(
+    t: &Tpl,
+    win: &Win,
+    (x0, y0, x1, y1): (usize, usize, usize, usize),
+    buf: &mut [u32],
+    stats: &mut MatchStats,
+    mut sink: F,
+) -> Result<(), FailureCode> {
+    let rw = x1 - x0 + t.w;
+    let rh = y1 - y0 + t.h;
+    let integ = Integral::build(win, x0, y0, rw, rh, buf)?;
+    for y in y0..=y1 {
+        for x in x0..=x1 {
+            let (rx, ry) = (x - x0, y - y0);
+            let (sf, sff) = match t.runs {
+                None => integ.rect(rx, ry, t.w, t.h),
+                Some(runs) => runs.iter().fold((0u32, 0u32), |(s, q), run| {
+                    let (a, b) = integ.rect(
+                        rx + usize::from(run.x0),
+                        ry + usize::from(run.row),
+                        usize::from(run.x1 - run.x0),
+                        1,
+                    );
+                    (s.wrapping_add(a), q.wrapping_add(b))
+                }),
+            };
+            let (sf, sff) = (i64::from(sf), i64::from(sff));
+            let var_f = t.n * sff - sf * sf;
+            if var_f <= 0 {
+                stats.flat_positions += 1;
+                continue;
+            }
+            let sft = i64::from(dot_at(t, win, x, y));
+            stats.positions_scored += 1;
+            stats.macs += (t.w * t.h) as u64;
+            sink(
+                x,
+                y,
+                Score {
+                    num: t.n * sft - sf * t.st,
+                    var_f,
+                    var_t: t.var_t,
+                },
+            );
+        }
+    }
+    Ok(())
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+struct Cand {
+    x: usize,
+    y: usize,
+    s: Score,
+}
+
+/// The best few positions, sorted best first, pairwise farther apart than `radius`
+/// (Chebyshev). The first entry is always the exact argmax of everything offered
+/// (ties keep the earliest offered, i.e. the first in raster order).
+#[derive(Clone, Copy, Debug)]
+struct TopK {
+    items: [Cand; MAX_CANDIDATES],
+    len: usize,
+    cap: usize,
+    radius: usize,
+}
+
+impl TopK {
+    fn new(cap: usize, radius: usize) -> Self {
+        Self {
+            items: [Cand::default(); MAX_CANDIDATES],
+            len: 0,
+            cap: cap.clamp(1, MAX_CANDIDATES),
+            radius,
+        }
+    }
+
+    fn as_slice(&self) -> &[Cand] {
+        self.items.get(..self.len).unwrap_or(&[])
+    }
+
+    fn near(&self, a: &Cand, b: &Cand) -> bool {
+        a.x.abs_diff(b.x) <= self.radius && a.y.abs_diff(b.y) <= self.radius
+    }
+
+    fn offer(&mut self, c: Cand) {
+        let cur = self.as_slice();
+        if self.len == self.cap {
+            if let Some(worst) = cur.last() {
+                if cmp_scores(&c.s, &worst.s) != Ordering::Greater {
+                    return;
+                }
+            }
+        }
+        if cur
+            .iter()
+            .any(|e| self.near(e, &c) && cmp_scores(&c.s, &e.s) != Ordering::Greater)
+        {
+            return;
+        }
+        let mut out = [Cand::default(); MAX_CANDIDATES];
+        let mut n = 0;
+        let mut placed = false;
+        for e in cur.iter().filter(|e| !self.near(e, &c)) {
+            if !placed && cmp_scores(&c.s, &e.s) == Ordering::Greater {
+                if let Some(o) = out.get_mut(n) {
+                    *o = c;
+                    n += 1;
+                }
+                placed = true;
+            }
+            if n < self.cap {
+                if let Some(o) = out.get_mut(n) {
+                    *o = *e;
+                    n += 1;
+                }
+            }
+        }
+        if !placed && n < self.cap {
+            if let Some(o) = out.get_mut(n) {
+                *o = c;
+                n += 1;
+            }
+        }
+        self.items = out;
+        self.len = n.min(self.cap);
+    }
+}
+
+/// Vertex offset of a parabola through `(−1, m)`, `(0, c)`, `(1, p)`, in [−0.5, 0.5];
+/// 0 when the three points are not a strict maximum.
+fn parabola(m: f64, c: f64, p: f64) -> f64 {
+    let den = m - 2.0 * c + p;
+    if den >= 0.0 || !den.is_finite() {
+        return 0.0;
+    }
+    (0.5 * (m - p) / den).clamp(-0.5, 0.5)
+}
+
+/// Build the template pyramid; returns the number of usable levels.
+fn build_template_levels<'s>(
+    template: &GrayView,
+    mask: Option<&GrayView>,
+    filter: Filter,
+    want: usize,
+    mut tbuf: &'s mut [u8],
+    mut rbuf: &'s mut [Run],
+    levels: &mut [Option<Tpl<'s>>; MAX_LEVELS],
+) -> Result<usize, FailureCode> {
+    let (tw, th) = (template.width(), template.height());
+    let mut prev: Option<(&'s [u8], &'s [u8])> = None;
+    let mut used = 0;
+    for (k, slot) in levels.iter_mut().enumerate().take(want) {
+        let (w, h) = (tw >> k, th >> k);
+        let n_px = w * h;
+        let (px, rest) = core::mem::take(&mut tbuf)
+            .split_at_mut_checked(n_px)
+            .ok_or(FailureCode::NccScratchTooSmall)?;
+        let (mk, rest) = rest
+            .split_at_mut_checked(n_px)
+            .ok_or(FailureCode::NccScratchTooSmall)?;
+        tbuf = rest;
+        match prev {
+            None => {
+                filter_region(template, template.rect(), filter, px)?;
+                match mask {
+                    Some(m) => {
+                        for (y, mrow) in mk.chunks_exact_mut(w).enumerate() {
+                            let src = m.row(y).unwrap_or(&[]);
+                            for (d, &s) in mrow.iter_mut().zip(src) {
+                                *d = u8::from(s != 0);
+                            }
+                        }
+                    }
+                    None => mk.fill(1),
+                }
+            }
+            Some((ppx, pmk)) => {
+                downsample(ppx, w * 2, h * 2, px);
+                // A coarse pixel is kept only when all four children are kept.
+                for (y, mrow) in mk.chunks_exact_mut(w).enumerate() {
+                    let r0 = pmk.get(2 * y * 2 * w..(2 * y + 1) * 2 * w).unwrap_or(&[]);
+                    let r1 = pmk
+                        .get((2 * y + 1) * 2 * w..(2 * y + 2) * 2 * w)
+                        .unwrap_or(&[]);
+                    for ((d, a), b) in mrow
+                        .iter_mut()
+                        .zip(r0.chunks_exact(2))
+                        .zip(r1.chunks_exact(2))
+                    {
+                        *d = u8::from(a.iter().chain(b.iter()).all(|&v| v != 0));
+                    }
+                }
+            }
+        }
+        // Zero dropped pixels so the plain dot product is the masked Σ t·f.
+        let (mut n, mut st, mut stt) = (0u32, 0u64, 0u64);
+        for (p, &m) in px.iter_mut().zip(mk.iter()) {
+            if m == 0 {
+                *p = 0;
+            } else {
+                n += 1;
+                st += u64::from(*p);
+                stt += u64::from(*p) * u64::from(*p);
+            }
+        }
+        if n < MIN_MASK_PX {
+            if k == 0 {
+                return Err(FailureCode::NccMaskEmpty);
+            }
+            break;
+        }
+        let (n, st) = (i64::from(n), st as i64);
+        let var_t = n * stt as i64 - st * st;
+        if var_t <= 0 {
+            if k == 0 {
+                return Err(FailureCode::NccTemplateFlat);
+            }
+            break;
+        }
+        let runs = if mask.is_some() {
+            let mut count = 0;
+            for (y, mrow) in mk.chunks_exact(w).enumerate() {
+                let mut x = 0;
+                while x < w {
+                    if mrow.get(x).copied().unwrap_or(0) == 0 {
+                        x += 1;
+                        continue;
+                    }
+                    let x0 = x;
+                    while x < w && mrow.get(x).copied().unwrap_or(0) != 0 {
+                        x += 1;
+                    }
+                    let r = rbuf.get_mut(count).ok_or(FailureCode::NccScratchTooSmall)?;
+                    *r = Run {
+                        row: y as u16,
+                        x0: x0 as u16,
+                        x1: x as u16,
+                    };
+                    count += 1;
+                }
+            }
+            let (mine, rest) = core::mem::take(&mut rbuf)
+                .split_at_mut_checked(count)
+                .ok_or(FailureCode::NccScratchTooSmall)?;
+            rbuf = rest;
+            Some(&*mine)
+        } else {
+            None
+        };
+        let (px, mk): (&'s [u8], &'s [u8]) = (px, mk);
+        *slot = Some(Tpl {
+            px,
+            runs,
+            w,
+            h,
+            n,
+            st,
+            var_t,
+        });
+        prev = Some((px, mk));
+        used = k + 1;
+    }
+    Ok(used)
+}
+
+/// Find `template` (optionally masked) inside `search` of `image`.
+///
+/// `search` is the region in which the whole template must lie; it is clipped to
+/// the image. The template and the window are filtered with `filter` first
+/// (window pixels use their true image neighbours). (x, y) is the top-left offset
+/// in image coordinates, as OpenCV `matchTemplate` + `minMaxLoc` report it; ties
+/// go to the first position in raster order.
+///
+/// # Errors
+/// [`FailureCode::NccTemplateSizeInvalid`] (template side outside
+/// `MIN_TEMPLATE_PX..=MAX_TEMPLATE_PX`, or mask size differs),
+/// [`FailureCode::NccWindowOutsideImage`], [`FailureCode::NccWindowTooLarge`],
+/// [`FailureCode::NccTemplateLargerThanWindow`], [`FailureCode::NccScratchTooSmall`],
+/// [`FailureCode::NccMaskEmpty`], [`FailureCode::NccTemplateFlat`],
+/// [`FailureCode::NccWindowFlat`] (every position has zero variance).
+#[allow(clippy::too_many_lines)]
+pub fn match_template(
+    template: GrayView,
+    mask: Option<GrayView>,
+    image: GrayView,
+    search: Rect,
+    filter: Filter,
+    mode: Search,
+    scratch: &mut Scratch,
+) -> Result<(Match, MatchStats), FailureCode> {
+    let (tw, th) = (template.width(), template.height());
+    let side_ok = |s: usize| (MIN_TEMPLATE_PX..=MAX_TEMPLATE_PX).contains(&s);
+    if !side_ok(tw) || !side_ok(th) {
+        return Err(FailureCode::NccTemplateSizeInvalid);
+    }
+    if let Some(m) = &mask {
+        if m.width() != tw || m.height() != th {
+            return Err(FailureCode::NccTemplateSizeInvalid);
+        }
+    }
+    let wr = image
+        .rect()
+        .intersect(&search)
+        .ok_or(FailureCode::NccWindowOutsideImage)?;
+    let (ww, wh) = (wr.w as usize, wr.h as usize);
+    if ww > MAX_SEARCH_PX || wh > MAX_SEARCH_PX {
+        return Err(FailureCode::NccWindowTooLarge);
+    }
+    if tw > ww || th > wh {
+        return Err(FailureCode::NccTemplateLargerThanWindow);
+    }
+    if !ScratchSizes::new(tw, th, ww, wh, mode).fits(scratch) {
+        return Err(FailureCode::NccScratchTooSmall);
+    }
+    let want = match mode {
+        Search::Exhaustive => 1,
+        Search::CoarseToFine => pyramid_levels(tw, th),
+    };
+    let Scratch {
+        window,
+        template: tbuf,
+        integral,
+        runs,
+    } = scratch;
+    let mut tpls: [Option<Tpl>; MAX_LEVELS] = [None; MAX_LEVELS];
+    let levels = build_template_levels(
+        &template,
+        mask.as_ref(),
+        filter,
+        want,
+        tbuf,
+        runs,
+        &mut tpls,
+    )?;
+
+    // Window pyramid for the usable levels.
+    let mut wins: [Option<Win>; MAX_LEVELS] = [None; MAX_LEVELS];
+    let mut wbuf: &mut [u8] = window;
+    let mut prev: Option<Win> = None;
+    for (k, slot) in wins.iter_mut().enumerate().take(levels) {
+        let (w, h) = (ww >> k, wh >> k);
+        let (px, rest) = core::mem::take(&mut wbuf)
+            .split_at_mut_checked(w * h)
+            .ok_or(FailureCode::NccScratchTooSmall)?;
+        wbuf = rest;
+        match prev {
+            None => filter_region(&image, wr, filter, px)?,
+            Some(p) => downsample(p.px, p.w, p.h, px),
+        }
+        let win = Win { px, w, h };
+        *slot = Some(win);
+        prev = Some(win);
+    }
+
+    let mut stats = MatchStats {
+        levels: levels as u8,
+        ..MatchStats::default()
+    };
+    let radius0 = peak_radius_px(tw, th);
+    let lc = levels - 1;
+    let (Some(tc), Some(wc)) = (
+        tpls.get(lc).copied().flatten(),
+        wins.get(lc).copied().flatten(),
+    ) else {
+        return Err(FailureCode::NccScratchTooSmall);
+    };
+    let (lx, ly) = wc.last_pos(tc.w, tc.h);
+    let mut top = if lc == 0 {
+        TopK::new(2, radius0)
+    } else {
+        TopK::new(MAX_CANDIDATES, COARSE_NMS_RADIUS_PX)
+    };
+    eval_positions(&tc, &wc, (0, 0, lx, ly), integral, &mut stats, |x, y, s| {
+        top.offer(Cand { x, y, s });
+    })?;
+    stats.candidates = top.len as u8;
+
+    for k in (0..lc).rev() {
+        let (Some(t), Some(w)) = (
+            tpls.get(k).copied().flatten(),
+            wins.get(k).copied().flatten(),
+        ) else {
+            return Err(FailureCode::NccScratchTooSmall);
+        };
+        let (lx, ly) = w.last_pos(t.w, t.h);
+        let (r, keep) = if k == 0 {
+            (FINAL_REFINE_RADIUS_PX, MAX_FINAL_CANDIDATES)
+        } else {
+            (REFINE_RADIUS_PX, MAX_CANDIDATES)
+        };
+        let mut next = TopK::new(MAX_CANDIDATES, 0);
+        for c in top.as_slice().iter().take(keep) {
+            let mut center = ((2 * c.x).min(lx), (2 * c.y).min(ly));
+            let mut best = TopK::new(1, 0);
+            for _ in 0..=MAX_CLIMB_STEPS {
+                let (cx, cy) = center;
+                let bounds = (
+                    cx.saturating_sub(r),
+                    cy.saturating_sub(r),
+                    (cx + r).min(lx),
+                    (cy + r).min(ly),
+                );
+                eval_positions(&t, &w, bounds, integral, &mut stats, |x, y, s| {
+                    best.offer(Cand { x, y, s });
+                })?;
+                let Some(b) = best.as_slice().first() else {
+                    break;
+                };
+                // Stop unless the peak sits on a border that is not the window's edge.
+                let on_edge = (b.x == bounds.0 && b.x > 0)
+                    || (b.x == bounds.2 && b.x < lx)
+                    || (b.y == bounds.1 && b.y > 0)
+                    || (b.y == bounds.3 && b.y < ly);
+                if !on_edge || (b.x, b.y) == center {
+                    break;
+                }
+                center = (b.x, b.y);
+            }
+            if let Some(b) = best.as_slice().first() {
+                next.offer(*b);
+            }
+        }
+        top = next;
+    }
+
+    let cands = top.as_slice();
+    let Some(win) = cands.first().copied() else {
+        return Err(FailureCode::NccWindowFlat);
+    };
+    let probe = TopK::new(1, radius0);
+    let runner_up = cands
+        .iter()
+        .skip(1)
+        .find(|c| !probe.near(c, &win))
+        .map_or(-1.0, |c| c.s.to_f32());
+
+    // Sub-pixel: exact scores of the four neighbours at full resolution.
+    let (Some(t0), Some(w0)) = (
+        tpls.first().copied().flatten(),
+        wins.first().copied().flatten(),
+    ) else {
+        return Err(FailureCode::NccScratchTooSmall);
+    };
+    let (lx, ly) = w0.last_pos(t0.w, t0.h);
+    let mut nb = [None::<f64>; 4]; // left, right, up, down
+    let bounds = (
+        win.x.saturating_sub(1),
+        win.y.saturating_sub(1),
+        (win.x + 1).min(lx),
+        (win.y + 1).min(ly),
+    );
+    let mut sub_stats = MatchStats::default();
+    eval_positions(&t0, &w0, bounds, integral, &mut sub_stats, |x, y, s| {
+        let slot = match (x as isize - win.x as isize, y as isize - win.y as isize) {
+            (-1, 0) => nb.get_mut(0),
+            (1, 0) => nb.get_mut(1),
+            (0, -1) => nb.get_mut(2),
+            (0, 1) => nb.get_mut(3),
+            _ => None,
+        };
+        if let Some(v) = slot {
+            *v = Some(s.to_f64());
+        }
+    })?;
+    stats.positions_scored += sub_stats.positions_scored;
+    stats.flat_positions += sub_stats.flat_positions;
+    stats.macs += sub_stats.macs;
+    let c = win.s.to_f64();
+    let offset = |a: Option<f64>, b: Option<f64>| match (a, b) {
+        (Some(m), Some(p)) => parabola(m, c, p),
+        _ => 0.0,
+    };
+    let dx = offset(nb[0], nb[1]);
+    let dy = offset(nb[2], nb[3]);
+
+    let x = wr.x + win.x as i32;
+    let y = wr.y + win.y as i32;
+    Ok((
+        Match {
+            x,
+            y,
+            score: win.s.to_f32(),
+            sub_x: (f64::from(x) + dx) as f32,
+            sub_y: (f64::from(y) + dy) as f32,
+            runner_up,
+            exact: win.s,
+        },
+        stats,
+    ))
+}
+
+/// Exact score of `template` (optionally masked, after `filter`) placed with its
+/// top-left corner at `(x, y)` of `image`: a search over that single position.
+///
+/// # Errors
+/// As [`match_template`]; [`FailureCode::NccWindowFlat`] when the window has zero variance.
+pub fn score_at(
+    template: GrayView,
+    mask: Option<GrayView>,
+    image: GrayView,
+    x: i32,
+    y: i32,
+    filter: Filter,
+    scratch: &mut Scratch,
+) -> Result<Score, FailureCode> {
+    let r = Rect::new(x, y, template.width() as u32, template.height() as u32);
+    if !image.rect().contains(&r) {
+        return Err(FailureCode::NccWindowOutsideImage);
+    }
+    match_template(
+        template,
+        mask,
+        image,
+        r,
+        filter,
+        Search::Exhaustive,
+        scratch,
+    )
+    .map(|(m, _)| m.exact)
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use crate::rng::Rng;
+    use proptest::prelude::*;
+    use std::vec;
+    use std::vec::Vec;
+
+    /// Owned scratch for tests.
+    struct Bufs {
+        w: Vec<u8>,
+        t: Vec<u8>,
+        i: Vec<u32>,
+        r: Vec<Run>,
+    }
+
+    impl Bufs {
+        fn new(tw: usize, th: usize, ww: usize, wh: usize, mode: Search) -> Self {
+            let s = ScratchSizes::new(tw, th, ww, wh, mode);
+            Self {
+                w: vec![0; s.window],
+                t: vec![0; s.template],
+                i: vec![0; s.integral],
+                r: vec![Run::default(); s.runs],
+            }
+        }
+        fn scratch(&mut self) -> Scratch<'_> {
+            Scratch {
+                window: &mut self.w,
+                template: &mut self.t,
+                integral: &mut self.i,
+                runs: &mut self.r,
+            }
+        }
+    }
+
+    fn view(px: &[u8], w: usize, h: usize) -> GrayView<'_> {
+        GrayView::new(px, w, h, w).unwrap()
+    }
+
+    fn random_px(n: usize, rng: &mut Rng) -> Vec<u8> {
+        (0..n).map(|_| rng.below(256) as u8).collect()
+    }
+
+    /// Smooth random texture (bilinear value noise, two octaves), `w × h`.
+    fn textured(w: usize, h: usize, rng: &mut Rng) -> Vec<u8> {
+        let mut acc = vec![0f64; w * h];
+        for (cell, amp) in [(12usize, 1.0f64), (4, 0.5), (2, 0.25)] {
+            let gw = w / cell + 2;
+            let grid: Vec<f64> = (0..gw * (h / cell + 2))
+                .map(|_| f64::from(rng.uniform(-1.0, 1.0)))
+                .collect();
+            for y in 0..h {
+                for x in 0..w {
+                    let (fx, fy) = (x as f64 / cell as f64, y as f64 / cell as f64);
+                    let (x0, y0) = (fx as usize, fy as usize);
+                    let (tx, ty) = (fx - x0 as f64, fy - y0 as f64);
+                    let g = |i: usize, j: usize| grid[j * gw + i];
+                    let top = g(x0, y0) * (1.0 - tx) + g(x0 + 1, y0) * tx;
+                    let bot = g(x0, y0 + 1) * (1.0 - tx) + g(x0 + 1, y0 + 1) * tx;
+                    acc[y * w + x] += amp * (top * (1.0 - ty) + bot * ty);
+                }
+            }
+        }
+        acc.iter()
+            .map(|v| (128.0 + 70.0 * v).round().clamp(0.0, 255.0) as u8)
+            .collect()
+    }
+
+    fn crop(img: &[u8], iw: usize, x: usize, y: usize, w: usize, h: usize) -> Vec<u8> {
+        (0..h)
+            .flat_map(|r| img[(y + r) * iw + x..(y + r) * iw + x + w].iter().copied())
+            .collect()
+    }
+
+    /// Two-pass floating-point zero-mean NCC over the kept pixels (the reference).
+    #[allow(clippy::too_many_arguments)]
+    fn ref_score(
+        t: &[u8],
+        tw: usize,
+        th: usize,
+        mask: Option<&[u8]>,
+        img: &[u8],
+        iw: usize,
+        x: usize,
+        y: usize,
+    ) -> Option<f64> {
+        let keep = |i: usize| mask.is_none_or(|m| m[i] != 0);
+        let (mut n, mut mt, mut mf) = (0.0, 0.0, 0.0);
+        for r in 0..th {
+            for c in 0..tw {
+                if keep(r * tw + c) {
+                    n += 1.0;
+                    mt += f64::from(t[r * tw + c]);
+                    mf += f64::from(img[(y + r) * iw + x + c]);
+                }
+            }
+        }
+        mt /= n;
+        mf /= n;
+        let (mut sft, mut stt, mut sff) = (0.0, 0.0, 0.0);
+        for r in 0..th {
+            for c in 0..tw {
+                if keep(r * tw + c) {
+                    let a = f64::from(t[r * tw + c]) - mt;
+                    let b = f64::from(img[(y + r) * iw + x + c]) - mf;
+                    sft += a * b;
+                    stt += a * a;
+                    sff += b * b;
+                }
+            }
+        }
+        if stt <= 1e-9 || sff <= 1e-9 {
+            return None;
+        }
+        Some(sft / (stt * sff).sqrt())
+    }
+
+    /// Reference filters, written independently of `filter_region`.
+    fn ref_filter(img: &[u8], w: usize, h: usize, f: Filter) -> Vec<u8> {
+        let at = |x: i64, y: i64| -> i64 {
+            let x = x.clamp(0, w as i64 - 1) as usize;
+            let y = y.clamp(0, h as i64 - 1) as usize;
+            i64::from(img[y * w + x])
+        };
+        let sx = [[-1, 0, 1], [-2, 0, 2], [-1, 0, 1]];
+        let sy = [[-1, -2, -1], [0, 0, 0], [1, 2, 1]];
+        let lp = [[0, 1, 0], [1, -4, 1], [0, 1, 0]];
+        let conv = |k: &[[i64; 3]; 3], x: i64, y: i64| -> i64 {
+            let mut s = 0;
+            for (j, row) in k.iter().enumerate() {
+                for (i, c) in row.iter().enumerate() {
+                    s += c * at(x + i as i64 - 1, y + j as i64 - 1);
+                }
+            }
+            s
+        };
+        let mut out = vec![0u8; w * h];
+        for y in 0..h as i64 {
+            for x in 0..w as i64 {
+                let v = match f {
+                    Filter::Gray => at(x, y),
+                    Filter::Sobel => (conv(&sx, x, y).abs() + conv(&sy, x, y).abs()) / 8,
+                    Filter::Laplacian => conv(&lp, x, y).div_euclid(8) + 128,
+                };
+                assert!((0..=255).contains(&v), "filter output {v} out of 8 bits");
+                out[y as usize * w + x as usize] = v as u8;
+            }
+        }
+        out
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn score_one(
+        t: &[u8],
+        tw: usize,
+        th: usize,
+        mask: Option<&[u8]>,
+        img: &[u8],
+        iw: usize,
+        ih: usize,
+        x: usize,
+        y: usize,
+        f: Filter,
+    ) -> Result<Score, FailureCode> {
+        let mut b = Bufs::new(tw, th, tw, th, Search::Exhaustive);
+        score_at(
+            view(t, tw, th),
+            mask.map(|m| view(m, tw, th)),
+            view(img, iw, ih),
+            x as i32,
+            y as i32,
+            f,
+            &mut b.scratch(),
+        )
+    }
+
+    /// Verifies: VTSM-NCC-001
+    #[test]
+    fn scores_equal_f64_reference_on_random_images() {
+        let mut rng = Rng::new(11);
+        let mut worst = 0.0f64;
+        for case in 0..200 {
+            let tw = 16 + rng.below(25) as usize;
+            let th = 16 + rng.below(25) as usize;
+            let (iw, ih) = (
+                tw + 1 + rng.below(30) as usize,
+                th + 1 + rng.below(30) as usize,
+            );
+            let img = random_px(iw * ih, &mut rng);
+            let t = random_px(tw * th, &mut rng);
+            let (x, y) = (
+                rng.below((iw - tw + 1) as u32) as usize,
+                rng.below((ih - th + 1) as u32) as usize,
+            );
+            let s = score_one(&t, tw, th, None, &img, iw, ih, x, y, Filter::Gray).unwrap();
+            let r = ref_score(&t, tw, th, None, &img, iw, x, y).unwrap();
+            worst = worst.max((s.to_f64() - r).abs());
+            assert!(
+                (s.to_f64() - r).abs() < 1e-9,
+                "case {case}: {} vs {r}",
+                s.to_f64()
+            );
+            assert_eq!(s.to_f32(), s.to_f64() as f32);
+        }
+        std::println!("max |exact - f64 reference| = {worst:e}");
+    }
+
+    /// Verifies: VTSM-NCC-001, VTSM-NCC-006
+    #[test]
+    fn filtered_scores_equal_reference_on_reference_filtered_images() {
+        let mut rng = Rng::new(12);
+        for f in [Filter::Gray, Filter::Sobel, Filter::Laplacian] {
+            for _ in 0..30 {
+                let (tw, th) = (16 + rng.below(20) as usize, 16 + rng.below(20) as usize);
+                let (iw, ih) = (
+                    tw + 2 + rng.below(20) as usize,
+                    th + 2 + rng.below(20) as usize,
+                );
+                let img = textured(iw, ih, &mut rng);
+                let t = random_px(tw * th, &mut rng);
+                let (x, y) = (
+                    rng.below((iw - tw + 1) as u32) as usize,
+                    rng.below((ih - th + 1) as u32) as usize,
+                );
+                let fi = ref_filter(&img, iw, ih, f);
+                let ft = ref_filter(&t, tw, th, f);
+                let s = score_one(&t, tw, th, None, &img, iw, ih, x, y, f);
+                match ref_score(&ft, tw, th, None, &fi, iw, x, y) {
+                    Some(r) => assert!((s.unwrap().to_f64() - r).abs() < 1e-9, "{f:?}"),
+                    None => assert!(s.is_err(), "{f:?}"),
+                }
+            }
+        }
+    }
+
+    /// Verifies: VTSM-NCC-006
+    #[test]
+    fn filter_region_equals_reference_filter_inside_and_at_borders() {
+        let mut rng = Rng::new(13);
+        let (w, h) = (37, 29);
+        let img = random_px(w * h, &mut rng);
+        for f in [Filter::Gray, Filter::Sobel, Filter::Laplacian] {
+            let full = ref_filter(&img, w, h, f);
+            for _ in 0..20 {
+                let (x, y) = (rng.below(30) as usize, rng.below(20) as usize);
+                let (rw, rh) = (
+                    1 + rng.below((w - x) as u32) as usize,
+                    1 + rng.below((h - y) as u32) as usize,
+                );
+                let mut out = vec![0u8; rw * rh];
+                filter_region(
+                    &view(&img, w, h),
+                    Rect::new(x as i32, y as i32, rw as u32, rh as u32),
+                    f,
+                    &mut out,
+                )
+                .unwrap();
+                assert_eq!(out, crop(&full, w, x, y, rw, rh), "{f:?}");
+            }
+        }
+        // Extremes of the 8-bit mappings: a vertical 0/255 step.
+        let step: Vec<u8> = (0..16 * 16)
+            .map(|i| if i % 16 < 8 { 0 } else { 255 })
+            .collect();
+        let mut out = vec![0u8; 256];
+        filter_region(
+            &view(&step, 16, 16),
+            Rect::new(0, 0, 16, 16),
+            Filter::Laplacian,
+            &mut out,
+        )
+        .unwrap();
+        assert_eq!(
+            (out[7], out[8]),
+            (((255 >> 3) + 128) as u8, ((-255i32 >> 3) + 128) as u8)
+        );
+        filter_region(
+            &view(&step, 16, 16),
+            Rect::new(0, 0, 16, 16),
+            Filter::Sobel,
+            &mut out,
+        )
+        .unwrap();
+        assert_eq!(out[7], (4 * 255 / 8) as u8);
+    }
+
+    /// Verifies: VTSM-NCC-002
+    #[test]
+    fn identical_patch_scores_one_and_negated_patch_minus_one() {
+        let mut rng = Rng::new(14);
+        for _ in 0..50 {
+            let (tw, th) = (16 + rng.below(30) as usize, 16 + rng.below(30) as usize);
+            let (iw, ih) = (tw + 10, th + 10);
+            let img = random_px(iw * ih, &mut rng);
+            let (x, y) = (rng.below(11) as usize, rng.below(11) as usize);
+            let t = crop(&img, iw, x, y, tw, th);
+            let neg: Vec<u8> = t.iter().map(|v| 255 - v).collect();
+            let s = score_one(&t, tw, th, None, &img, iw, ih, x, y, Filter::Gray).unwrap();
+            assert_eq!(s.to_f64(), 1.0);
+            assert_eq!(s.to_f32(), 1.0);
+            let s = score_one(&neg, tw, th, None, &img, iw, ih, x, y, Filter::Gray).unwrap();
+            assert_eq!(s.to_f64(), -1.0);
+        }
+    }
+
+    /// Verifies: VTSM-NCC-003
+    #[test]
+    fn score_is_invariant_to_gain_and_offset() {
+        let mut rng = Rng::new(15);
+        for _ in 0..50 {
+            let (tw, th) = (16 + rng.below(30) as usize, 16 + rng.below(30) as usize);
+            let (iw, ih) = (tw + 7, th + 5);
+            let img = random_px(iw * ih, &mut rng);
+            let t: Vec<u8> = (0..tw * th).map(|_| rng.below(60) as u8).collect();
+            let gain = 1 + rng.below(3);
+            let off = rng.below(70);
+            let t2: Vec<u8> = t
+                .iter()
+                .map(|&v| (u32::from(v) * gain + off) as u8)
+                .collect();
+            let (x, y) = (rng.below(8) as usize, rng.below(6) as usize);
+            let a = score_one(&t, tw, th, None, &img, iw, ih, x, y, Filter::Gray).unwrap();
+            let b = score_one(&t2, tw, th, None, &img, iw, ih, x, y, Filter::Gray).unwrap();
+            assert!((a.to_f64() - b.to_f64()).abs() < 1e-12);
+            // The same holds on the image side, and the exact order sees the scores as equal
+            // when only the window changes by gain and offset.
+            let img2: Vec<u8> = img.iter().map(|&v| (u32::from(v) / 2 + 40) as u8).collect();
+            let c = score_one(&t, tw, th, None, &img2, iw, ih, x, y, Filter::Gray).unwrap();
+            let r = ref_score(&t, tw, th, None, &img2, iw, x, y).unwrap();
+            assert!((c.to_f64() - r).abs() < 1e-9);
+        }
+    }
+
+    /// Verifies: VTSM-NCC-004
+    #[test]
+    fn exhaustive_argmax_equals_reference_argmax() {
+        let mut rng = Rng::new(16);
+        for case in 0..40 {
+            let (tw, th) = (16 + rng.below(8) as usize, 16 + rng.below(8) as usize);
+            let (iw, ih) = (
+                tw + 20 + rng.below(20) as usize,
+                th + 20 + rng.below(20) as usize,
+            );
+            let img = if case % 2 == 0 {
+                random_px(iw * ih, &mut rng)
+            } else {
+                textured(iw, ih, &mut rng)
+            };
+            let t = random_px(tw * th, &mut rng);
+            let mut best = (f64::MIN, 0, 0);
+            for y in 0..=ih - th {
+                for x in 0..=iw - tw {
+                    let r = ref_score(&t, tw, th, None, &img, iw, x, y).unwrap();
+                    if r > best.0 {
+                        best = (r, x, y);
+                    }
+                }
+            }
+            let mut b = Bufs::new(tw, th, iw, ih, Search::Exhaustive);
+            let (m, st) = match_template(
+                view(&t, tw, th),
+                None,
+                view(&img, iw, ih),
+                Rect::new(0, 0, iw as u32, ih as u32),
+                Filter::Gray,
+                Search::Exhaustive,
+                &mut b.scratch(),
+            )
+            .unwrap();
+            assert_eq!((m.x, m.y), (best.1 as i32, best.2 as i32), "case {case}");
+            assert!((m.exact.to_f64() - best.0).abs() < 1e-9);
+            // Work counters: every position once, N MACs each, plus the sub-pixel probe.
+            let positions = ((iw - tw + 1) * (ih - th + 1)) as u64;
+            assert!(st.positions_scored >= positions && st.positions_scored <= positions + 9);
+            assert_eq!(st.macs, st.positions_scored * (tw * th) as u64);
+        }
+    }
+
+    /// Verifies: VTSM-NCC-005
+    #[test]
+    fn masked_score_equals_reference_restricted_to_mask() {
+        let mut rng = Rng::new(17);
+        for case in 0..60 {
+            let (tw, th) = (16 + rng.below(20) as usize, 16 + rng.below(20) as usize);
+            let (iw, ih) = (tw + 12, th + 9);
+            let img = random_px(iw * ih, &mut rng);
+            let t = random_px(tw * th, &mut rng);
+            // Blobby masks (runs) and speckled ones (many short runs).
+            let mask: Vec<u8> = (0..tw * th)
+                .map(|i| {
+                    let keep = if case % 2 == 0 {
+                        let (x, y) = (
+                            (i % tw) as i64 - tw as i64 / 2,
+                            (i / tw) as i64 - th as i64 / 2,
+                        );
+                        x * x + y * y < (tw * th / 5) as i64
+                    } else {
+                        rng.below(3) != 0
+                    };
+                    if keep {
+                        255
+                    } else {
+                        0
+                    }
+                })
+                .collect();
+            let mut best = (f64::MIN, 0, 0);
+            for y in 0..=ih - th {
+                for x in 0..=iw - tw {
+                    let r = ref_score(&t, tw, th, Some(&mask), &img, iw, x, y).unwrap();
+                    let s = score_one(&t, tw, th, Some(&mask), &img, iw, ih, x, y, Filter::Gray)
+                        .unwrap();
+                    assert!((s.to_f64() - r).abs() < 1e-9, "case {case} at ({x},{y})");
+                    if r > best.0 {
+                        best = (r, x, y);
+                    }
+                }
+            }
+            // Dropped pixels really do not count: change them and nothing moves.
+            let t_changed: Vec<u8> = t
+                .iter()
+                .zip(&mask)
+                .map(|(&v, &m)| if m == 0 { 255 - v } else { v })
+                .collect();
+            let mut b = Bufs::new(tw, th, iw, ih, Search::Exhaustive);
+            for tt in [&t, &t_changed] {
+                let (m, _) = match_template(
+                    view(tt, tw, th),
+                    Some(view(&mask, tw, th)),
+                    view(&img, iw, ih),
+                    Rect::new(0, 0, iw as u32, ih as u32),
+                    Filter::Gray,
+                    Search::Exhaustive,
+                    &mut b.scratch(),
+                )
+                .unwrap();
+                assert_eq!((m.x, m.y), (best.1 as i32, best.2 as i32), "case {case}");
+            }
+        }
+    }
+
+    /// Verifies: VTSM-NCC-007
+    #[test]
+    fn bit_budget_holds_at_the_extremes() {
+        let l = MAX_TEMPLATE_PX;
+        // All-255 template: flat, rejected (not NaN).
+        let all = vec![255u8; l * l];
+        assert_eq!(
+            score_one(&all, l, l, None, &all, l, l, 0, 0, Filter::Gray),
+            Err(FailureCode::NccTemplateFlat)
+        );
+        // 255 everywhere but one pixel: Σft = 255²·(N−1) ≈ 4.26e9, next to the u32 limit.
+        let mut t = all.clone();
+        t[l * l / 2 + 17] = 0;
+        let s = score_one(&t, l, l, None, &t, l, l, 0, 0, Filter::Gray).unwrap();
+        assert_eq!(s.to_f64(), 1.0);
+        let n = (l * l) as i64;
+        assert_eq!(
+            s.var_t,
+            n * 255 * 255 * (n - 1) - (255 * (n - 1)) * (255 * (n - 1))
+        );
+        // A window of all 255 but a different dark pixel: exact against the reference.
+        let mut w = all.clone();
+        w[3] = 0;
+        let s = score_one(&t, l, l, None, &w, l, l, 0, 0, Filter::Gray).unwrap();
+        let r = ref_score(&t, l, l, None, &w, l, 0, 0).unwrap();
+        assert!((s.to_f64() - r).abs() < 1e-9, "{} vs {r}", s.to_f64());
+        // Largest variances: a 0/255 checkerboard against itself and its negative, masked full.
+        let cb: Vec<u8> = (0..l * l)
+            .map(|i| if (i / l + i % l) % 2 == 0 { 255 } else { 0 })
+            .collect();
+        let neg: Vec<u8> = cb.iter().map(|v| 255 - v).collect();
+        let full = vec![255u8; l * l];
+        let s = score_one(&cb, l, l, Some(&full), &cb, l, l, 0, 0, Filter::Gray).unwrap();
+        assert_eq!(s.to_f64(), 1.0);
+        // var_t = N·Σt² − (Σt)² = 255²·N²/4 = 255²·2³⁰, the largest value any 256² template reaches.
+        assert_eq!(s.var_t, 255 * 255 * (1 << 30));
+        assert_eq!(s.var_f, s.var_t);
+        let s = score_one(&neg, l, l, None, &cb, l, l, 0, 0, Filter::Gray).unwrap();
+        assert_eq!(s.to_f64(), -1.0);
+        assert_eq!(s.num, -255 * 255 * (1 << 30));
+    }
+
+    /// Verifies: VTSM-NCC-007
+    #[test]
+    fn exact_order_agrees_with_wide_reference() {
+        let mut rng = Rng::new(18);
+        let big = |rng: &mut Rng| (rng.next_u64() >> 16) as i64; // < 2^48
+        for _ in 0..20_000 {
+            let vt = 1 + big(&mut rng);
+            let a = Score {
+                num: big(&mut rng) - (1 << 47),
+                var_f: 1 + big(&mut rng),
+                var_t: vt,
+            };
+            let b = Score {
+                num: big(&mut rng) - (1 << 47),
+                var_f: 1 + big(&mut rng),
+                var_t: vt,
+            };
+            // Reference: compare sign·num²/var_f with 256-bit-free big-float-free logic:
+            // split each side into (hi, lo) limbs computed with u128 via a different route.
+            let key = |s: &Score, other: &Score| -> (u128, u128) {
+                let n = s.num.unsigned_abs() as u128;
+                let v = other.var_f as u128;
+                // n²·v = n·(n·v); n·v < 2^96 so split it into 48-bit halves.
+                let nv = n * v;
+                let (h, l) = (nv >> 48, nv & ((1 << 48) - 1));
+                let (ph, pl) = (n * h, n * l); // value = ph·2^48 + pl
+                let lo = pl & ((1 << 48) - 1);
+                let hi = ph + (pl >> 48);
+                (hi, lo)
+            };
+            let (ka, kb) = (key(&a, &b), key(&b, &a));
+            let want = match (a.num.signum(), b.num.signum()) {
+                (x, y) if x != y => x.cmp(&y),
+                (0, _) => Ordering::Equal,
+                (1, _) => ka.cmp(&kb),
+                _ => kb.cmp(&ka),
+            };
+            assert_eq!(cmp_scores(&a, &b), want);
+            if (a.to_f64() - b.to_f64()).abs() > 1e-12 {
+                assert_eq!(
+                    cmp_scores(&a, &b),
+                    a.to_f64().partial_cmp(&b.to_f64()).unwrap()
+                );
+            }
+        }
+    }
+
+    /// Verifies: VTSM-NCC-008
+    #[test]
+    fn each_bad_input_has_its_own_failure_code() {
+        let mut rng = Rng::new(19);
+        let img = random_px(64 * 64, &mut rng);
+        let t = random_px(20 * 20, &mut rng);
+        let all = Rect::new(0, 0, 64, 64);
+        let run = |t: &[u8],
+                   tw: usize,
+                   mask: Option<&[u8]>,
+                   img: &[u8],
+                   iw: usize,
+                   ih: usize,
+                   r: Rect,
+                   b: &mut Bufs| {
+            match_template(
+                view(t, tw, tw),
+                mask.map(|m| view(m, tw, tw)),
+                view(img, iw, ih),
+                r,
+                Filter::Gray,
+                Search::CoarseToFine,
+                &mut b.scratch(),
+            )
+            .map(|(m, _)| m)
+        };
+        let mut b = Bufs::new(20, 20, 64, 64, Search::CoarseToFine);
+        let flat = vec![9u8; 400];
+        assert_eq!(
+            run(&flat, 20, None, &img, 64, 64, all, &mut b),
+            Err(FailureCode::NccTemplateFlat)
+        );
+        let flat_img = vec![200u8; 64 * 64];
+        assert_eq!(
+            run(&t, 20, None, &flat_img, 64, 64, all, &mut b),
+            Err(FailureCode::NccWindowFlat)
+        );
+        assert_eq!(
+            run(&t, 20, None, &img, 64, 64, Rect::new(70, 0, 30, 30), &mut b),
+            Err(FailureCode::NccWindowOutsideImage)
+        );
+        assert_eq!(
+            run(&t, 20, None, &img, 64, 64, Rect::new(0, 0, 0, 30), &mut b),
+            Err(FailureCode::NccWindowOutsideImage)
+        );
+        assert_eq!(
+            run(
+                &t,
+                20,
+                None,
+                &img,
+                64,
+                64,
+                Rect::new(50, 50, 30, 30),
+                &mut b
+            ),
+            Err(FailureCode::NccTemplateLargerThanWindow)
+        );
+        let mut small = Bufs::new(20, 20, 40, 40, Search::CoarseToFine);
+        assert_eq!(
+            run(&t, 20, None, &img, 64, 64, all, &mut small),
+            Err(FailureCode::NccScratchTooSmall)
+        );
+        let mut ex_small = Bufs::new(20, 20, 64, 64, Search::CoarseToFine);
+        ex_small.i.truncate(10);
+        assert_eq!(
+            run(&t, 20, None, &img, 64, 64, all, &mut ex_small),
+            Err(FailureCode::NccScratchTooSmall)
+        );
+        let mut mask = vec![0u8; 400];
+        mask[..10].fill(255);
+        assert_eq!(
+            run(&t, 20, Some(&mask), &img, 64, 64, all, &mut b),
+            Err(FailureCode::NccMaskEmpty)
+        );
+        let tiny = random_px(8 * 8, &mut rng);
+        assert_eq!(
+            run(&tiny, 8, None, &img, 64, 64, all, &mut b),
+            Err(FailureCode::NccTemplateSizeInvalid)
+        );
+        let wide = random_px(1100 * 20, &mut rng);
+        let mut bw = Bufs::new(20, 20, 1100, 20, Search::CoarseToFine);
+        assert_eq!(
+            run(
+                &t,
+                20,
+                None,
+                &wide,
+                1100,
+                20,
+                Rect::new(0, 0, 1100, 20),
+                &mut bw
+            ),
+            Err(FailureCode::NccWindowTooLarge)
+        );
+        for c in [
+            FailureCode::NccTemplateFlat,
+            FailureCode::NccWindowFlat,
+            FailureCode::NccWindowTooLarge,
+            FailureCode::NccTemplateSizeInvalid,
+        ] {
+            assert_eq!(c.group(), 0x05);
+        }
+        // A search rectangle partly outside the image is clipped, not rejected.
+        let m = run(
+            &t,
+            20,
+            None,
+            &img,
+            64,
+            64,
+            Rect::new(-10, -10, 50, 50),
+            &mut b,
+        )
+        .unwrap();
+        assert!(m.x >= 0 && m.y >= 0 && m.x <= 20 && m.y <= 20);
+    }
+
+    /// Verifies: VTSM-NCC-009
+    #[test]
+    fn runner_up_reports_a_second_copy_and_ties_go_to_raster_order() {
+        let mut rng = Rng::new(20);
+        let (iw, ih, l) = (120usize, 90usize, 24usize);
+        for mode in [Search::Exhaustive, Search::CoarseToFine] {
+            let mut img = textured(iw, ih, &mut rng);
+            let t = textured(l, l, &mut rng);
+            for (x, y) in [(70usize, 50usize), (10, 12)] {
+                for r in 0..l {
+                    img[(y + r) * iw + x..(y + r) * iw + x + l]
+                        .copy_from_slice(&t[r * l..r * l + l]);
+                }
+            }
+            let mut b = Bufs::new(l, l, iw, ih, mode);
+            let (m, _) = match_template(
+                view(&t, l, l),
+                None,
+                view(&img, iw, ih),
+                Rect::new(0, 0, iw as u32, ih as u32),
+                Filter::Gray,
+                mode,
+                &mut b.scratch(),
+            )
+            .unwrap();
+            assert_eq!((m.x, m.y, m.score), (10, 12, 1.0), "{mode:?}");
+            assert_eq!(m.runner_up, 1.0, "{mode:?}");
+        }
+        // A single copy in noise: the runner-up is far below the peak.
+        let img = random_px(iw * ih, &mut rng);
+        let t = crop(&img, iw, 40, 30, l, l);
+        let mut b = Bufs::new(l, l, iw, ih, Search::Exhaustive);
+        let (m, _) = match_template(
+            view(&t, l, l),
+            None,
+            view(&img, iw, ih),
+            Rect::new(0, 0, iw as u32, ih as u32),
+            Filter::Gray,
+            Search::Exhaustive,
+            &mut b.scratch(),
+        )
+        .unwrap();
+        assert_eq!((m.x, m.y), (40, 30));
+        assert!(m.runner_up < 0.5 && m.runner_up > -1.0, "{}", m.runner_up);
+    }
+
+    /// Verifies: VTSM-NCC-010
+    #[test]
+    fn sub_template_is_the_centred_half_crop_and_matches_in_place() {
+        assert_eq!(sub_template_rect(256, 256), Rect::new(64, 64, 128, 128));
+        assert_eq!(sub_template_rect(128, 96), Rect::new(32, 24, 64, 48));
+        assert_eq!(sub_template_rect(33, 17), Rect::new(8, 4, 16, 8));
+        let mut rng = Rng::new(21);
+        let (iw, ih) = (160usize, 140usize);
+        let img = textured(iw, ih, &mut rng);
+        let t = crop(&img, iw, 50, 40, 64, 64);
+        let tv = view(&t, 64, 64);
+        let sub = sub_template(&tv).unwrap();
+        assert_eq!((sub.width(), sub.height()), (32, 32));
+        assert_eq!(sub.get(0, 0), Some(img[(40 + 16) * iw + 50 + 16]));
+        let mut b = Bufs::new(32, 32, iw, ih, Search::CoarseToFine);
+        let (m, _) = match_template(
+            sub,
+            None,
+            view(&img, iw, ih),
+            Rect::new(0, 0, iw as u32, ih as u32),
+            Filter::Sobel,
+            Search::CoarseToFine,
+            &mut b.scratch(),
+        )
+        .unwrap();
+        assert_eq!((m.x, m.y), (66, 56));
+    }
+
+    /// Verifies: VTSM-NCC-011
+    #[test]
+    fn sub_pixel_refinement_recovers_fractional_shifts() {
+        // A smooth analytic pattern sampled at a fractional offset.
+        let pat = |x: f64, y: f64| {
+            128.0
+                + 60.0 * ((x * 0.21).sin() * (y * 0.17).cos())
+                + 40.0 * ((x * 0.07 + y * 0.11).sin())
+        };
+        let (iw, ih, l) = (100usize, 90usize, 32usize);
+        for (sx, sy) in [(0.3f64, -0.2f64), (-0.4, 0.1), (0.0, 0.45)] {
+            let (x0, y0) = (37.0 + sx, 29.0 + sy);
+            let img: Vec<u8> = (0..iw * ih)
+                .map(|i| pat((i % iw) as f64, (i / iw) as f64).round() as u8)
+                .collect();
+            let t: Vec<u8> = (0..l * l)
+                .map(|i| pat((i % l) as f64 + x0, (i / l) as f64 + y0).round() as u8)
+                .collect();
+            for mode in [Search::Exhaustive, Search::CoarseToFine] {
+                let mut b = Bufs::new(l, l, iw, ih, mode);
+                let (m, _) = match_template(
+                    view(&t, l, l),
+                    None,
+                    view(&img, iw, ih),
+                    Rect::new(0, 0, iw as u32, ih as u32),
+                    Filter::Gray,
+                    mode,
+                    &mut b.scratch(),
+                )
+                .unwrap();
+                assert!(
+                    (f64::from(m.sub_x) - x0).abs() < 0.15,
+                    "{mode:?} {} vs {x0}",
+                    m.sub_x
+                );
+                assert!(
+                    (f64::from(m.sub_y) - y0).abs() < 0.15,
+                    "{mode:?} {} vs {y0}",
+                    m.sub_y
+                );
+            }
+        }
+    }
+
+    /// Verifies: VTSM-NCC-012
+    #[test]
+    fn coarse_to_fine_agrees_with_exhaustive_on_textured_cases() {
+        let mut rng = Rng::new(22);
+        let cases = 200;
+        let mut agree = 0;
+        let mut work = (0u64, 0u64);
+        for case in 0..cases {
+            let (l, iw, ih) = match case % 10 {
+                0 => (128usize, 208usize, 200usize),
+                1..=5 => (64, 150, 140),
+                _ => (32, 120, 110),
+            };
+            let img = textured(iw, ih, &mut rng);
+            let (tx, ty) = (
+                rng.below((iw - l + 1) as u32) as usize,
+                rng.below((ih - l + 1) as u32) as usize,
+            );
+            // Cut the template under gain, offset and noise, as a synthetic render would differ.
+            let gain = rng.uniform(0.7, 1.2);
+            let off = rng.uniform(-20.0, 20.0);
+            let t: Vec<u8> = crop(&img, iw, tx, ty, l, l)
+                .iter()
+                .map(|&v| {
+                    (f32::from(v) * gain + off + rng.uniform(-12.0, 12.0))
+                        .round()
+                        .clamp(0.0, 255.0) as u8
+                })
+                .collect();
+            let run = |mode| {
+                let mut b = Bufs::new(l, l, iw, ih, mode);
+                match_template(
+                    view(&t, l, l),
+                    None,
+                    view(&img, iw, ih),
+                    Rect::new(0, 0, iw as u32, ih as u32),
+                    Filter::Gray,
+                    mode,
+                    &mut b.scratch(),
+                )
+                .unwrap()
+            };
+            let (e, es) = run(Search::Exhaustive);
+            let (c, cs) = run(Search::CoarseToFine);
+            work.0 += es.macs;
+            work.1 += cs.macs;
+            if (e.x, e.y) == (c.x, c.y) {
+                assert_eq!(e.exact, c.exact);
+                agree += 1;
+            }
+        }
+        let rate = f64::from(agree) / f64::from(cases);
+        std::println!(
+            "coarse-to-fine == exhaustive on {agree}/{cases} = {:.1} %; MACs {:.3e} vs {:.3e}",
+            rate * 100.0,
+            work.1 as f64,
+            work.0 as f64
+        );
+        assert!(rate >= 0.99, "agreement {rate}");
+        assert!(work.1 * 5 < work.0);
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(300))]
+        /// Verifies: VTSM-NCC-008
+        #[test]
+        fn never_panics_and_scores_stay_in_range(
+            tw in 12usize..40, th in 12usize..40, iw in 1usize..90, ih in 1usize..90,
+            sx in -20i32..100, sy in -20i32..100, sw in 0u32..120, sh in 0u32..120,
+            seed in any::<u64>(), levels in 0u32..256, flat in any::<bool>(),
+            masked in any::<bool>(), filt in 0u8..3, exhaustive in any::<bool>(), short in any::<bool>(),
+        ) {
+            let mut rng = Rng::new(seed);
+            let img: Vec<u8> = if flat { vec![levels as u8; iw * ih] } else { random_px(iw * ih, &mut rng) };
+            let t: Vec<u8> = (0..tw * th).map(|_| rng.below(levels + 1) as u8).collect();
+            let mask: Vec<u8> = (0..tw * th).map(|_| if rng.below(4) == 0 { 0 } else { 255 }).collect();
+            let mode = if exhaustive { Search::Exhaustive } else { Search::CoarseToFine };
+            let filter = [Filter::Gray, Filter::Sobel, Filter::Laplacian][usize::from(filt)];
+            let mut b = Bufs::new(tw, th, sw as usize, sh as usize, mode);
+            if short { b.i.truncate(b.i.len() / 2); }
+            let r = match_template(
+                view(&t, tw, th), masked.then(|| view(&mask, tw, th)), view(&img, iw, ih),
+                Rect::new(sx, sy, sw, sh), filter, mode, &mut b.scratch(),
+            );
+            match r {
+                Ok((m, st)) => {
+                    prop_assert!(m.score.is_finite() && (-1.0..=1.0).contains(&m.score));
+                    prop_assert!(m.runner_up.is_finite() && (-1.0..=1.0).contains(&m.runner_up));
+                    prop_assert!((m.sub_x - m.x as f32).abs() <= 0.5 && (m.sub_y - m.y as f32).abs() <= 0.5);
+                    prop_assert!(m.x >= sx.max(0) && m.y >= sy.max(0));
+                    prop_assert!(m.x as usize + tw <= iw && m.y as usize + th <= ih);
+                    prop_assert!(st.positions_scored > 0 && usize::from(st.levels) <= MAX_LEVELS);
+                }
+                Err(e) => prop_assert_eq!(e.group(), 0x05),
+            }
+        }
+    }
+}

@@ -1,1 +1,759 @@
-//! Placeholder: filled in by its stage.
+//! Scanline rasterizer for virtual templates (paper §III-C, `Synthesize`).
+//!
+//! Renders a window (pixel rectangle) of a virtual pinhole camera placed at
+//! `world_from_cam` over a [`MapView`], into caller buffers: 8-bit intensity
+//! (bilinear texture sample with perspective-correct UVs), depth, and the depth of
+//! the mask sub-mesh M̂ where M̂ is the visible surface. [`template_mask`] turns the
+//! two depth buffers into the template mask.
+//!
+//! Pipeline per call: tiles whose box lies outside the window frustum (four side
+//! planes and the near plane) are skipped; each remaining triangle is moved to
+//! the camera frame, rejected if all corners lie outside one window plane,
+//! clipped in camera space against the near plane and, only when a corner lies
+//! outside it, against the guard band ([`RASTER_GUARD_PX`] beyond the window);
+//! the clipped polygon is fanned into triangles, snapped to 28.4 fixed point
+//! relative to the window, and filled span by span. Coverage is decided exactly on
+//! integers with a top-left style tie rule (a pixel centre on an edge belongs to
+//! the triangle that holds the centre moved by (ε, ε²)), so triangles sharing an
+//! edge cover each pixel exactly once. Back faces are drawn (photogrammetry meshes
+//! have arbitrary winding).
+//!
+//! Depth format: `u32` camera-frame Z (along the optical axis) in units of
+//! 2⁻¹⁶ m ([`DEPTH_FRAC_BITS`]), [`DEPTH_NONE`] where nothing was drawn; see
+//! `fsw-docs/budgets/numeric.md`.
+//!
+//! Bounds: window ≤ [`MAX_RENDER_PX`]² pixels; tiles ≤ `MAX_MAP_TILES`, triangles
+//! ≤ `MAX_MAP_TRIANGLES` per call (each visited at most once); a clipped polygon has
+//! at most [`MAX_CLIP_VERTS`] corners; each fanned triangle's rows and spans are
+//! clipped to the window. [`RenderStats`] reports the work.
+
+use crate::config::{
+    MAX_IMAGE_DIM, MAX_RENDER_PX, RASTER_FAR_M, RASTER_GUARD_PX, RASTER_NEAR_M,
+    TEMPLATE_MASK_JUMP_M, TEMPLATE_MASK_JUMP_REL_DIV, TEMPLATE_MASK_RADIUS_PX,
+};
+use crate::failure::FailureCode;
+use crate::geom::{Camera, Pose, Vec3};
+use crate::image::Rect;
+use crate::map::MapView;
+
+/// Depth value of a pixel where no surface was drawn.
+pub const DEPTH_NONE: u32 = u32::MAX;
+/// Fractional bits of the depth format: depth = round(Z · 2^16), Z in metres.
+pub const DEPTH_FRAC_BITS: u32 = 16;
+/// Largest depth value a surface can have (one below [`DEPTH_NONE`]), ≈ 65 535.99 m.
+pub const DEPTH_MAX: u32 = u32::MAX - 1;
+/// Fractional bits of the snapped vertex positions (28.4 fixed point).
+pub const SUBPIXEL_BITS: u32 = 4;
+/// Most corners of a triangle clipped by the near plane and four guard planes.
+pub const MAX_CLIP_VERTS: usize = 8;
+
+const SUB: f32 = (1 << SUBPIXEL_BITS) as f32;
+const DEPTH_SCALE: f32 = (1u32 << DEPTH_FRAC_BITS) as f32;
+/// Slack (metres) of the tile-versus-frustum test, so rounding never culls a visible tile.
+const CULL_SLACK_M: f32 = 0.01;
+
+/// Convert camera Z in metres to the depth format (rounded, saturating at [`DEPTH_MAX`]).
+#[inline]
+pub fn depth_from_m(z_m: f32) -> u32 {
+    // `as` saturates: NaN and negatives give 0, values beyond u32 give u32::MAX.
+    ((z_m * DEPTH_SCALE + 0.5) as u32).min(DEPTH_MAX)
+}
+
+/// Convert a depth value to metres; `None` for [`DEPTH_NONE`].
+#[inline]
+pub fn depth_to_m(depth: u32) -> Option<f32> {
+    (depth != DEPTH_NONE).then(|| depth as f32 / DEPTH_SCALE)
+}
+
+/// Render target for one window: three row-major buffers of at least `w·h`
+/// elements, stride = window width. Elements past `w·h` are never touched.
+#[derive(Debug)]
+pub struct Target<'b> {
+    /// Intensity, 0 where nothing was drawn.
+    pub intensity: &'b mut [u8],
+    /// Depth of the visible surface, [`DEPTH_NONE`] where nothing was drawn.
+    pub depth: &'b mut [u32],
+    /// Depth where the visible surface belongs to M̂, else [`DEPTH_NONE`].
+    pub mask_depth: &'b mut [u32],
+}
+
+/// Work done by one [`render_window`] call.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RenderStats {
+    /// Non-empty tiles tested against the frustum.
+    pub tiles_tested: u32,
+    /// Tiles whose box intersects the frustum.
+    pub tiles_visible: u32,
+    /// Triangles of visible tiles examined.
+    pub triangles_tested: u32,
+    /// Fanned triangles (after clipping) whose spans were filled.
+    pub triangles_drawn: u32,
+    /// Non-empty row spans filled.
+    pub spans: u32,
+    /// Pixels that passed the depth test and were written.
+    pub pixels_written: u32,
+}
+
+/// One pixel that a triangle covers, handed to the pixel sink.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Frag {
+    /// Index into the window buffers (`y · w + x`).
+    pub idx: usize,
+    /// Depth in the depth format (see [`DEPTH_FRAC_BITS`]).
+    pub depth: u32,
+    /// Texture coordinates in texture pixels, 16.16 fixed point.
+    pub u_q16: i64,
+    pub v_q16: i64,
+    /// The triangle belongs to M̂.
+    pub mask: bool,
+}
+
+/// Perspective division is exact at every `SEG`-th absolute pixel column and
+/// linear in between (16.16 / depth-format fixed point): one division per 8 pixels.
+const SEG_SHIFT: u32 = 3;
+const SEG: i64 = 1 << SEG_SHIFT;
+/// A segment is interpolated linearly only when its depth changes by at most 1/64.
+const LINEAR_MAX_DZ_INV: i64 = 64;
+/// Texture coordinates are clamped to ±2^20 texture pixels before fixed-point
+/// conversion (beyond the texture they sample the edge texel anyway).
+const UV_LIMIT: f32 = (1u32 << 20) as f32;
+
+/// Exact depth and texture coordinates at one pixel; `None` where the triangle's
+/// plane is beyond `RASTER_FAR_M` or behind the camera (possible only outside
+/// the triangle, when a segment end is extrapolated).
+#[inline]
+fn exact_at(xn: f32, inv_z_row: f32, u_row: f32, v_row: f32, it: &Interp) -> Option<[i64; 3]> {
+    let inv_z = it.inv_z.x * xn + inv_z_row;
+    // NaN fails this test too.
+    let in_range = inv_z > 1.0 / RASTER_FAR_M;
+    if !in_range {
+        return None;
+    }
+    let z = 1.0 / inv_z;
+    let u = ((it.u_over_z.x * xn + u_row) * z).clamp(-UV_LIMIT, UV_LIMIT);
+    let v = ((it.v_over_z.x * xn + v_row) * z).clamp(-UV_LIMIT, UV_LIMIT);
+    Some([
+        (z * DEPTH_SCALE + 0.5) as i64,
+        (u * 65536.0) as i64,
+        (v * 65536.0) as i64,
+    ])
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Plane {
+    n: Vec3,
+    d: f32,
+}
+
+impl Plane {
+    #[inline]
+    fn dist(&self, p: &Vec3) -> f32 {
+        self.n.x * p.x + self.n.y * p.y + self.n.z * p.z + self.d
+    }
+}
+
+/// Window geometry derived once per call. Everything that decides coverage or
+/// values (clip region, snapping, edge functions, interpolation) is in absolute
+/// image pixels and independent of the window, so a window render equals the
+/// same crop of a larger render bit for bit; the window only bounds the spans.
+struct Frame {
+    cam_from_world: Pose,
+    /// Window frustum (near plane and the four pixel-edge side planes), camera frame.
+    window_planes: [Plane; 5],
+    /// The same planes in the world frame, for tile culling.
+    world_planes: [Plane; 5],
+    /// Near plane and guard-band side planes, camera frame.
+    clip_planes: [Plane; 5],
+    fx: f32,
+    fy: f32,
+    cx: f32,
+    cy: f32,
+    inv_fx: f32,
+    inv_fy: f32,
+    /// Window origin and size, pixels.
+    wx: i64,
+    wy: i64,
+    w: i64,
+    h: i64,
+    /// Snapped coordinates are clamped to this box (28.4), a little outside the guard band.
+    lim: [i64; 4],
+}
+
+/// Side planes through the camera centre keeping pixel columns `u0..=u1` and rows
+/// `v0..=v1` (absolute pixel coordinates): fx·X − (u0 − cx)·Z ≥ 0 etc.
+fn side_planes(cam: &Camera, u0: f32, u1: f32, v0: f32, v1: f32) -> [Plane; 4] {
+    let (fx, fy) = (cam.fx, cam.fy);
+    [
+        Plane {
+            n: Vec3::new(fx, 0.0, -(u0 - cam.cx)),
+            d: 0.0,
+        },
+        Plane {
+            n: Vec3::new(-fx, 0.0, u1 - cam.cx),
+            d: 0.0,
+        },
+        Plane {
+            n: Vec3::new(0.0, fy, -(v0 - cam.cy)),
+            d: 0.0,
+        },
+        Plane {
+            n: Vec3::new(0.0, -fy, v1 - cam.cy),
+            d: 0.0,
+        },
+    ]
+}
+
+impl Frame {
+    fn new(cam: &Camera, world_from_cam: &Pose, window: Rect) -> Self {
+        let (wx, wy) = (i64::from(window.x), i64::from(window.y));
+        let (w, h) = (i64::from(window.w), i64::from(window.h));
+        let near = Plane {
+            n: Vec3::new(0.0, 0.0, 1.0),
+            d: -RASTER_NEAR_M,
+        };
+        let [a, b, c, d] = side_planes(
+            cam,
+            wx as f32 - 0.5,
+            (wx + w) as f32 - 0.5,
+            wy as f32 - 0.5,
+            (wy + h) as f32 - 0.5,
+        );
+        // Guard band: the image (and the window, if it sticks out) grown by RASTER_GUARD_PX.
+        let g = i64::from(RASTER_GUARD_PX);
+        let gx0 = wx.min(0) - g;
+        let gy0 = wy.min(0) - g;
+        let gx1 = (wx + w - 1).max(i64::from(cam.width) - 1) + g;
+        let gy1 = (wy + h - 1).max(i64::from(cam.height) - 1) + g;
+        let [ga, gb, gc, gd] = side_planes(cam, gx0 as f32, gx1 as f32, gy0 as f32, gy1 as f32);
+        let cam_from_world = world_from_cam.inverse();
+        let window_planes = [near, a, b, c, d];
+        let r = cam_from_world.rotation();
+        let t = cam_from_world.translation();
+        // Plane in world: (Rᵀ n)·p_w + (n·t + d) ≥ 0.
+        let world_planes = window_planes.map(|pl| Plane {
+            n: r.inverse_transform_vector(&pl.n),
+            d: pl.n.dot(&t) + pl.d,
+        });
+        let s = i64::from(1u32 << SUBPIXEL_BITS);
+        Self {
+            cam_from_world,
+            window_planes,
+            world_planes,
+            clip_planes: [near, ga, gb, gc, gd],
+            fx: cam.fx,
+            fy: cam.fy,
+            cx: cam.cx,
+            cy: cam.cy,
+            inv_fx: 1.0 / cam.fx,
+            inv_fy: 1.0 / cam.fy,
+            wx,
+            wy,
+            w,
+            h,
+            lim: [(gx0 - 8) * s, (gy0 - 8) * s, (gx1 + 8) * s, (gy1 + 8) * s],
+        }
+    }
+
+    /// Whether a world box may intersect the window frustum.
+    fn box_visible(&self, min: &Vec3, max: &Vec3) -> bool {
+        self.world_planes.iter().all(|pl| {
+            let nw = pl.n;
+            let p = Vec3::new(
+                if nw.x >= 0.0 { max.x } else { min.x },
+                if nw.y >= 0.0 { max.y } else { min.y },
+                if nw.z >= 0.0 { max.z } else { min.z },
+            );
+            let scale = libm::sqrtf(nw.dot(&nw));
+            nw.dot(&p) + pl.d >= -CULL_SLACK_M * scale
+        })
+    }
+}
+
+/// Clip polygon `poly[..n]` against `pl`, into `out`; returns the new corner count.
+/// The intersection on an edge is computed from its inside corner towards its
+/// outside corner, so two triangles sharing the edge get bit-identical points.
+fn clip_poly(
+    poly: &[Vec3; MAX_CLIP_VERTS],
+    n: usize,
+    pl: &Plane,
+    out: &mut [Vec3; MAX_CLIP_VERTS],
+) -> usize {
+    let mut m = 0;
+    let mut push = |v: Vec3, m: &mut usize| {
+        if let Some(slot) = out.get_mut(*m) {
+            *slot = v;
+            *m += 1;
+        }
+    };
+    for i in 0..n.min(MAX_CLIP_VERTS) {
+        let (Some(a), Some(b)) = (poly.get(i), poly.get((i + 1) % n)) else {
+            break;
+        };
+        let (da, db) = (pl.dist(a), pl.dist(b));
+        if da >= 0.0 {
+            push(*a, &mut m);
+        }
+        if (da >= 0.0) != (db >= 0.0) {
+            let (inn, outv, di, dout) = if da >= 0.0 {
+                (a, b, da, db)
+            } else {
+                (b, a, db, da)
+            };
+            let t = di / (di - dout);
+            push(inn + (outv - inn) * t, &mut m);
+        }
+    }
+    m
+}
+
+/// Perspective-correct interpolation of one triangle: 1/Z, u/Z and v/Z are
+/// linear in the normalized image coordinates r = (x', y', 1), with
+/// x' = (U − cx)/fx for absolute pixel column U. Derived from the unclipped
+/// triangle in the camera frame, so clipping and windowing do not change values.
+#[derive(Clone, Copy, Debug)]
+struct Interp {
+    inv_z: Vec3,
+    u_over_z: Vec3,
+    v_over_z: Vec3,
+}
+
+impl Interp {
+    /// `None` for a degenerate triangle or one whose plane passes through the camera centre.
+    fn new(p: &[Vec3; 3], uv: &[[f32; 2]; 3]) -> Option<Self> {
+        let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
+        let n = e1.cross(&e2);
+        let nn = n.dot(&n);
+        let d = n.dot(&p[0]);
+        if !(nn > 0.0 && d != 0.0 && nn.is_finite() && d.is_finite()) {
+            return None;
+        }
+        // Z along ray r: Z = d / (n·r), so 1/Z = (n/d)·r.
+        let k = n / d;
+        // Attribute a = a0 + G·(P − P0) with G = ((a1−a0)(e2×n) + (a2−a0)(n×e1)) / |n|²;
+        // a/Z = G·r + (a0 − G·P0)·(1/Z).
+        let (b, c) = (e2.cross(&n), n.cross(&e1));
+        let lin = |a0: f32, a1: f32, a2: f32| -> Vec3 {
+            let g = (b * (a1 - a0) + c * (a2 - a0)) / nn;
+            g + k * (a0 - g.dot(&p[0]))
+        };
+        let it = Self {
+            inv_z: k,
+            u_over_z: lin(uv[0][0], uv[1][0], uv[2][0]),
+            v_over_z: lin(uv[0][1], uv[1][1], uv[2][1]),
+        };
+        let finite = |v: &Vec3| v.x.is_finite() && v.y.is_finite() && v.z.is_finite();
+        (finite(&it.inv_z) && finite(&it.u_over_z) && finite(&it.v_over_z)).then_some(it)
+    }
+}
+
+/// A fanned triangle corner in absolute 28.4 fixed-point pixel coordinates.
+#[derive(Clone, Copy, Debug, Default)]
+struct ScreenVert {
+    x: i64,
+    y: i64,
+}
+
+#[inline]
+fn floor_div(n: i64, d: i64) -> i64 {
+    let q = n / d;
+    if n % d != 0 && ((n < 0) != (d < 0)) {
+        q - 1
+    } else {
+        q
+    }
+}
+
+#[inline]
+fn ceil_div(n: i64, d: i64) -> i64 {
+    -floor_div(-n, d)
+}
+
+/// Fill one fanned triangle. Coverage is exact integer arithmetic on 28.4
+/// coordinates (magnitudes < 2^18, edge terms < 2^40 in i64); the sink is called
+/// once per covered pixel inside the window.
+fn fill_triangle<S: FnMut(Frag)>(
+    v: [ScreenVert; 3],
+    it: &Interp,
+    mask: bool,
+    frame: &Frame,
+    stats: &mut RenderStats,
+    sink: &mut S,
+) {
+    let [v0, mut v1, mut v2] = v;
+    let area = (v1.x - v0.x) * (v2.y - v0.y) - (v1.y - v0.y) * (v2.x - v0.x);
+    if area == 0 {
+        return;
+    }
+    if area < 0 {
+        core::mem::swap(&mut v1, &mut v2);
+    }
+    let s = i64::from(1u32 << SUBPIXEL_BITS);
+    let (minx, maxx) = (v0.x.min(v1.x).min(v2.x), v0.x.max(v1.x).max(v2.x));
+    let (miny, maxy) = (v0.y.min(v1.y).min(v2.y), v0.y.max(v1.y).max(v2.y));
+    let x_lo = ceil_div(minx, s).max(frame.wx);
+    let x_hi = floor_div(maxx, s).min(frame.wx + frame.w - 1);
+    let y_lo = ceil_div(miny, s).max(frame.wy);
+    let y_hi = floor_div(maxy, s).min(frame.wy + frame.h - 1);
+    if x_lo > x_hi || y_lo > y_hi {
+        return;
+    }
+    stats.triangles_drawn = stats.triangles_drawn.saturating_add(1);
+    // Edge (p→q): E(px,py) = A·px + B·py + C, positive inside (area > 0 after the swap).
+    let edges = [(v1, v2), (v2, v0), (v0, v1)].map(|(p, q)| {
+        let a = -s * (q.y - p.y);
+        let b = s * (q.x - p.x);
+        let c = -(q.x - p.x) * p.y + (q.y - p.y) * p.x;
+        // Owner rule: a pixel centre on the edge is inside iff the centre moved by
+        // (ε, ε²) is, i.e. A > 0 or (A == 0 and B > 0). Exactly one of two
+        // triangles sharing the edge (opposite directions) owns it.
+        let t = if a > 0 || (a == 0 && b > 0) { 0 } else { 1 };
+        (a, b, c, t)
+    });
+    let (wx, wy, w) = (frame.wx, frame.wy, frame.w);
+    for py in y_lo..=y_hi {
+        let mut xl = x_lo;
+        let mut xr = x_hi;
+        for (a, b, c, t) in edges {
+            let k = b * py + c;
+            if a > 0 {
+                xl = xl.max(ceil_div(t - k, a));
+            } else if a < 0 {
+                xr = xr.min(floor_div(t - k, a));
+            } else if k < t {
+                xr = xl - 1;
+            }
+        }
+        if xl > xr {
+            continue;
+        }
+        stats.spans = stats.spans.saturating_add(1);
+        let yn = (py as f32 - frame.cy) * frame.inv_fy;
+        let row_w = it.inv_z.y * yn + it.inv_z.z;
+        let row_u = it.u_over_z.y * yn + it.u_over_z.z;
+        let row_v = it.v_over_z.y * yn + it.v_over_z.z;
+        let row = ((py - wy) * w - wx) as usize;
+        let at = |x: i64| {
+            exact_at(
+                (x as f32 - frame.cx) * frame.inv_fx,
+                row_w,
+                row_u,
+                row_v,
+                it,
+            )
+        };
+        let mut px = xl;
+        // Bounded: each pass advances px to the next segment boundary (at most
+        // w / SEG + 2 passes per span).
+        while px <= xr {
+            let s0 = px & !(SEG - 1);
+            let s1 = s0 + SEG;
+            let end = xr.min(s1 - 1);
+            match (at(s0), at(s1)) {
+                // Linear depth and UVs deviate from perspective-correct values by about
+                // δ²/4 of depth with δ the relative change of depth over the segment;
+                // segments with δ > 1/64 are evaluated exactly at every pixel instead.
+                (Some(a), Some(b)) if (b[0] - a[0]).abs() * LINEAR_MAX_DZ_INV <= a[0] => {
+                    let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+                    let k = px - s0;
+                    // acc / SEG is the linear interpolation between the segment ends.
+                    let mut acc = [
+                        a[0] * SEG + d[0] * k,
+                        a[1] * SEG + d[1] * k,
+                        a[2] * SEG + d[2] * k,
+                    ];
+                    for x in px..=end {
+                        sink(Frag {
+                            idx: row.wrapping_add(x as usize),
+                            depth: (acc[0] >> SEG_SHIFT).clamp(0, i64::from(DEPTH_MAX)) as u32,
+                            u_q16: acc[1] >> SEG_SHIFT,
+                            v_q16: acc[2] >> SEG_SHIFT,
+                            mask,
+                        });
+                        acc = [acc[0] + d[0], acc[1] + d[1], acc[2] + d[2]];
+                    }
+                }
+                _ => {
+                    for x in px..=end {
+                        let e = at(x).unwrap_or([i64::from(DEPTH_MAX), 0, 0]);
+                        sink(Frag {
+                            idx: row.wrapping_add(x as usize),
+                            depth: e[0].clamp(0, i64::from(DEPTH_MAX)) as u32,
+                            u_q16: e[1],
+                            v_q16: e[2],
+                            mask,
+                        });
+                    }
+                }
+            }
+            px = end + 1;
+        }
+    }
+}
+
+/// Project a clipped corner to absolute 28.4 fixed point.
+#[inline]
+fn snap(frame: &Frame, p: &Vec3) -> ScreenVert {
+    let inv_z = 1.0 / p.z;
+    let u = frame.fx * p.x * inv_z + frame.cx;
+    let v = frame.fy * p.y * inv_z + frame.cy;
+    // Clipping keeps corners within the guard band up to rounding; the clamp bounds
+    // the fixed-point range for the overflow budget whatever the rounding did
+    // (a NaN casts to 0, inside the range).
+    let x = (libm::roundf(u * SUB) as i64).clamp(frame.lim[0], frame.lim[2]);
+    let y = (libm::roundf(v * SUB) as i64).clamp(frame.lim[1], frame.lim[3]);
+    ScreenVert { x, y }
+}
+
+/// Reject, clip, fan and fill one triangle given in the camera frame.
+fn draw_triangle<S: FnMut(Frag)>(
+    frame: &Frame,
+    p: [Vec3; 3],
+    uv: &[[f32; 2]; 3],
+    mask: bool,
+    stats: &mut RenderStats,
+    sink: &mut S,
+) {
+    // Reject when all corners are outside one window plane.
+    for pl in &frame.window_planes {
+        if p.iter().all(|c| pl.dist(c) < 0.0) {
+            return;
+        }
+    }
+    let Some(it) = Interp::new(&p, uv) else {
+        return;
+    };
+    let mut poly = [Vec3::zeros(); MAX_CLIP_VERTS];
+    let mut tmp = [Vec3::zeros(); MAX_CLIP_VERTS];
+    poly[..3].copy_from_slice(&p);
+    let mut n = 3;
+    for pl in &frame.clip_planes {
+        if poly.iter().take(n).any(|c| pl.dist(c) < 0.0) {
+            n = clip_poly(&poly, n, pl, &mut tmp);
+            poly = tmp;
+            if n < 3 {
+                return;
+            }
+        }
+    }
+    let s0 = snap(frame, &poly[0]);
+    let mut prev = snap(frame, &poly[1]);
+    for c in poly.iter().take(n).skip(2) {
+        let cur = snap(frame, c);
+        fill_triangle([s0, prev, cur], &it, mask, frame, stats, sink);
+        prev = cur;
+    }
+}
+
+fn check_inputs(cam: &Camera, world_from_cam: &Pose, window: Rect) -> Result<(), FailureCode> {
+    let lim = 2 * MAX_IMAGE_DIM as i32;
+    let window_ok = (1..=MAX_RENDER_PX as u32).contains(&window.w)
+        && (1..=MAX_RENDER_PX as u32).contains(&window.h)
+        && (-lim..=lim).contains(&window.x)
+        && (-lim..=lim).contains(&window.y);
+    if !window_ok {
+        return Err(FailureCode::RasterWindowInvalid);
+    }
+    let cam_ok = cam.fx.is_finite()
+        && cam.fy.is_finite()
+        && cam.fx > 0.0
+        && cam.fy > 0.0
+        && cam.cx.is_finite()
+        && cam.cy.is_finite();
+    if !cam_ok || !world_from_cam.is_finite() {
+        return Err(FailureCode::RasterPoseInvalid);
+    }
+    Ok(())
+}
+
+/// Walk the visible tiles and triangles, calling `sink` for every covered pixel.
+pub(crate) fn rasterize<S: FnMut(Frag)>(
+    map: &MapView,
+    cam: &Camera,
+    world_from_cam: &Pose,
+    window: Rect,
+    sink: &mut S,
+) -> Result<RenderStats, FailureCode> {
+    check_inputs(cam, world_from_cam, window)?;
+    let frame = Frame::new(cam, world_from_cam, window);
+    let mut stats = RenderStats::default();
+    let to_cam = |p: Vec3| frame.cam_from_world.transform_point(&p);
+    for k in 0..map.tile_count() {
+        let Some(tile) = map.tile(k) else { break };
+        if tile.triangle_count == 0 {
+            continue;
+        }
+        stats.tiles_tested = stats.tiles_tested.saturating_add(1);
+        if !frame.box_visible(&tile.min, &tile.max) {
+            continue;
+        }
+        stats.tiles_visible = stats.tiles_visible.saturating_add(1);
+        let end = tile.first_triangle.saturating_add(tile.triangle_count);
+        for i in tile.first_triangle..end.min(map.triangle_count()) {
+            stats.triangles_tested = stats.triangles_tested.saturating_add(1);
+            let Some(t) = map.triangle(i) else { break };
+            let (Some(a), Some(b), Some(c)) =
+                (map.vertex(t.v[0]), map.vertex(t.v[1]), map.vertex(t.v[2]))
+            else {
+                continue;
+            };
+            let p = [to_cam(a), to_cam(b), to_cam(c)];
+            draw_triangle(&frame, p, &t.uv, t.mask, &mut stats, sink);
+        }
+    }
+    Ok(stats)
+}
+
+/// Bilinear sample of a texture (stride = width) at texture pixel `(u, v)`,
+/// clamped to the edge texels; 8-bit weights, rounded.
+#[inline]
+fn sample_bilinear(tex: &[u8], tw: usize, th: usize, u_q16: i64, v_q16: i64) -> u8 {
+    let u = u_q16.clamp(0, (tw as i64 - 1) << 16);
+    let v = v_q16.clamp(0, (th as i64 - 1) << 16);
+    let (x0, y0) = ((u >> 16) as usize, (v >> 16) as usize);
+    let fx = ((u >> 8) & 0xFF) as u32;
+    let fy = ((v >> 8) & 0xFF) as u32;
+    let dx = usize::from(x0 + 1 < tw);
+    let dy = if y0 + 1 < th { tw } else { 0 };
+    let i = y0 * tw + x0;
+    let px = |k: usize| u32::from(tex.get(k).copied().unwrap_or(0));
+    let top = px(i) * (256 - fx) + px(i + dx) * fx;
+    let bot = px(i + dy) * (256 - fx) + px(i + dy + dx) * fx;
+    ((top * (256 - fy) + bot * fy + (1 << 15)) >> 16) as u8
+}
+
+/// Render `window` (a pixel rectangle of the full virtual image of `cam`) of the
+/// map seen from `world_from_cam` into `target`.
+///
+/// The three buffers are cleared over `w·h` (intensity 0, depths [`DEPTH_NONE`])
+/// and then filled with a strict-less depth test; ties keep the first surface
+/// drawn (deterministic map order).
+///
+/// # Errors
+/// [`FailureCode::RasterWindowInvalid`] (empty, above [`MAX_RENDER_PX`], origin
+/// beyond ±2·`MAX_IMAGE_DIM`), [`FailureCode::RasterBufferTooSmall`],
+/// [`FailureCode::RasterPoseInvalid`] (non-finite pose or intrinsics),
+/// [`FailureCode::RasterNothingVisible`] (no pixel written; buffers are cleared).
+pub fn render_window(
+    map: &MapView,
+    cam: &Camera,
+    world_from_cam: &Pose,
+    window: Rect,
+    target: &mut Target,
+) -> Result<RenderStats, FailureCode> {
+    check_inputs(cam, world_from_cam, window)?;
+    let n = window.w as usize * window.h as usize;
+    let (Some(inten), Some(depth), Some(mdepth)) = (
+        target.intensity.get_mut(..n),
+        target.depth.get_mut(..n),
+        target.mask_depth.get_mut(..n),
+    ) else {
+        return Err(FailureCode::RasterBufferTooSmall);
+    };
+    inten.fill(0);
+    depth.fill(DEPTH_NONE);
+    mdepth.fill(DEPTH_NONE);
+    let tex = map.texture();
+    let (tw, th) = (tex.width(), tex.height());
+    let tex_slice = map.texture_bytes();
+    let mut written = 0u32;
+    let mut sink = |f: Frag| {
+        let d = f.depth;
+        if let Some(slot) = depth.get_mut(f.idx) {
+            if d < *slot {
+                *slot = d;
+                if let Some(m) = mdepth.get_mut(f.idx) {
+                    *m = if f.mask { d } else { DEPTH_NONE };
+                }
+                if let Some(p) = inten.get_mut(f.idx) {
+                    *p = sample_bilinear(tex_slice, tw, th, f.u_q16, f.v_q16);
+                }
+                written += 1;
+            }
+        }
+    };
+    let mut stats = rasterize(map, cam, world_from_cam, window, &mut sink)?;
+    stats.pixels_written = written;
+    if written == 0 {
+        return Err(FailureCode::RasterNothingVisible);
+    }
+    Ok(stats)
+}
+
+/// Form the template mask of paper §III-C from a rendered window.
+///
+/// Rule: pixel p is kept (255) when M̂ is the visible surface there
+/// (`mask_depth[p] != DEPTH_NONE`), or when some pixel q within
+/// [`TEMPLATE_MASK_RADIUS_PX`] (Chebyshev) has `mask_depth[q]` set and p lies
+/// behind it by a depth discontinuity: `depth[p] > mask_depth[q] + J(q)` with
+/// `J(q) = TEMPLATE_MASK_JUMP_M + mask_depth[q] / TEMPLATE_MASK_JUMP_REL_DIV`
+/// (empty pixels count as infinitely far). These are background pixels at rock
+/// silhouettes. Everything else is 0. Returns the number of kept pixels.
+///
+/// Bounds: O(w·h·(2r+1)) with separable minimum filters; one row buffer of
+/// [`MAX_RENDER_PX`] `u32` on the stack. Invalid sizes (`w`, `h` outside
+/// `1..=MAX_RENDER_PX` or a slice shorter than `w·h`) write nothing and return 0.
+pub fn template_mask(depth: &[u32], mask_depth: &[u32], w: usize, h: usize, out: &mut [u8]) -> u32 {
+    let n = w * h;
+    let ok = (1..=MAX_RENDER_PX).contains(&w) && (1..=MAX_RENDER_PX).contains(&h);
+    let (true, Some(depth), Some(mdepth), Some(out)) =
+        (ok, depth.get(..n), mask_depth.get(..n), out.get_mut(..n))
+    else {
+        return 0;
+    };
+    const JUMP_Q16: u32 = (TEMPLATE_MASK_JUMP_M * (1u32 << DEPTH_FRAC_BITS) as f32) as u32;
+    let r = TEMPLATE_MASK_RADIUS_PX;
+    // Separable minimum filter of mask_depth over the (2r+1)² neighbourhood, one
+    // output row at a time: column minimum, then row minimum (straight slice loops).
+    let mut colmin = [DEPTH_NONE; MAX_RENDER_PX];
+    let mut nbmin = [DEPTH_NONE; MAX_RENDER_PX];
+    let (Some(colmin), Some(nbmin)) = (colmin.get_mut(..w), nbmin.get_mut(..w)) else {
+        return 0;
+    };
+    let mut kept = 0u32;
+    for y in 0..h {
+        let (y0, y1) = (y.saturating_sub(r), (y + r).min(h - 1));
+        colmin.fill(DEPTH_NONE);
+        for yy in y0..=y1 {
+            if let Some(row) = mdepth.get(yy * w..(yy + 1) * w) {
+                for (c, m) in colmin.iter_mut().zip(row) {
+                    *c = (*c).min(*m);
+                }
+            }
+        }
+        nbmin.copy_from_slice(colmin);
+        for d in 1..=r.min(w - 1) {
+            let (Some(right), Some(left)) = (colmin.get(d..), colmin.get(..w - d)) else {
+                break;
+            };
+            for (n, c) in nbmin.iter_mut().zip(right) {
+                *n = (*n).min(*c);
+            }
+            if let Some(tail) = nbmin.get_mut(d..) {
+                for (n, c) in tail.iter_mut().zip(left) {
+                    *n = (*n).min(*c);
+                }
+            }
+        }
+        let (Some(drow), Some(mrow), Some(orow)) = (
+            depth.get(y * w..(y + 1) * w),
+            mdepth.get(y * w..(y + 1) * w),
+            out.get_mut(y * w..(y + 1) * w),
+        ) else {
+            break;
+        };
+        for (((o, d), own), m) in orow.iter_mut().zip(drow).zip(mrow).zip(nbmin.iter()) {
+            // J grows with depth, so the minimum of mask_depth + J is J applied to the minimum.
+            let thr = m
+                .saturating_add(JUMP_Q16)
+                .saturating_add(m / TEMPLATE_MASK_JUMP_REL_DIV);
+            let keep = *own != DEPTH_NONE || (*m != DEPTH_NONE && *d > thr);
+            *o = if keep { 255 } else { 0 };
+            kept += u32::from(keep);
+        }
+    }
+    kept
+}
+
+#[cfg(test)]
+mod tests;

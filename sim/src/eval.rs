@@ -1,1 +1,546 @@
-//! Placeholder: filled in by its stage.
+//! Evaluation plumbing: run trials in parallel (one relocalization per thread,
+//! each single-threaded and deterministic), aggregate them by group, and write
+//! the results as a Markdown table, CSV, JSON and SVG plots.
+//!
+//! The suites themselves (which trials, which parameters) live in
+//! [`crate::cli::eval`]; this module knows nothing of terrains or cameras, only
+//! of [`TrialOutcome`]s.
+
+use crate::error::{Error, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// What one trial produced.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TrialOutcome {
+    /// Group label (a row of the table), e.g. `"flagstone Δ6h"`.
+    pub group: String,
+    /// Trial index within the suite.
+    pub trial: usize,
+    /// Seed of the trial (scene, perturbation and relocalization).
+    pub seed: u64,
+    /// Relocalization reported success (all iterations updated the pose).
+    pub success: bool,
+    /// Failure code name when it did not.
+    pub failure: Option<String>,
+    /// Initial translation error, mm.
+    pub init_t_mm: f64,
+    /// Initial rotation error, degrees.
+    pub init_r_deg: f64,
+    /// Final translation error, mm.
+    pub final_t_mm: f64,
+    /// Final rotation error, degrees.
+    pub final_r_deg: f64,
+    /// RANSAC inliers of the last update.
+    pub inliers: u32,
+    /// Successful iterations.
+    pub iterations: u32,
+    /// Wall time of the relocalization alone, seconds.
+    pub time_s: f64,
+    /// Suite-specific numbers (distance to nearest mapping view, step size, ...).
+    pub extra: BTreeMap<String, f64>,
+}
+
+/// Aggregate of one group.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GroupSummary {
+    /// Group label.
+    pub group: String,
+    /// Trials run.
+    pub trials: usize,
+    /// Trials that reported success.
+    pub successes: usize,
+    /// successes / trials, percent.
+    pub success_pct: f64,
+    /// Mean initial translation error, mm.
+    pub init_t_mm_mean: f64,
+    /// Median final translation error over successful trials, mm (NaN if none).
+    pub final_t_mm_median: f64,
+    /// Mean final translation error over successful trials, mm (NaN if none).
+    pub final_t_mm_mean: f64,
+    /// Median final rotation error over successful trials, degrees (NaN if none).
+    pub final_r_deg_median: f64,
+    /// Mean relocalization time, seconds.
+    pub time_s_mean: f64,
+}
+
+/// Facts that make a run reproducible, recorded with every output.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunMeta {
+    /// Suite name.
+    pub suite: String,
+    /// Git revision of the source tree (or `"unknown"`).
+    pub git_revision: String,
+    /// Image profile.
+    pub profile: String,
+    /// Base seed.
+    pub seed: u64,
+    /// Trials per group.
+    pub trials: usize,
+    /// Relocalization parameters and suite settings.
+    pub params: serde_json::Value,
+    /// The command line that produced the run.
+    pub command: String,
+}
+
+/// Run `run` on every spec in parallel across cores, with a progress bar on
+/// stderr when `progress` is set. Results come back in spec order, whatever the
+/// scheduling, so outputs are reproducible.
+pub fn run_parallel<T, F>(specs: &[T], run: F, progress: bool) -> Vec<TrialOutcome>
+where
+    T: Sync,
+    F: Fn(&T) -> TrialOutcome + Sync,
+{
+    let bar = if progress {
+        let b = ProgressBar::new(specs.len() as u64);
+        if let Ok(style) = ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:40}] {pos}/{len} trials ({eta} left)",
+        ) {
+            b.set_style(style.progress_chars("=> "));
+        }
+        b
+    } else {
+        ProgressBar::hidden()
+    };
+    let out: Vec<TrialOutcome> = specs
+        .par_iter()
+        .map(|s| {
+            let o = run(s);
+            bar.inc(1);
+            o
+        })
+        .collect();
+    bar.finish_and_clear();
+    out
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+fn mean(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        f64::NAN
+    } else {
+        v.iter().sum::<f64>() / v.len() as f64
+    }
+}
+
+/// Aggregate outcomes by group, groups in order of first appearance.
+pub fn summarize(outcomes: &[TrialOutcome]) -> Vec<GroupSummary> {
+    let mut order: Vec<&str> = Vec::new();
+    for o in outcomes {
+        if !order.contains(&o.group.as_str()) {
+            order.push(&o.group);
+        }
+    }
+    order
+        .into_iter()
+        .map(|g| {
+            let rows: Vec<&TrialOutcome> = outcomes.iter().filter(|o| o.group == g).collect();
+            let ok: Vec<&&TrialOutcome> = rows.iter().filter(|o| o.success).collect();
+            let final_t: Vec<f64> = ok.iter().map(|o| o.final_t_mm).collect();
+            GroupSummary {
+                group: g.to_string(),
+                trials: rows.len(),
+                successes: ok.len(),
+                success_pct: 100.0 * ok.len() as f64 / rows.len().max(1) as f64,
+                init_t_mm_mean: mean(&rows.iter().map(|o| o.init_t_mm).collect::<Vec<_>>()),
+                final_t_mm_median: median(final_t.clone()),
+                final_t_mm_mean: mean(&final_t),
+                final_r_deg_median: median(ok.iter().map(|o| o.final_r_deg).collect()),
+                time_s_mean: mean(&rows.iter().map(|o| o.time_s).collect::<Vec<_>>()),
+            }
+        })
+        .collect()
+}
+
+fn num(v: f64, decimals: usize) -> String {
+    if v.is_finite() {
+        format!("{v:.decimals$}")
+    } else {
+        "—".to_string()
+    }
+}
+
+/// The Markdown table printed to the terminal and saved as `table.md`.
+pub fn markdown_table(meta: &RunMeta, rows: &[GroupSummary]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "suite `{}` · rev `{}` · profile `{}` · seed {} · {} trials per group",
+        meta.suite, meta.git_revision, meta.profile, meta.seed, meta.trials
+    );
+    s.push('\n');
+    s.push_str("| group | trials | success | initial error (mm, mean) | final error (mm, median) | final error (mm, mean) | final rotation (°, median) | time (s, mean) |\n");
+    s.push_str("|---|---:|---:|---:|---:|---:|---:|---:|\n");
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.0} % | {} | {} | {} | {} | {} |",
+            r.group,
+            r.trials,
+            r.success_pct,
+            num(r.init_t_mm_mean, 0),
+            num(r.final_t_mm_median, 1),
+            num(r.final_t_mm_mean, 1),
+            num(r.final_r_deg_median, 3),
+            num(r.time_s_mean, 2)
+        );
+    }
+    s
+}
+
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+/// Per-trial CSV, one row per trial; `extra` keys become columns (sorted).
+pub fn csv(outcomes: &[TrialOutcome]) -> String {
+    let mut keys: Vec<&String> = outcomes.iter().flat_map(|o| o.extra.keys()).collect();
+    keys.sort();
+    keys.dedup();
+    let mut s = String::from(
+        "group,trial,seed,success,failure,init_t_mm,init_r_deg,final_t_mm,final_r_deg,inliers,iterations,time_s",
+    );
+    for k in &keys {
+        s.push(',');
+        s.push_str(&csv_field(k));
+    }
+    s.push('\n');
+    for o in outcomes {
+        let _ = write!(
+            s,
+            "{},{},{},{},{},{:.3},{:.4},{:.3},{:.4},{},{},{:.4}",
+            csv_field(&o.group),
+            o.trial,
+            o.seed,
+            o.success,
+            o.failure.as_deref().unwrap_or(""),
+            o.init_t_mm,
+            o.init_r_deg,
+            o.final_t_mm,
+            o.final_r_deg,
+            o.inliers,
+            o.iterations,
+            o.time_s
+        );
+        for k in &keys {
+            let _ = write!(
+                s,
+                ",{}",
+                o.extra
+                    .get(*k)
+                    .map(|v| format!("{v:.4}"))
+                    .unwrap_or_default()
+            );
+        }
+        s.push('\n');
+    }
+    s
+}
+
+/// One series of a scatter plot.
+pub struct Series<'a> {
+    /// Legend label.
+    pub name: &'a str,
+    /// Fill colour (SVG colour string).
+    pub color: &'a str,
+    /// Points (x, y).
+    pub points: Vec<(f64, f64)>,
+}
+
+/// A self-contained SVG scatter plot with axes, ticks and a legend.
+pub fn svg_scatter(title: &str, xlabel: &str, ylabel: &str, series: &[Series<'_>]) -> String {
+    let (w, h, ml, mr, mt, mb) = (720.0, 440.0, 70.0, 150.0, 40.0, 55.0);
+    let pts = series
+        .iter()
+        .flat_map(|s| s.points.iter())
+        .filter(|p| p.0.is_finite() && p.1.is_finite());
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, 0.0f64, f64::MIN);
+    for &(x, y) in pts {
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        y0 = y0.min(y);
+        y1 = y1.max(y);
+    }
+    if x0 > x1 {
+        (x0, x1, y0, y1) = (0.0, 1.0, 0.0, 1.0);
+    }
+    if x1 - x0 < 1e-9 {
+        x1 = x0 + 1.0;
+    }
+    if y1 - y0 < 1e-9 {
+        y1 = y0 + 1.0;
+    }
+    let (pw, ph) = (w - ml - mr, h - mt - mb);
+    let sx = |x: f64| ml + (x - x0) / (x1 - x0) * pw;
+    let sy = |y: f64| mt + ph - (y - y0) / (y1 - y0) * ph;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" font-family="sans-serif" font-size="12">"#
+    );
+    let _ = writeln!(s, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
+    let _ = writeln!(
+        s,
+        r#"<text x="{}" y="22" font-size="15" text-anchor="middle">{}</text>"#,
+        ml + pw / 2.0,
+        xml(title)
+    );
+    let _ = writeln!(
+        s,
+        r#"<rect x="{ml}" y="{mt}" width="{pw}" height="{ph}" fill="none" stroke="black"/>"#
+    );
+    for i in 0..=5 {
+        let fx = x0 + (x1 - x0) * f64::from(i) / 5.0;
+        let fy = y0 + (y1 - y0) * f64::from(i) / 5.0;
+        let _ = writeln!(
+            s,
+            r##"<line x1="{0}" y1="{1}" x2="{0}" y2="{2}" stroke="#ddd"/><text x="{0}" y="{3}" text-anchor="middle">{4}</text>"##,
+            sx(fx),
+            mt,
+            mt + ph,
+            mt + ph + 16.0,
+            tick(fx)
+        );
+        let _ = writeln!(
+            s,
+            r##"<line x1="{0}" y1="{1}" x2="{2}" y2="{1}" stroke="#ddd"/><text x="{3}" y="{4}" text-anchor="end">{5}</text>"##,
+            ml,
+            sy(fy),
+            ml + pw,
+            ml - 6.0,
+            sy(fy) + 4.0,
+            tick(fy)
+        );
+    }
+    let _ = writeln!(
+        s,
+        r#"<text x="{}" y="{}" text-anchor="middle">{}</text>"#,
+        ml + pw / 2.0,
+        h - 12.0,
+        xml(xlabel)
+    );
+    let _ = writeln!(
+        s,
+        r#"<text x="16" y="{0}" text-anchor="middle" transform="rotate(-90 16 {0})">{1}</text>"#,
+        mt + ph / 2.0,
+        xml(ylabel)
+    );
+    for (i, se) in series.iter().enumerate() {
+        for &(x, y) in se
+            .points
+            .iter()
+            .filter(|p| p.0.is_finite() && p.1.is_finite())
+        {
+            let _ = writeln!(
+                s,
+                r#"<circle cx="{:.1}" cy="{:.1}" r="3" fill="{}" fill-opacity="0.7"/>"#,
+                sx(x),
+                sy(y),
+                se.color
+            );
+        }
+        let ly = mt + 14.0 + 18.0 * i as f64;
+        let _ = writeln!(
+            s,
+            r#"<circle cx="{}" cy="{}" r="4" fill="{}"/><text x="{}" y="{}">{}</text>"#,
+            ml + pw + 14.0,
+            ly - 4.0,
+            se.color,
+            ml + pw + 24.0,
+            ly,
+            xml(se.name)
+        );
+    }
+    s.push_str("</svg>\n");
+    s
+}
+
+fn tick(v: f64) -> String {
+    if v.abs() >= 100.0 || v == 0.0 {
+        format!("{v:.0}")
+    } else if v.abs() >= 1.0 {
+        format!("{v:.1}")
+    } else {
+        format!("{v:.3}")
+    }
+}
+
+fn xml(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+}
+
+/// Write `table.md`, `trials.csv`, `summary.json` (meta + groups + trials) into
+/// `dir`, creating it. Existing files are replaced only when `force` is set.
+///
+/// # Errors
+/// An existing output without `force`, or an I/O failure, naming the file.
+pub fn write_outputs(
+    dir: &Path,
+    meta: &RunMeta,
+    rows: &[GroupSummary],
+    outcomes: &[TrialOutcome],
+    force: bool,
+) -> Result<()> {
+    std::fs::create_dir_all(dir)
+        .map_err(|e| Error::file(dir, format!("cannot create directory: {e}")))?;
+    let json = serde_json::json!({ "meta": meta, "groups": rows, "trials": outcomes });
+    let json = serde_json::to_string_pretty(&json)
+        .map_err(|e| Error::msg(format!("cannot encode JSON: {e}")))?;
+    write_new(&dir.join("table.md"), &markdown_table(meta, rows), force)?;
+    write_new(&dir.join("trials.csv"), &csv(outcomes), force)?;
+    write_new(&dir.join("summary.json"), &json, force)
+}
+
+/// Write `text` to `path` through a temporary file and a rename, so a reader
+/// never sees half a file; refuse to replace an existing file unless `force`.
+///
+/// # Errors
+/// The file exists and `force` is not set, or an I/O failure, naming the file.
+pub fn write_new(path: &Path, text: &str, force: bool) -> Result<()> {
+    write_bytes_new(path, text.as_bytes(), force)
+}
+
+/// Byte form of [`write_new`].
+///
+/// # Errors
+/// As [`write_new`].
+pub fn write_bytes_new(path: &Path, bytes: &[u8], force: bool) -> Result<()> {
+    if path.exists() && !force {
+        return Err(Error::file(path, "exists; pass --force to overwrite"));
+    }
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".partial");
+    let tmp = std::path::PathBuf::from(tmp);
+    std::fs::write(&tmp, bytes).map_err(|e| Error::file(&tmp, format!("cannot write: {e}")))?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        Error::file(path, format!("cannot write: {e}"))
+    })
+}
+
+/// The git revision the binary was built from (`VTSM_GIT_REV` at build time),
+/// else the current checkout's, else `"unknown"`.
+pub fn git_revision() -> String {
+    if let Some(r) = option_env!("VTSM_GIT_REV") {
+        return r.to_string();
+    }
+    std::process::Command::new("git")
+        .args(["rev-parse", "--short=12", "HEAD"])
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .and_then(|o| String::from_utf8(o.stdout).ok())
+        .map(|s| s.trim().to_string())
+        .filter(|s| !s.is_empty())
+        .unwrap_or_else(|| "unknown".to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn outcome(group: &str, trial: usize, success: bool, final_t_mm: f64) -> TrialOutcome {
+        TrialOutcome {
+            group: group.into(),
+            trial,
+            seed: trial as u64,
+            success,
+            failure: (!success).then(|| "RELOC_STALL_CAP_REACHED".into()),
+            init_t_mm: 150.0,
+            init_r_deg: 1.0,
+            final_t_mm,
+            final_r_deg: 0.1,
+            inliers: 40,
+            iterations: 5,
+            time_s: 2.0,
+            extra: BTreeMap::from([("range_m".to_string(), 1.5)]),
+        }
+    }
+
+    #[test]
+    fn summarizes_by_group_in_order_with_success_only_errors() {
+        let o = vec![
+            outcome("b", 0, true, 10.0),
+            outcome("a", 1, true, 30.0),
+            outcome("b", 2, false, 900.0),
+            outcome("b", 3, true, 20.0),
+        ];
+        let s = summarize(&o);
+        assert_eq!(s.len(), 2);
+        assert_eq!(s[0].group, "b");
+        assert_eq!((s[0].trials, s[0].successes), (3, 2));
+        assert!((s[0].success_pct - 200.0 / 3.0).abs() < 1e-9);
+        assert_eq!(s[0].final_t_mm_median, 15.0);
+        assert_eq!(s[1].final_t_mm_mean, 30.0);
+        let md = markdown_table(
+            &RunMeta {
+                suite: "t".into(),
+                git_revision: "r".into(),
+                profile: "test".into(),
+                seed: 1,
+                trials: 3,
+                params: serde_json::Value::Null,
+                command: "x".into(),
+            },
+            &s,
+        );
+        assert!(md.contains("| b | 3 | 67 % |"), "{md}");
+        let c = csv(&o);
+        assert_eq!(c.lines().count(), 5);
+        assert!(c.lines().next().unwrap().ends_with(",range_m"));
+    }
+
+    #[test]
+    fn parallel_runner_keeps_spec_order() {
+        let specs: Vec<usize> = (0..50).collect();
+        let out = run_parallel(&specs, |&i| outcome("g", i, i % 2 == 0, i as f64), false);
+        assert!(out.iter().enumerate().all(|(i, o)| o.trial == i));
+    }
+
+    #[test]
+    fn write_new_refuses_to_overwrite_without_force() {
+        let dir = std::env::temp_dir().join(format!("vtsm-eval-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("x.txt");
+        let _ = std::fs::remove_file(&p);
+        write_new(&p, "one", false).unwrap();
+        assert!(write_new(&p, "two", false).is_err());
+        assert_eq!(std::fs::read_to_string(&p).unwrap(), "one");
+        write_new(&p, "three", true).unwrap();
+        assert_eq!(std::fs::read_to_string(&p).unwrap(), "three");
+        let svg = svg_scatter(
+            "t",
+            "x",
+            "y",
+            &[Series {
+                name: "s",
+                color: "red",
+                points: vec![(0.0, 1.0)],
+            }],
+        );
+        assert!(svg.starts_with("<svg") && svg.contains("<circle"));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}

@@ -13,6 +13,7 @@ pub mod error;
 pub mod eval;
 pub mod io;
 pub mod mapping;
+pub mod panel;
 pub mod render;
 pub mod scene;
 pub mod terrain;

@@ -1,12 +1,200 @@
-//! `vtsm relocalize`.
+//! `vtsm relocalize`: one stereo pair against a mesh or map product, from a prior.
+//!
+//! This module loads and validates every input ([`load_inputs`]), hands them to
+//! the engine ([`run_engine`]) and writes `result.json` ([`outcome_result`]).
+//! Any bad input gives a one-line error naming the file, exit code 2, and no
+//! output; a clean relocalization failure gives exit code 1 and a result with
+//! `"status": "failed"`.
+
+use crate::error::{Error, Result, EXIT_RELOC_FAILED};
+use crate::io::image::{self as img, Gray8};
+use crate::io::json::{self, Calib, PoseJson, ResultFile};
+use crate::io::{self, mesh};
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use vtsm_core::geom::{Pose, StereoRig};
+use vtsm_core::map::MapView;
+use vtsm_core::FailureCode;
 
 /// Arguments of `vtsm relocalize`.
 #[derive(Debug, Clone, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Textured depot mesh (OBJ with MTL texture, or PLY); the map product is
+    /// built in memory. Give this or --map.
+    #[arg(
+        long,
+        value_name = "M.obj",
+        conflicts_with = "map",
+        required_unless_present = "map"
+    )]
+    pub mesh: Option<PathBuf>,
+    /// Mask mesh K (the triangles of --mesh to sample points from).
+    #[arg(long, value_name = "K.obj", requires = "mesh")]
+    pub mask: Option<PathBuf>,
+    /// Map product written by `vtsm map build`. Give this or --mesh.
+    #[arg(long, value_name = "D.vmap")]
+    pub map: Option<PathBuf>,
+    /// Stereo calibration: {"width","height","fx","fy","cx","cy","baseline_m"}.
+    #[arg(long, value_name = "calib.json")]
+    pub calib: PathBuf,
+    /// Left image (PNG, JPEG, TIFF or PGM; 8 or 16 bit; colour is converted to gray).
+    #[arg(long, value_name = "L.png")]
+    pub left: PathBuf,
+    /// Right image, same size as the left one and as the calibration.
+    #[arg(long, value_name = "R.png")]
+    pub right: PathBuf,
+    /// Prior pose: {"world_from_left":{"t":[x,y,z],"q":[w,x,y,z]}}.
+    #[arg(long, value_name = "prior.json")]
+    pub prior: PathBuf,
+    /// Seed of the relocalizer's random draws (same inputs + seed = same result).
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub seed: u64,
+    /// Where to write result.json; without it the result is printed to stdout.
+    #[arg(long, value_name = "result.json")]
+    pub out: Option<PathBuf>,
+    /// Overwrite --out if it exists.
+    #[arg(long)]
+    pub force: bool,
+    /// Tile edge (metres) of the map product built from --mesh.
+    #[arg(long, value_name = "S", default_value_t = super::map_build::DEFAULT_TILE_SIZE_M)]
+    pub tile_size_m: f32,
+}
+
+/// Every input of one relocalization, loaded and checked.
+#[derive(Clone, Debug)]
+pub struct Inputs {
+    /// Map product bytes, already accepted by `MapView::new_checked`.
+    pub map: Vec<u8>,
+    /// The calibration as read.
+    pub calib: Calib,
+    /// The checked stereo rig.
+    pub rig: StereoRig,
+    /// Left image, calibration size.
+    pub left: Gray8,
+    /// Right image, calibration size.
+    pub right: Gray8,
+    /// Prior `world_from_left`.
+    pub prior: Pose,
+    /// Seed.
+    pub seed: u64,
+}
+
+impl Inputs {
+    /// The checked view of the map product.
+    ///
+    /// # Errors
+    /// Never for inputs from [`load_inputs`] (the bytes were checked there).
+    pub fn map_view(&self) -> std::result::Result<MapView<'_>, FailureCode> {
+        MapView::new_checked(&self.map)
+    }
+}
+
+/// Load and validate every input named by `args`.
+///
+/// # Errors
+/// The first bad input, as a one-line error naming its file.
+pub fn load_inputs(args: &Args) -> Result<Inputs> {
+    let calib = json::read_calib(&args.calib)?;
+    let rig = calib.rig().map_err(|c| {
+        Error::file(&args.calib, format!("rejected: {}", c.description())).with_code(c)
+    })?;
+    let prior = json::read_pose(&args.prior)?;
+    let left = img::read_gray_sized(&args.left, calib.width, calib.height)?;
+    let right = img::read_gray_sized(&args.right, calib.width, calib.height)?;
+    let map = match (&args.map, &args.mesh) {
+        (Some(path), None) => {
+            let bytes = io::read_file(path)?;
+            MapView::new_checked(&bytes).map_err(|c| {
+                Error::file(
+                    path,
+                    format!(
+                        "not a valid map product: {} ({})",
+                        c.name(),
+                        c.description()
+                    ),
+                )
+                .with_code(c)
+            })?;
+            bytes
+        }
+        (None, Some(path)) => {
+            let mut m = mesh::load_mesh(path)?;
+            if let Some(k) = &args.mask {
+                let geo = mesh::load_geometry(k)?;
+                m.apply_mask(&geo, k)?;
+            }
+            m.encode_map(args.tile_size_m).map_err(|mut e| {
+                if e.file.is_none() {
+                    e.file = Some(path.clone());
+                }
+                e
+            })?
+        }
+        _ => return Err(Error::msg("give exactly one of --mesh and --map")),
+    };
+    Ok(Inputs {
+        map,
+        calib,
+        rig,
+        left,
+        right,
+        prior,
+        seed: args.seed,
+    })
+}
+
+/// What the engine reports for one relocalization.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Outcome {
+    /// The failure code when the relocalization failed cleanly, `None` on success.
+    pub failure: Option<FailureCode>,
+    /// Final estimate (the last estimate on failure), if any.
+    pub pose: Option<Pose>,
+    /// RANSAC inliers of the final estimate.
+    pub inliers: u32,
+    /// Successful iterations.
+    pub iterations: u32,
+    /// Work counters by name.
+    pub stats: BTreeMap<String, u64>,
+}
+
+/// The relocalization engine call (`vtsm_core::reloc`).
+///
+/// # Errors
+/// Until the engine is connected to the command line, always an error saying so.
+pub fn run_engine(_inputs: &Inputs) -> Result<Outcome> {
+    Err(Error::msg(
+        "the relocalization engine is not connected to `vtsm relocalize` in this build",
+    ))
+}
+
+/// The `result.json` content of an outcome.
+pub fn outcome_result(o: &Outcome) -> ResultFile {
+    ResultFile {
+        status: if o.failure.is_none() { "ok" } else { "failed" }.to_string(),
+        failure: o.failure.map(|c| c.name().to_string()),
+        world_from_left: o.pose.as_ref().map(PoseJson::from_pose),
+        inliers: o.inliers,
+        iterations: o.iterations,
+        stats: o.stats.clone(),
+    }
+}
 
 /// Run the command; returns the exit code.
-pub fn run(_args: &Args) -> crate::Result<u8> {
-    Err(crate::Error::msg(
-        "`vtsm relocalize` is not available in this build",
-    ))
+pub fn run(args: &Args) -> Result<u8> {
+    if let Some(out) = &args.out {
+        io::check_output(out, args.force)?;
+    }
+    let inputs = load_inputs(args)?;
+    let outcome = run_engine(&inputs)?;
+    let result = outcome_result(&outcome);
+    match &args.out {
+        Some(out) => json::write_result(out, &result, args.force)?,
+        None => print!("{}", json::result_text(&result)),
+    }
+    Ok(if outcome.failure.is_none() {
+        0
+    } else {
+        EXIT_RELOC_FAILED
+    })
 }

@@ -1,0 +1,324 @@
+extern crate std;
+use super::*;
+use proptest::prelude::*;
+use std::collections::BTreeSet;
+use std::vec;
+use std::vec::Vec;
+
+/// A test mesh in memory: an `n × n` grid of quads (two triangles each) over a
+/// bumpy heightfield, `step` metres apart, with the triangles of the centre
+/// rows in the mask.
+pub(crate) struct Mesh {
+    pub vertices: Vec<[f32; 3]>,
+    pub triangles: Vec<[u32; 3]>,
+    pub uvs: Vec<[[f32; 2]; 3]>,
+    pub mask: Vec<bool>,
+    pub tex: Vec<u8>,
+    pub tex_w: usize,
+    pub tex_h: usize,
+}
+
+impl Mesh {
+    pub fn grid(n: usize, step: f32) -> Self {
+        let mut vertices = Vec::new();
+        for j in 0..=n {
+            for i in 0..=n {
+                let (x, y) = (i as f32 * step, j as f32 * step);
+                let z = 0.1 * libm::sinf(x * 1.3) * libm::cosf(y * 0.7);
+                vertices.push([x, y, z]);
+            }
+        }
+        let (mut triangles, mut uvs, mut mask) = (Vec::new(), Vec::new(), Vec::new());
+        let uv = |i: usize, j: usize| [i as f32 / n as f32, j as f32 / n as f32];
+        for j in 0..n {
+            for i in 0..n {
+                let a = (j * (n + 1) + i) as u32;
+                let (b, c, d) = (a + 1, a + n as u32 + 1, a + n as u32 + 2);
+                triangles.push([a, b, d]);
+                uvs.push([uv(i, j), uv(i + 1, j), uv(i + 1, j + 1)]);
+                triangles.push([a, d, c]);
+                uvs.push([uv(i, j), uv(i + 1, j + 1), uv(i, j + 1)]);
+                let m = j >= n / 3 && j < 2 * n / 3;
+                mask.push(m);
+                mask.push(m && i % 2 == 0);
+            }
+        }
+        let (tex_w, tex_h) = (16, 12);
+        let tex = (0..tex_w * tex_h).map(|k| (k * 37 % 251) as u8).collect();
+        Self {
+            vertices,
+            triangles,
+            uvs,
+            mask,
+            tex,
+            tex_w,
+            tex_h,
+        }
+    }
+
+    pub fn source(&self, tile_size_m: f32) -> MapSource<'_> {
+        MapSource {
+            vertices: &self.vertices,
+            triangles: &self.triangles,
+            uvs: &self.uvs,
+            mask: &self.mask,
+            texture: GrayView::new(&self.tex, self.tex_w, self.tex_h, self.tex_w).unwrap(),
+            tile_size_m,
+        }
+    }
+
+    pub fn encode(&self, tile_size_m: f32) -> Vec<u8> {
+        let src = self.source(tile_size_m);
+        let mut out = vec![0u8; encoded_len(&src).unwrap()];
+        let n = encode(&src, &mut out).unwrap();
+        out.truncate(n);
+        out
+    }
+}
+
+fn section_off(bytes: &[u8], i: usize) -> usize {
+    rd_u32(bytes, OFF_SECTIONS + 12 * i).unwrap() as usize
+}
+
+#[test]
+fn crc32_matches_the_standard_check_value() {
+    assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+    assert_eq!(crc32(b""), 0);
+}
+
+/// Verifies: VTSM-MAP-001, VTSM-MAP-005, VTSM-MAP-006
+#[test]
+fn round_trip_preserves_mesh_tiles_texture_and_mask() {
+    let mesh = Mesh::grid(9, 0.5);
+    let bytes = mesh.encode(1.0);
+    let map = MapView::new_checked(&bytes).unwrap();
+    assert_eq!(map.vertex_count() as usize, mesh.vertices.len());
+    assert_eq!(map.triangle_count() as usize, mesh.triangles.len());
+    for (i, p) in mesh.vertices.iter().enumerate() {
+        assert_eq!(map.vertex(i as u32).unwrap(), Vec3::new(p[0], p[1], p[2]));
+    }
+    assert_eq!(map.vertex(map.vertex_count()), None);
+    assert_eq!(map.triangle(map.triangle_count()), None);
+    // Every source triangle appears exactly once, with converted UVs and its mask bit.
+    let key = |v: [u32; 3], uv: [[f32; 2]; 3], m: bool| {
+        let uvb: Vec<u32> = uv.iter().flatten().map(|f| f.to_bits()).collect();
+        (v, uvb, m)
+    };
+    let mut expected: Vec<_> = mesh
+        .triangles
+        .iter()
+        .zip(&mesh.uvs)
+        .zip(&mesh.mask)
+        .map(|((t, uv), m)| {
+            let px = uv.map(|c| [c[0] * 16.0 - 0.5, (1.0 - c[1]) * 12.0 - 0.5]);
+            key(*t, px, *m)
+        })
+        .collect();
+    let mut got: Vec<_> = (0..map.triangle_count())
+        .map(|i| {
+            let t = map.triangle(i).unwrap();
+            key(t.v, t.uv, t.mask)
+        })
+        .collect();
+    expected.sort();
+    got.sort();
+    assert_eq!(expected, got);
+    // Tiles: contiguous runs covering all triangles, boxes bound them, centroid in cell.
+    let (tx, ty, ts) = map.tile_grid();
+    assert_eq!((tx, ty, ts), (5, 5, 1.0));
+    let mut next = 0;
+    for k in 0..map.tile_count() {
+        let tile = map.tile(k).unwrap();
+        assert_eq!(tile.first_triangle, next);
+        next += tile.triangle_count;
+        for i in tile.first_triangle..tile.first_triangle + tile.triangle_count {
+            let t = map.triangle(i).unwrap();
+            let ps: Vec<Vec3> = t.v.iter().map(|v| map.vertex(*v).unwrap()).collect();
+            for p in &ps {
+                assert!(p >= &tile.min && p <= &tile.max || inside(p, &tile.min, &tile.max));
+            }
+            let c = (ps[0] + ps[1] + ps[2]) / 3.0;
+            let cell = (libm::floorf(c.y / ts) as u32).min(ty - 1) * tx
+                + (libm::floorf(c.x / ts) as u32).min(tx - 1);
+            assert_eq!(cell, k);
+        }
+    }
+    assert_eq!(next, map.triangle_count());
+    // Mask vertices: the set of vertices of mask triangles, increasing.
+    let want: BTreeSet<u32> = mesh
+        .triangles
+        .iter()
+        .zip(&mesh.mask)
+        .filter(|(_, m)| **m)
+        .flat_map(|(t, _)| t.iter().copied())
+        .collect();
+    let have: Vec<u32> = (0..map.mask_vertex_count())
+        .map(|k| map.mask_vertex(k).unwrap())
+        .collect();
+    assert_eq!(have, want.into_iter().collect::<Vec<_>>());
+    // Texture.
+    let tex = map.texture();
+    assert_eq!((tex.width(), tex.height()), (16, 12));
+    for y in 0..12 {
+        assert_eq!(tex.row(y).unwrap(), &mesh.tex[y * 16..(y + 1) * 16]);
+    }
+}
+
+/// Verifies: VTSM-MAP-002
+#[test]
+fn every_truncation_is_rejected_as_truncated() {
+    let bytes = Mesh::grid(4, 0.5).encode(0.7);
+    for len in 0..bytes.len() {
+        assert_eq!(
+            MapView::new_checked(&bytes[..len]).err(),
+            Some(FailureCode::MapTruncated),
+            "len {len}"
+        );
+    }
+    let mut longer = bytes.clone();
+    longer.push(0);
+    assert_eq!(
+        MapView::new_checked(&longer).err(),
+        Some(FailureCode::MapInconsistent)
+    );
+}
+
+/// Verifies: VTSM-MAP-003
+#[test]
+fn every_single_byte_flip_is_rejected() {
+    let bytes = Mesh::grid(3, 0.5).encode(0.7);
+    assert!(MapView::new_checked(&bytes).is_ok());
+    for pos in 0..bytes.len() {
+        let mut b = bytes.clone();
+        b[pos] ^= 0xFF;
+        assert!(MapView::new_checked(&b).is_err(), "byte {pos} accepted");
+    }
+}
+
+proptest! {
+    /// Verifies: VTSM-MAP-003
+    #[test]
+    fn any_single_byte_corruption_is_rejected(seed in 0usize..1_000_000, xor in 1u8..=255) {
+        let bytes = Mesh::grid(5, 0.4).encode(0.5);
+        let mut b = bytes.clone();
+        let pos = seed % b.len();
+        b[pos] ^= xor;
+        prop_assert!(MapView::new_checked(&b).is_err(), "pos {} xor {}", pos, xor);
+    }
+}
+
+/// Verifies: VTSM-MAP-004
+#[test]
+fn each_kind_of_inconsistency_has_its_own_code() {
+    let good = Mesh::grid(4, 0.5).encode(1.0);
+    let tri = section_off(&good, SEC_TRIANGLES);
+    let vert = section_off(&good, SEC_VERTICES);
+    let tiles = section_off(&good, SEC_TILES);
+    let nv = rd_u32(&good, 16).unwrap();
+    type Edit = fn(&mut Vec<u8>, usize, usize, usize, u32);
+    let cases: &[(Edit, FailureCode)] = &[
+        (|b, _, _, _, _| b[0] = b'X', FailureCode::MapBadMagic),
+        (|b, _, _, _, _| b[8] = 2, FailureCode::MapUnsupportedVersion),
+        (
+            |b, t, _, _, nv| wr_u32(b, t + 4, nv).unwrap(),
+            FailureCode::MapIndexOutOfRange,
+        ),
+        (
+            |b, _, v, _, _| wr_f32(b, v, f32::NAN).unwrap(),
+            FailureCode::MapNonFinite,
+        ),
+        (
+            |b, _, v, _, _| wr_f32(b, v + 8, f32::INFINITY).unwrap(),
+            FailureCode::MapNonFinite,
+        ),
+        (
+            |b, t, _, _, _| wr_u32(b, t + 12, 2).unwrap(),
+            FailureCode::MapInconsistent,
+        ),
+        (
+            |b, _, _, _, _| wr_u32(b, 16, (MAX_MAP_VERTICES + 1) as u32).unwrap(),
+            FailureCode::MapCountOutOfRange,
+        ),
+        (
+            |b, _, _, _, _| wr_u32(b, 32, 0).unwrap(),
+            FailureCode::MapCountOutOfRange,
+        ),
+        // Tile box shrunk so it no longer bounds its triangles.
+        (
+            |b, _, _, k, _| wr_f32(b, k + 12, -50.0).unwrap(),
+            FailureCode::MapInconsistent,
+        ),
+        // Tile run does not start where the previous one ended.
+        (
+            |b, _, _, k, _| wr_u32(b, k + 24, 1).unwrap(),
+            FailureCode::MapInconsistent,
+        ),
+        // A vertex outside the header bounds.
+        (
+            |b, _, v, _, _| wr_f32(b, v, -50.0).unwrap(),
+            FailureCode::MapInconsistent,
+        ),
+    ];
+    for (i, (edit, code)) in cases.iter().enumerate() {
+        let mut b = good.clone();
+        edit(&mut b, tri, vert, tiles, nv);
+        if !matches!(
+            code,
+            FailureCode::MapBadMagic | FailureCode::MapUnsupportedVersion
+        ) {
+            // Without resealing, the CRC catches it first.
+            assert_eq!(
+                MapView::new_checked(&b).err(),
+                Some(FailureCode::MapCrcMismatch),
+                "case {i}"
+            );
+            reseal(&mut b).unwrap();
+        }
+        assert_eq!(MapView::new_checked(&b).err(), Some(*code), "case {i}");
+    }
+}
+
+/// Verifies: VTSM-MAP-004
+#[test]
+fn encoder_rejects_bad_sources_and_small_buffers() {
+    let mesh = Mesh::grid(3, 0.5);
+    let src = mesh.source(1.0);
+    let need = encoded_len(&src).unwrap();
+    let mut out = vec![0u8; need - 1];
+    assert_eq!(
+        encode(&src, &mut out),
+        Err(FailureCode::MapEncodeBufferTooSmall)
+    );
+    assert!(out.iter().all(|b| *b == 0));
+
+    let mut m = Mesh::grid(3, 0.5);
+    m.vertices[2][1] = f32::NAN;
+    assert_eq!(encoded_len(&m.source(1.0)), Err(FailureCode::MapNonFinite));
+    let mut m = Mesh::grid(3, 0.5);
+    m.triangles[5][2] = m.vertices.len() as u32;
+    assert_eq!(
+        encoded_len(&m.source(1.0)),
+        Err(FailureCode::MapIndexOutOfRange)
+    );
+    let mut m = Mesh::grid(3, 0.5);
+    m.uvs[0][1][0] = f32::NAN;
+    assert_eq!(encoded_len(&m.source(1.0)), Err(FailureCode::MapNonFinite));
+    let mut m = Mesh::grid(3, 0.5);
+    m.mask.pop();
+    assert_eq!(
+        encoded_len(&m.source(1.0)),
+        Err(FailureCode::MapInconsistent)
+    );
+    let m = Mesh::grid(3, 0.5);
+    assert_eq!(
+        encoded_len(&m.source(0.0)),
+        Err(FailureCode::MapInconsistent)
+    );
+    assert_eq!(
+        encoded_len(&m.source(1.0e-6)),
+        Err(FailureCode::MapCountOutOfRange)
+    );
+    // encoded_len bounds the exact product length.
+    let n = encode(&src, &mut vec![0u8; need]).unwrap();
+    assert!(n <= need);
+}

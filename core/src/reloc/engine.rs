@@ -1,0 +1,1143 @@
+//! The [`Relocalizer`] state machine: rounds of correspondence collection and
+//! GetTransform, with the §III-E mechanisms, one work unit per [`Relocalizer::step`].
+
+use super::viewpoint::{pick_candidate, randomize};
+use super::{
+    Attempt, AttemptContext, Candidate, Correspondence, IterationRecord, Options, Outcome, Quality,
+    Solution, Solver, Stats,
+};
+use crate::config::{Params, MAX_CORR, MAX_POSE_CANDIDATES};
+use crate::failure::{FailureCode, FailureLog};
+use crate::geom::Pose;
+use crate::rng::Rng;
+
+/// Stream of per-attempt generators (forked by global attempt index).
+const STREAM_ATTEMPT: u64 = 1;
+/// Stream of per-round GetTransform generators (forked by round index).
+const STREAM_SOLVE: u64 = 2;
+/// Stream of Reseed perturbations (forked by round index).
+const STREAM_RESEED: u64 = 3;
+/// Stream of multi-seed poses (forked by seed index).
+const STREAM_SEED: u64 = 4;
+
+/// What [`Relocalizer::step`] reports.
+///
+/// `Done` carries the outcome by value: it is produced once per run (and again
+/// on later calls), while `Running` writes only the discriminant.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug)]
+pub enum StepResult {
+    /// More work remains; call `step` again.
+    Running,
+    /// Finished; the outcome is final and further calls return it again.
+    Done(Outcome),
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Phase {
+    Collect,
+    Solve,
+}
+
+/// The relocalization engine. Generic over the per-attempt pipeline `A` and
+/// the GetTransform solver `S`; every buffer is a fixed-size field.
+pub struct Relocalizer<A, S> {
+    attempt: A,
+    solver: S,
+    params: Params,
+    opts: Options,
+    root: Rng,
+    prior: Pose,
+    /// Last successful estimate (the prior before any success).
+    anchor: Pose,
+    /// Centre of the viewpoints of the current round (anchor, or reseeded).
+    center: Pose,
+    t_m: f32,
+    r_rad: f32,
+    phase: Phase,
+    pairs: heapless::Vec<Correspondence, MAX_CORR>,
+    inlier_mask: [bool; MAX_CORR],
+    candidates: heapless::Vec<Candidate, MAX_POSE_CANDIDATES>,
+    round: u32,
+    round_attempts: u32,
+    consecutive_stall: u8,
+    consecutive_reseed: u8,
+    /// Next seed to evaluate while `seeding`.
+    seed_index: u16,
+    seeding: bool,
+    best_seed: Option<(Solution, u16)>,
+    max_units: u32,
+    quality: Quality,
+    stats: Stats,
+    log: FailureLog,
+    done: Option<Outcome>,
+}
+
+fn pose_is_valid(p: &Pose) -> bool {
+    let q = p.q();
+    let n = libm::sqrtf(q.iter().map(|v| v * v).sum::<f32>());
+    p.is_finite() && (n - 1.0).abs() <= 1.0e-3
+}
+
+impl<A: Attempt, S: Solver> Relocalizer<A, S> {
+    /// A relocalizer ready to run from `prior` (`world_from_left`).
+    ///
+    /// # Errors
+    /// [`FailureCode::ConfigParamOutOfRange`] for invalid `params` or `opts`;
+    /// [`FailureCode::RelocPriorInvalid`] for a non-finite or non-unit prior.
+    pub fn new(
+        attempt: A,
+        solver: S,
+        params: &Params,
+        opts: &Options,
+        prior: &Pose,
+        seed: u64,
+    ) -> Result<Self, FailureCode> {
+        params.validate()?;
+        opts.validate(params)?;
+        if !pose_is_valid(prior) {
+            return Err(FailureCode::RelocPriorInvalid);
+        }
+        let mut me = Self {
+            attempt,
+            solver,
+            params: *params,
+            opts: *opts,
+            root: Rng::new(seed),
+            prior: *prior,
+            anchor: *prior,
+            center: *prior,
+            t_m: params.t0_m,
+            r_rad: params.r0_deg.to_radians(),
+            phase: Phase::Collect,
+            pairs: heapless::Vec::new(),
+            inlier_mask: [false; MAX_CORR],
+            candidates: heapless::Vec::new(),
+            round: 0,
+            round_attempts: 0,
+            consecutive_stall: 0,
+            consecutive_reseed: 0,
+            seed_index: 0,
+            seeding: params.seeds > 0,
+            best_seed: None,
+            max_units: Self::max_work_units(params),
+            quality: Quality::default(),
+            stats: Stats::default(),
+            log: FailureLog::new(),
+            done: None,
+        };
+        me.stats.rounds = 1;
+        if me.seeding {
+            me.center = me.seed_pose(0);
+            me.stats.seeds_tried = 1;
+        }
+        Ok(me)
+    }
+
+    /// Structural bound on the work units of a whole run for `params`.
+    ///
+    /// Between two successes there are at most `max_stall + max_reseed` failed
+    /// rounds that continue (the next failure ends the run); there are at most
+    /// `n_iter` successes, plus `seeds` seed rounds; each round does at most
+    /// `attempts_per_iter` attempts and one solve.
+    pub fn max_work_units(params: &Params) -> u32 {
+        let fails = u64::from(params.max_stall) + u64::from(params.max_reseed);
+        let n_iter = u64::from(params.n_iter);
+        let rounds = u64::from(params.seeds) + n_iter + (n_iter + 1) * fails + 1;
+        let units = rounds * (u64::from(params.attempts_per_iter) + 1);
+        u32::try_from(units).unwrap_or(u32::MAX)
+    }
+
+    /// Do one unit of work (one attempt or one GetTransform) at caller time `now`.
+    pub fn step(&mut self, now: u64) -> StepResult {
+        if let Some(o) = &self.done {
+            return StepResult::Done(o.clone());
+        }
+        let unit_cap = self.opts.budget.max_work_units.min(self.max_units);
+        if self.stats.work_units >= unit_cap || now >= self.opts.budget.deadline_tick {
+            self.finish_budget(now);
+        } else {
+            match self.phase {
+                Phase::Collect => self.collect_one(now),
+                Phase::Solve => self.solve(now),
+            }
+        }
+        match &self.done {
+            Some(o) => StepResult::Done(o.clone()),
+            None => StepResult::Running,
+        }
+    }
+
+    /// Do up to `units` units of work at caller time `now`.
+    pub fn step_n(&mut self, now: u64, units: u32) -> StepResult {
+        for _ in 0..units.max(1) {
+            if let StepResult::Done(o) = self.step(now) {
+                return StepResult::Done(o);
+            }
+        }
+        StepResult::Running
+    }
+
+    /// Run until done at a fixed caller time: a loop over [`Self::step`],
+    /// bounded by [`Self::max_work_units`] + 1 calls.
+    pub fn run_to_completion(&mut self, now: u64) -> Outcome {
+        for _ in 0..=u64::from(self.max_units) {
+            if let StepResult::Done(o) = self.step(now) {
+                return o;
+            }
+        }
+        // Unreachable by the bound above; kept total rather than panicking.
+        self.finish_budget(now);
+        self.outcome_or_prior()
+    }
+
+    /// The final outcome, once done.
+    pub fn outcome(&self) -> Option<&Outcome> {
+        self.done.as_ref()
+    }
+
+    /// Counters so far (also while running).
+    pub fn stats(&self) -> &Stats {
+        &self.stats
+    }
+
+    /// Current search bounds (t̃ metres, r̃ radians).
+    pub fn bounds(&self) -> (f32, f32) {
+        (self.t_m, self.r_rad)
+    }
+
+    /// The per-attempt pipeline.
+    pub fn attempt_ref(&self) -> &A {
+        &self.attempt
+    }
+
+    /// The solver.
+    pub fn solver_ref(&self) -> &S {
+        &self.solver
+    }
+
+    fn outcome_or_prior(&self) -> Outcome {
+        self.done.clone().unwrap_or_else(|| Outcome {
+            pose: self.prior,
+            failure: Some(FailureCode::RelocBudgetExhausted),
+            quality: self.quality.clone(),
+            stats: self.stats,
+            log: self.log.clone(),
+        })
+    }
+
+    fn seed_pose(&self, k: u16) -> Pose {
+        let mut rng = self.root.fork(STREAM_SEED).fork(u64::from(k));
+        randomize(
+            &self.prior,
+            self.opts.seed_t_m,
+            self.opts.seed_r_deg.to_radians(),
+            true,
+            &mut rng,
+        )
+    }
+
+    fn collect_one(&mut self, now: u64) {
+        let index = self.stats.attempts;
+        let mut rng = self.root.fork(STREAM_ATTEMPT).fork(u64::from(index));
+        let planar = self.stats.successes == 0;
+        let center = if self.params.mechanisms.distribute && !self.seeding {
+            pick_candidate(&self.candidates, &mut rng).unwrap_or(self.center)
+        } else {
+            self.center
+        };
+        let ctx = AttemptContext {
+            world_from_viewpoint: randomize(&center, self.t_m, self.r_rad, planar, &mut rng),
+            t_m: self.t_m,
+            r_rad: self.r_rad,
+            index,
+            round: self.round,
+        };
+        self.stats.attempts = self.stats.attempts.saturating_add(1);
+        self.stats.work_units = self.stats.work_units.saturating_add(1);
+        self.round_attempts = self.round_attempts.saturating_add(1);
+        match self
+            .attempt
+            .attempt(&ctx, &mut rng, &mut self.stats.pipeline)
+        {
+            Ok(c) => {
+                if self.pairs.push(c).is_ok() {
+                    self.stats.correspondences = self.stats.correspondences.saturating_add(1);
+                }
+            }
+            Err(code) => self.log.record(code, now, index),
+        }
+        if self.pairs.len() >= usize::from(self.params.n_corr) {
+            self.phase = Phase::Solve;
+        } else if self.round_attempts >= self.params.attempts_per_iter {
+            self.log
+                .record(FailureCode::RelocSampleCapReached, now, self.round);
+            self.round_failed(FailureCode::RelocSampleCapReached, now);
+        }
+    }
+
+    fn solve(&mut self, now: u64) {
+        self.stats.work_units = self.stats.work_units.saturating_add(1);
+        self.stats.solves = self.stats.solves.saturating_add(1);
+        let mut rng = self.root.fork(STREAM_SOLVE).fork(u64::from(self.round));
+        let n = self.pairs.len();
+        self.inlier_mask.iter_mut().for_each(|m| *m = false);
+        let mask = self.inlier_mask.get_mut(..n).unwrap_or(&mut []);
+        match self.solver.solve(&self.pairs, &mut rng, mask) {
+            Ok(sol) => {
+                self.stats.ransac_iterations = self
+                    .stats
+                    .ransac_iterations
+                    .saturating_add(u32::from(sol.iterations));
+                if sol.inliers >= self.opts.min_inliers
+                    && usize::from(sol.inliers) <= n
+                    && pose_is_valid(&sol.pose)
+                {
+                    self.round_succeeded(sol, now);
+                } else {
+                    let code = FailureCode::PoseRansacNoConsensus;
+                    self.log.record(code, now, u32::from(sol.inliers));
+                    self.round_failed(code, now);
+                }
+            }
+            Err(code) => {
+                self.log.record(code, now, self.round);
+                self.round_failed(code, now);
+            }
+        }
+    }
+
+    fn start_round(&mut self) {
+        self.round = self.round.saturating_add(1);
+        self.stats.rounds = self.stats.rounds.saturating_add(1);
+        self.round_attempts = 0;
+        self.phase = Phase::Collect;
+    }
+
+    fn next_seed(&mut self, now: u64) {
+        self.pairs.clear();
+        self.seed_index = self.seed_index.saturating_add(1);
+        if self.seed_index < self.params.seeds {
+            self.center = self.seed_pose(self.seed_index);
+            self.stats.seeds_tried = self.stats.seeds_tried.saturating_add(1);
+            self.start_round();
+            return;
+        }
+        self.seeding = false;
+        self.center = self.anchor;
+        match self.best_seed.take() {
+            Some((sol, pairs)) => {
+                self.apply_success(sol, pairs, now);
+            }
+            // No seed gave a transform: search from the prior as without seeds.
+            None => self.start_round(),
+        }
+    }
+
+    fn round_succeeded(&mut self, sol: Solution, now: u64) {
+        let pairs = u16::try_from(self.pairs.len()).unwrap_or(u16::MAX);
+        if self.seeding {
+            let better = self
+                .best_seed
+                .as_ref()
+                .is_none_or(|(b, _)| sol.inliers > b.inliers);
+            if better {
+                self.best_seed = Some((sol, pairs));
+            }
+            self.next_seed(now);
+            return;
+        }
+        self.apply_success(sol, pairs, now);
+    }
+
+    fn apply_success(&mut self, sol: Solution, pairs: u16, now: u64) {
+        let update_m = (sol.pose.translation() - self.anchor.translation()).norm();
+        // At most n_iter ≤ MAX_ITER successes are recorded, so the push cannot fail.
+        let _ = self.quality.history.push(IterationRecord {
+            round: self.round,
+            inliers: sol.inliers,
+            pairs,
+            rms_m: sol.rms_m,
+            t_m: self.t_m,
+            r_rad: self.r_rad,
+            update_m,
+        });
+        self.quality.inliers = sol.inliers;
+        self.quality.rms_m = sol.rms_m;
+        self.quality.inlier_ratio = if pairs > 0 {
+            f32::from(sol.inliers) / f32::from(pairs)
+        } else {
+            0.0
+        };
+        self.anchor = sol.pose;
+        self.center = sol.pose;
+        self.stats.successes = self.stats.successes.saturating_add(1);
+        self.consecutive_stall = 0;
+        self.consecutive_reseed = 0;
+        let m = self.params.mechanisms;
+        self.candidates.clear();
+        if m.distribute {
+            self.candidates = sol.candidates;
+        }
+        if m.anneal {
+            self.t_m *= self.params.gamma;
+            self.r_rad *= self.params.gamma;
+        }
+        let enough = self.stats.successes >= u16::from(self.params.n_iter);
+        if enough || update_m < self.params.convergence_m {
+            self.finish(None, now);
+        } else {
+            self.reuse_inliers(sol.inliers);
+            self.start_round();
+        }
+    }
+
+    /// Reuse: keep the first ⌊fraction · inliers⌋ inlier pairs (in collection
+    /// order), fewer than N_corr; drop everything when Reuse is off.
+    fn reuse_inliers(&mut self, inliers: u16) {
+        let keep = if self.params.mechanisms.reuse {
+            let k = libm::floorf(self.params.reuse_fraction * f32::from(inliers)) as usize;
+            k.min(usize::from(self.params.n_corr).saturating_sub(1))
+        } else {
+            0
+        };
+        let mut write = 0usize;
+        for read in 0..self.pairs.len() {
+            if write >= keep {
+                break;
+            }
+            let inlier = self.inlier_mask.get(read).copied().unwrap_or(false);
+            if let (true, Some(p)) = (inlier, self.pairs.get(read).copied()) {
+                if let Some(slot) = self.pairs.get_mut(write) {
+                    *slot = p;
+                }
+                write += 1;
+            }
+        }
+        self.pairs.truncate(write);
+        self.stats.reused = self
+            .stats
+            .reused
+            .saturating_add(u32::try_from(write).unwrap_or(u32::MAX));
+    }
+
+    fn round_failed(&mut self, code: FailureCode, now: u64) {
+        self.pairs.clear();
+        if self.seeding {
+            self.next_seed(now);
+            return;
+        }
+        let m = self.params.mechanisms;
+        if m.stall && self.stats.successes > 0 && self.consecutive_stall < self.params.max_stall {
+            self.consecutive_stall += 1;
+            self.stats.stalls = self.stats.stalls.saturating_add(1);
+            self.center = self.anchor;
+            self.start_round();
+        } else if m.reseed && self.consecutive_reseed < self.params.max_reseed {
+            self.consecutive_reseed += 1;
+            self.stats.reseeds = self.stats.reseeds.saturating_add(1);
+            let mut rng = self.root.fork(STREAM_RESEED).fork(u64::from(self.round));
+            let planar = self.stats.successes == 0;
+            self.center = randomize(&self.anchor, self.t_m, self.r_rad, planar, &mut rng);
+            self.candidates.clear();
+            self.start_round();
+        } else {
+            let end = if m.reseed {
+                FailureCode::RelocReseedCapReached
+            } else if m.stall && self.stats.successes > 0 {
+                FailureCode::RelocStallCapReached
+            } else {
+                code
+            };
+            self.finish(Some(end), now);
+        }
+    }
+
+    fn finish_budget(&mut self, now: u64) {
+        // Anytime: the best seed so far beats the prior if seeding was cut short.
+        if self.seeding {
+            if let Some((sol, pairs)) = self.best_seed.take() {
+                self.quality.inliers = sol.inliers;
+                self.quality.rms_m = sol.rms_m;
+                self.quality.inlier_ratio = if pairs > 0 {
+                    f32::from(sol.inliers) / f32::from(pairs)
+                } else {
+                    0.0
+                };
+                self.anchor = sol.pose;
+            }
+        }
+        self.finish(Some(FailureCode::RelocBudgetExhausted), now);
+    }
+
+    fn finish(&mut self, failure: Option<FailureCode>, now: u64) {
+        if let Some(code) = failure {
+            self.log.record(code, now, self.stats.work_units);
+        }
+        self.done = Some(Outcome {
+            pose: self.anchor,
+            failure,
+            quality: self.quality.clone(),
+            stats: self.stats,
+            log: self.log.clone(),
+        });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::super::{Budget, PipelineStats};
+    use super::*;
+    use crate::config::Mechanisms;
+    use crate::geom::Vec3;
+    use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+    use std::boxed::Box;
+    use std::vec::Vec;
+
+    /// Produces pairs with a unique id in `world.x`; fails when `fail(index, rng)` says so.
+    type FailFn = Box<dyn FnMut(u32, &mut Rng) -> Option<FailureCode>>;
+
+    struct FakeAttempt {
+        fail: FailFn,
+        next_id: u32,
+        contexts: Vec<AttemptContext>,
+    }
+
+    impl FakeAttempt {
+        fn new(fail: impl FnMut(u32, &mut Rng) -> Option<FailureCode> + 'static) -> Self {
+            Self {
+                fail: Box::new(fail),
+                next_id: 0,
+                contexts: Vec::new(),
+            }
+        }
+        fn ok() -> Self {
+            Self::new(|_, _| None)
+        }
+    }
+
+    impl Attempt for FakeAttempt {
+        fn attempt(
+            &mut self,
+            ctx: &AttemptContext,
+            rng: &mut Rng,
+            stats: &mut PipelineStats,
+        ) -> Result<Correspondence, FailureCode> {
+            self.contexts.push(*ctx);
+            stats.renders += 2;
+            if let Some(code) = (self.fail)(ctx.index, rng) {
+                return Err(code);
+            }
+            let id = self.next_id;
+            self.next_id += 1;
+            let v = ctx.world_from_viewpoint.translation();
+            Ok(Correspondence {
+                world: Vec3::new(id as f32, rng.next_f32(), rng.next_f32()),
+                // The viewpoint centre travels with the pair so solvers can see it.
+                cam: v,
+                sigma_m: 0.01,
+            })
+        }
+    }
+
+    type Script =
+        Box<dyn FnMut(u32, &[Correspondence], &mut [bool]) -> Result<Solution, FailureCode>>;
+
+    struct FakeSolver {
+        script: Script,
+        calls: Vec<Vec<Correspondence>>,
+    }
+
+    impl FakeSolver {
+        fn new(
+            f: impl FnMut(u32, &[Correspondence], &mut [bool]) -> Result<Solution, FailureCode>
+                + 'static,
+        ) -> Self {
+            Self {
+                script: Box::new(f),
+                calls: Vec::new(),
+            }
+        }
+    }
+
+    impl Solver for FakeSolver {
+        fn solve(
+            &mut self,
+            pairs: &[Correspondence],
+            rng: &mut Rng,
+            mask: &mut [bool],
+        ) -> Result<Solution, FailureCode> {
+            let _ = rng.next_u32();
+            let call = self.calls.len() as u32;
+            self.calls.push(pairs.to_vec());
+            (self.script)(call, pairs, mask)
+        }
+    }
+
+    fn at_x(x: f32) -> Pose {
+        Pose::new(UnitQuaternion::identity(), Vec3::new(x, 0.0, 0.0))
+    }
+
+    /// A solution at `pose` whose inliers are the pairs with an even id.
+    fn even_inliers(pose: Pose, pairs: &[Correspondence], mask: &mut [bool]) -> Solution {
+        let mut n = 0u16;
+        for (p, m) in pairs.iter().zip(mask.iter_mut()) {
+            *m = (p.world.x as u32) % 2 == 0;
+            n += u16::from(*m);
+        }
+        Solution {
+            pose,
+            inliers: n,
+            rms_m: 0.01,
+            iterations: 10,
+            candidates: heapless::Vec::new(),
+        }
+    }
+
+    fn small_params() -> Params {
+        Params {
+            n_corr: 20,
+            n_iter: 5,
+            attempts_per_iter: 50,
+            max_stall: 3,
+            max_reseed: 4,
+            template_px: 64,
+            ..Params::paper()
+        }
+    }
+
+    fn opts(p: &Params) -> Options {
+        Options {
+            min_inliers: 5,
+            ..Options::for_params(p)
+        }
+    }
+
+    /// Verifies: VTSM-RELOC-002
+    #[test]
+    fn invalid_prior_params_or_options_are_refused() {
+        let p = small_params();
+        let o = opts(&p);
+        let mk = |prior: &Pose, p: &Params, o: &Options| {
+            Relocalizer::new(
+                FakeAttempt::ok(),
+                FakeSolver::new(|_, _, _| Err(FailureCode::PoseDegenerate)),
+                p,
+                o,
+                prior,
+                1,
+            )
+            .err()
+        };
+        assert_eq!(
+            mk(&at_x(f32::NAN), &p, &o),
+            Some(FailureCode::RelocPriorInvalid)
+        );
+        let non_unit = Pose {
+            iso: Isometry3::from_parts(
+                Translation3::new(0.0, 0.0, 0.0),
+                UnitQuaternion::new_unchecked(Quaternion::new(1.5, 0.0, 0.0, 0.0)),
+            ),
+        };
+        assert_eq!(mk(&non_unit, &p, &o), Some(FailureCode::RelocPriorInvalid));
+        let bad = Params { n_corr: 1, ..p };
+        assert_eq!(
+            mk(&at_x(0.0), &bad, &o),
+            Some(FailureCode::ConfigParamOutOfRange)
+        );
+        let bad_o = Options {
+            min_inliers: p.n_corr + 1,
+            ..o
+        };
+        assert_eq!(
+            mk(&at_x(0.0), &p, &bad_o),
+            Some(FailureCode::ConfigParamOutOfRange)
+        );
+        let bad_o = Options {
+            seed_t_m: f32::NAN,
+            ..o
+        };
+        assert_eq!(
+            mk(&at_x(0.0), &p, &bad_o),
+            Some(FailureCode::ConfigParamOutOfRange)
+        );
+        assert_eq!(mk(&at_x(0.0), &p, &o), None);
+    }
+
+    /// Verifies: VTSM-RELOC-005, VTSM-RELOC-006
+    #[test]
+    fn ransac_failure_stalls_then_reseeds_then_returns_cap_code() {
+        let p = small_params();
+        let solver = FakeSolver::new(|call, pairs, mask| {
+            if call == 0 {
+                Ok(even_inliers(at_x(0.5), pairs, mask))
+            } else {
+                Err(FailureCode::PoseRansacNoConsensus)
+            }
+        });
+        let mut r =
+            Relocalizer::new(FakeAttempt::ok(), solver, &p, &opts(&p), &at_x(0.0), 7).unwrap();
+        // Watch the mechanism chosen after each failed solve.
+        let mut sequence = Vec::new();
+        let mut last = (0u16, 0u16);
+        let out = loop {
+            match r.step(0) {
+                StepResult::Done(o) => break o,
+                StepResult::Running => {
+                    let s = r.stats();
+                    if (s.stalls, s.reseeds) != last {
+                        sequence.push(if s.stalls != last.0 { 'S' } else { 'R' });
+                        last = (s.stalls, s.reseeds);
+                    }
+                }
+            }
+        };
+        assert_eq!(std::string::String::from_iter(&sequence), "SSSRRRR");
+        assert_eq!(out.failure, Some(FailureCode::RelocReseedCapReached));
+        assert_eq!(out.stats.successes, 1);
+        assert_eq!(out.stats.solves, 1 + 3 + 4 + 1);
+        assert_eq!(out.log.count(FailureCode::PoseRansacNoConsensus), 8);
+        // The pose reported is the last successful one, not a reseeded guess.
+        assert_eq!(out.pose, at_x(0.5));
+
+        // Without Reseed, the Stall cap ends the run with its own code.
+        let mut p2 = p;
+        p2.mechanisms.reseed = false;
+        let solver = FakeSolver::new(|call, pairs, mask| {
+            if call == 0 {
+                Ok(even_inliers(at_x(0.5), pairs, mask))
+            } else {
+                Err(FailureCode::PoseDegenerate)
+            }
+        });
+        let out = Relocalizer::new(FakeAttempt::ok(), solver, &p2, &opts(&p2), &at_x(0.0), 7)
+            .unwrap()
+            .run_to_completion(0);
+        assert_eq!(out.failure, Some(FailureCode::RelocStallCapReached));
+        assert_eq!((out.stats.stalls, out.stats.reseeds), (3, 0));
+
+        // With neither, the first failure's own code is returned.
+        let mut p3 = p2;
+        p3.mechanisms.stall = false;
+        let solver = FakeSolver::new(|_, _, _| Err(FailureCode::PoseDegenerate));
+        let out = Relocalizer::new(FakeAttempt::ok(), solver, &p3, &opts(&p3), &at_x(0.0), 7)
+            .unwrap()
+            .run_to_completion(0);
+        assert_eq!(out.failure, Some(FailureCode::PoseDegenerate));
+        assert_eq!(out.stats.solves, 1);
+        assert_eq!(out.pose, at_x(0.0));
+    }
+
+    /// Verifies: VTSM-RELOC-005
+    #[test]
+    fn stall_needs_a_prior_success_and_reseed_moves_the_centre() {
+        let p = small_params();
+        let solver = FakeSolver::new(|_, _, _| Err(FailureCode::PoseRansacNoConsensus));
+        let mut r =
+            Relocalizer::new(FakeAttempt::ok(), solver, &p, &opts(&p), &at_x(0.0), 3).unwrap();
+        let out = r.run_to_completion(0);
+        assert_eq!((out.stats.stalls, out.stats.reseeds), (0, 4));
+        assert_eq!(out.failure, Some(FailureCode::RelocReseedCapReached));
+        // Viewpoints of round 0 lie within t̃ of the prior; reseeded rounds are centred
+        // on a perturbed pose, so some reach beyond t̃ of the prior (up to 2 t̃).
+        let ctxs = &r.attempt_ref().contexts;
+        let n = usize::from(p.n_corr);
+        let dist = |c: &AttemptContext| c.world_from_viewpoint.translation().norm();
+        assert!(ctxs[..n].iter().all(|c| dist(c) <= p.t0_m + 1e-6));
+        assert!(ctxs[n..].iter().all(|c| dist(c) <= 2.0 * p.t0_m + 1e-6));
+        assert!(ctxs[n..].iter().any(|c| dist(c) > p.t0_m));
+    }
+
+    /// Verifies: VTSM-RELOC-007
+    #[test]
+    fn anneal_shrinks_bounds_by_gamma_after_each_success() {
+        for anneal in [true, false] {
+            let mut p = small_params();
+            p.gamma = 0.5;
+            p.mechanisms.anneal = anneal;
+            let solver = FakeSolver::new(|call, pairs, mask| {
+                Ok(even_inliers(at_x(0.1 * (call + 1) as f32), pairs, mask))
+            });
+            let mut r =
+                Relocalizer::new(FakeAttempt::ok(), solver, &p, &opts(&p), &at_x(0.0), 5).unwrap();
+            let out = r.run_to_completion(0);
+            assert_eq!(out.failure, None);
+            assert_eq!(out.quality.history.len(), usize::from(p.n_iter));
+            let mut t = p.t0_m;
+            let mut rr = p.r0_deg.to_radians();
+            for rec in &out.quality.history {
+                assert_eq!((rec.t_m, rec.r_rad), (t, rr));
+                if anneal {
+                    t *= 0.5;
+                    rr *= 0.5;
+                }
+            }
+            // Every attempt used the bounds of its iteration.
+            for c in &r.attempt_ref().contexts {
+                assert!(out
+                    .quality
+                    .history
+                    .iter()
+                    .any(|h| h.t_m == c.t_m && h.r_rad == c.r_rad));
+            }
+        }
+    }
+
+    /// Verifies: VTSM-RELOC-009
+    #[test]
+    fn reuse_carries_the_configured_fraction_of_inliers() {
+        for (reuse, fraction) in [(true, 0.5f32), (true, 0.25), (false, 0.5)] {
+            let mut p = small_params();
+            p.mechanisms.reuse = reuse;
+            p.reuse_fraction = fraction;
+            let solver = FakeSolver::new(|call, pairs, mask| {
+                Ok(even_inliers(at_x(0.1 * (call + 1) as f32), pairs, mask))
+            });
+            let mut r =
+                Relocalizer::new(FakeAttempt::ok(), solver, &p, &opts(&p), &at_x(0.0), 5).unwrap();
+            let out = r.run_to_completion(0);
+            let calls = &r.solver_ref().calls;
+            assert_eq!(calls.len(), usize::from(p.n_iter));
+            let mut reused_total = 0;
+            for w in calls.windows(2) {
+                let prev_inliers: Vec<u32> = w[0]
+                    .iter()
+                    .map(|c| c.world.x as u32)
+                    .filter(|id| id % 2 == 0)
+                    .collect();
+                let expect = if reuse {
+                    (fraction * prev_inliers.len() as f32).floor() as usize
+                } else {
+                    0
+                };
+                let carried: Vec<u32> = w[1]
+                    .iter()
+                    .map(|c| c.world.x as u32)
+                    .filter(|id| w[0].iter().any(|c| c.world.x as u32 == *id))
+                    .collect();
+                assert_eq!(carried, prev_inliers[..expect].to_vec());
+                assert_eq!(w[1].len(), usize::from(p.n_corr));
+                reused_total += expect;
+            }
+            assert_eq!(out.stats.reused as usize, reused_total);
+        }
+    }
+
+    /// Verifies: VTSM-RELOC-008
+    #[test]
+    fn distribute_draws_viewpoints_around_candidates_by_inliers() {
+        for distribute in [true, false] {
+            let mut p = small_params();
+            p.n_corr = 100;
+            p.attempts_per_iter = 100;
+            p.n_iter = 2;
+            p.mechanisms.distribute = distribute;
+            p.mechanisms.anneal = false;
+            p.t0_m = 0.05;
+            let solver = FakeSolver::new(|_, pairs, mask| {
+                let mut s = even_inliers(at_x(0.0), pairs, mask);
+                s.pose = at_x(0.5);
+                s.candidates
+                    .push(Candidate {
+                        pose: at_x(10.0),
+                        inliers: 30,
+                    })
+                    .unwrap();
+                s.candidates
+                    .push(Candidate {
+                        pose: at_x(20.0),
+                        inliers: 10,
+                    })
+                    .unwrap();
+                Ok(s)
+            });
+            let mut o = opts(&p);
+            o.min_inliers = 10;
+            let mut r = Relocalizer::new(FakeAttempt::ok(), solver, &p, &o, &at_x(0.0), 5).unwrap();
+            let out = r.run_to_completion(0);
+            assert_eq!(out.failure, None);
+            let second = &r.attempt_ref().contexts[100..];
+            let near = |x: f32| {
+                second
+                    .iter()
+                    .filter(|c| (c.world_from_viewpoint.translation().x - x).abs() <= 0.05 + 1e-5)
+                    .count()
+            };
+            if distribute {
+                assert_eq!(near(10.0) + near(20.0), second.len());
+                // 30 : 10 inliers → 75 % of the viewpoints around the first candidate.
+                let f = near(10.0) as f32 / second.len() as f32;
+                assert!(second.len() >= 50 && (0.6..=0.9).contains(&f), "{f}");
+            } else {
+                assert_eq!(near(0.5), second.len());
+            }
+        }
+    }
+
+    /// Verifies: VTSM-RELOC-010
+    #[test]
+    fn converges_when_the_update_is_below_threshold() {
+        let p = small_params();
+        // Solver returns the prior itself: the first update is 0 m.
+        let solver = FakeSolver::new(|_, pairs, mask| Ok(even_inliers(at_x(0.0), pairs, mask)));
+        let out = Relocalizer::new(FakeAttempt::ok(), solver, &p, &opts(&p), &at_x(0.0), 1)
+            .unwrap()
+            .run_to_completion(0);
+        assert_eq!(out.failure, None);
+        assert_eq!(out.stats.successes, 1);
+        assert_eq!(out.quality.inliers, 10);
+        assert!((out.quality.inlier_ratio - 0.5).abs() < 1e-6);
+        // Too few inliers is not a success.
+        let mut o = opts(&p);
+        o.min_inliers = 11;
+        let solver = FakeSolver::new(|_, pairs, mask| Ok(even_inliers(at_x(0.3), pairs, mask)));
+        let out = Relocalizer::new(FakeAttempt::ok(), solver, &p, &o, &at_x(0.0), 1)
+            .unwrap()
+            .run_to_completion(0);
+        assert_eq!(out.failure, Some(FailureCode::RelocReseedCapReached));
+        assert_eq!(out.pose, at_x(0.0));
+        assert_eq!(out.quality.inliers, 0);
+    }
+
+    /// Verifies: VTSM-RELOC-011
+    #[test]
+    fn sample_cap_fails_the_iteration() {
+        let p = small_params();
+        let attempt = FakeAttempt::new(|_, _| Some(FailureCode::NccLowScore));
+        let solver = FakeSolver::new(|_, _, _| Err(FailureCode::PoseDegenerate));
+        let mut r = Relocalizer::new(attempt, solver, &p, &opts(&p), &at_x(0.0), 1).unwrap();
+        let out = r.run_to_completion(0);
+        let rounds = u32::from(p.max_reseed) + 1;
+        assert_eq!(out.stats.attempts, rounds * p.attempts_per_iter);
+        assert_eq!(out.stats.solves, 0);
+        assert_eq!(
+            out.log.count(FailureCode::RelocSampleCapReached) as u32,
+            rounds
+        );
+        assert_eq!(
+            out.log.count(FailureCode::NccLowScore) as u32,
+            out.stats.attempts
+        );
+        assert_eq!(out.failure, Some(FailureCode::RelocReseedCapReached));
+    }
+
+    /// Verifies: VTSM-RELOC-012
+    #[test]
+    fn budget_returns_best_pose_so_far() {
+        let p = small_params();
+        let mk = |budget: Budget| {
+            let solver = FakeSolver::new(|call, pairs, mask| {
+                Ok(even_inliers(at_x(0.1 * (call + 1) as f32), pairs, mask))
+            });
+            let o = Options { budget, ..opts(&p) };
+            Relocalizer::new(FakeAttempt::ok(), solver, &p, &o, &at_x(0.0), 1).unwrap()
+        };
+        // Two full iterations (20 attempts + 1 solve each), then part of a third.
+        let mut r = mk(Budget {
+            max_work_units: 2 * 21 + 5,
+            deadline_tick: u64::MAX,
+        });
+        let out = r.run_to_completion(0);
+        assert_eq!(out.failure, Some(FailureCode::RelocBudgetExhausted));
+        assert_eq!(out.stats.work_units, 47);
+        assert_eq!(out.stats.successes, 2);
+        assert_eq!(out.pose, at_x(0.2));
+        assert_eq!(out.quality.history.len(), 2);
+        // Tick deadline: work stops at the first step at or after it.
+        let mut r = mk(Budget {
+            max_work_units: u32::MAX,
+            deadline_tick: 100,
+        });
+        for now in 0..30 {
+            assert!(matches!(r.step(now), StepResult::Running));
+        }
+        match r.step(100) {
+            StepResult::Done(o) => {
+                assert_eq!(o.failure, Some(FailureCode::RelocBudgetExhausted));
+                assert_eq!(o.stats.work_units, 30);
+                assert_eq!(o.pose, at_x(0.1));
+            }
+            StepResult::Running => panic!("deadline ignored"),
+        }
+        assert!(matches!(r.step(0), StepResult::Done(_)));
+    }
+
+    /// Verifies: VTSM-RELOC-013
+    #[test]
+    fn multi_seed_continues_from_the_seed_with_most_inliers() {
+        let mut p = small_params();
+        p.seeds = 12;
+        let truth = Vec3::new(0.3, -0.2, 0.0);
+        // Inliers fall with the distance of the viewpoints' mean to the truth.
+        let solver = FakeSolver::new(move |_, pairs, mask| {
+            let mean = pairs.iter().fold(Vec3::zeros(), |a, c| a + c.cam) / pairs.len() as f32;
+            let d = (mean - truth).norm();
+            let n = (20.0 * (1.0 - d)).clamp(0.0, 20.0) as u16;
+            for (i, m) in mask.iter_mut().enumerate() {
+                *m = (i as u16) < n;
+            }
+            Ok(Solution {
+                pose: Pose::new(UnitQuaternion::identity(), mean),
+                inliers: n,
+                rms_m: d,
+                iterations: 1,
+                candidates: heapless::Vec::new(),
+            })
+        });
+        let mut o = opts(&p);
+        o.seed_t_m = 0.6;
+        let mut r = Relocalizer::new(FakeAttempt::ok(), solver, &p, &o, &at_x(0.0), 11).unwrap();
+        let out = r.run_to_completion(0);
+        assert_eq!(out.stats.seeds_tried, 12);
+        let calls = &r.solver_ref().calls;
+        let inl = |c: &Vec<Correspondence>| {
+            let mean = c.iter().fold(Vec3::zeros(), |a, x| a + x.cam) / c.len() as f32;
+            (20.0 * (1.0 - (mean - truth).norm())).clamp(0.0, 20.0) as u16
+        };
+        let best = calls[..12].iter().map(inl).max().unwrap();
+        assert_eq!(out.quality.history[0].inliers, best);
+        // Each seed is a planar draw within the seed spread of the prior.
+        for c in &r.attempt_ref().contexts[..12 * 20] {
+            let t = c.world_from_viewpoint.translation();
+            assert!(t.norm() <= o.seed_t_m + p.t0_m + 1e-5);
+            assert!(t.z.abs() < 1e-6);
+        }
+    }
+
+    fn noisy_run(seed: u64, p: &Params, how: u32) -> (Outcome, Vec<AttemptContext>) {
+        let attempt =
+            FakeAttempt::new(|_, rng| (rng.next_f32() < 0.3).then_some(FailureCode::NccAmbiguous));
+        let solver = FakeSolver::new(|call, pairs, mask| {
+            if call % 3 == 1 {
+                Err(FailureCode::PoseRansacNoConsensus)
+            } else {
+                let mean = pairs.iter().fold(Vec3::zeros(), |a, c| a + c.cam) / pairs.len() as f32;
+                let mut s = even_inliers(Pose::new(UnitQuaternion::identity(), mean), pairs, mask);
+                s.candidates
+                    .push(Candidate {
+                        pose: s.pose,
+                        inliers: s.inliers,
+                    })
+                    .unwrap();
+                s.candidates
+                    .push(Candidate {
+                        pose: at_x(mean.x + 0.01),
+                        inliers: 3,
+                    })
+                    .unwrap();
+                Ok(s)
+            }
+        });
+        let mut r = Relocalizer::new(attempt, solver, p, &opts(p), &at_x(0.2), seed).unwrap();
+        let out = match how {
+            0 => r.run_to_completion(0),
+            n => loop {
+                if let StepResult::Done(o) = r.step_n(0, n) {
+                    break o;
+                }
+            },
+        };
+        (out, r.attempt_ref().contexts.clone())
+    }
+
+    /// Verifies: VTSM-RELOC-014
+    #[test]
+    fn outcome_is_bit_identical_whatever_the_step_granularity() {
+        let mut p = small_params();
+        p.seeds = 3;
+        for seed in [1u64, 2, 99] {
+            let (a, ca) = noisy_run(seed, &p, 0);
+            for n in [1u32, 7, 1000] {
+                let (b, cb) = noisy_run(seed, &p, n);
+                let bits = |o: &Outcome| {
+                    o.pose
+                        .t()
+                        .map(f32::to_bits)
+                        .into_iter()
+                        .chain(o.pose.q().map(f32::to_bits))
+                        .collect::<Vec<_>>()
+                };
+                assert_eq!(bits(&a), bits(&b), "seed {seed} granularity {n}");
+                assert_eq!(a.stats, b.stats);
+                assert_eq!(a.quality, b.quality);
+                assert_eq!(a.failure, b.failure);
+                assert_eq!(ca, cb);
+                assert_eq!(
+                    a.log.counters().collect::<Vec<_>>(),
+                    b.log.counters().collect::<Vec<_>>()
+                );
+            }
+            // A different seed explores different viewpoints.
+            let (_, other) = noisy_run(seed + 1000, &p, 0);
+            assert_ne!(ca[0], other[0]);
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(48))]
+        /// Verifies: VTSM-RELOC-003
+        #[test]
+        fn every_work_counter_stays_under_its_cap(
+            seed in 0u64..1_000_000,
+            n_corr in 3u16..40,
+            n_iter in 1u8..6,
+            extra in 0u32..60,
+            max_stall in 1u8..4,
+            max_reseed in 1u8..4,
+            seeds in 0u16..4,
+            p_fail in 0.0f32..0.9,
+            s_fail in 0u32..4,
+            mech in 0u8..32,
+        ) {
+            let p = Params {
+                n_corr, n_iter, attempts_per_iter: u32::from(n_corr) + extra,
+                max_stall, max_reseed, seeds, ransac_iter: 50,
+                mechanisms: Mechanisms {
+                    stall: mech & 1 != 0, reseed: mech & 2 != 0, anneal: mech & 4 != 0,
+                    distribute: mech & 8 != 0, reuse: mech & 16 != 0,
+                },
+                ..small_params()
+            };
+            let attempt = FakeAttempt::new(move |_, rng| {
+                (rng.next_f32() < p_fail).then_some(FailureCode::NccLowScore)
+            });
+            let solver = FakeSolver::new(move |call, pairs, mask| {
+                if s_fail > 0 && call % (s_fail + 1) == 0 {
+                    return Err(FailureCode::PoseRansacNoConsensus);
+                }
+                let mut s = even_inliers(at_x(0.01 * call as f32), pairs, mask);
+                s.iterations = 50;
+                Ok(s)
+            });
+            let o = Options { min_inliers: 3, ..Options::for_params(&p) };
+            let mut r = Relocalizer::new(attempt, solver, &p, &o, &at_x(0.0), seed).unwrap();
+            let max = Relocalizer::<FakeAttempt, FakeSolver>::max_work_units(&p);
+            let mut calls = 0u64;
+            let out = loop {
+                calls += 1;
+                if let StepResult::Done(o) = r.step(0) { break o; }
+            };
+            let s = out.stats;
+            proptest::prop_assert!(out.failure != Some(FailureCode::RelocBudgetExhausted));
+            proptest::prop_assert!(calls <= u64::from(max) + 1);
+            proptest::prop_assert_eq!(s.work_units, s.attempts + s.solves);
+            proptest::prop_assert!(s.attempts <= s.rounds * p.attempts_per_iter);
+            proptest::prop_assert!(s.successes <= u16::from(p.n_iter));
+            proptest::prop_assert!(s.stalls <= u16::from(p.max_stall) * (s.successes + 1));
+            proptest::prop_assert!(s.reseeds <= u16::from(p.max_reseed) * (s.successes + 1));
+            proptest::prop_assert!(s.seeds_tried <= p.seeds);
+            proptest::prop_assert!(s.ransac_iterations <= s.solves * u32::from(p.ransac_iter));
+            proptest::prop_assert!(out.quality.history.len() == usize::from(s.successes));
+            let calls = &r.solver_ref().calls;
+            proptest::prop_assert!(calls.iter().all(|c| c.len() == usize::from(p.n_corr)));
+            // No round does more attempts than the per-iteration cap.
+            let mut per_round = std::collections::BTreeMap::<u32, u32>::new();
+            for c in &r.attempt_ref().contexts {
+                *per_round.entry(c.round).or_default() += 1;
+            }
+            proptest::prop_assert!(per_round.values().all(|n| *n <= p.attempts_per_iter));
+            proptest::prop_assert!(per_round.len() as u32 <= s.rounds);
+        }
+    }
+}

@@ -1,0 +1,270 @@
+//! The relocalization engine: paper Alg. 1 with Stall, Reseed, Anneal,
+//! Distribute and Reuse (§III-B..E), as a bounded, resumable state machine.
+//!
+//! Inputs: a prior `world_from_left` pose, validated [`Params`], [`Options`]
+//! (acceptance, budget, multi-seed spread), a seed, and two pieces of work
+//! behind traits so each side is testable alone:
+//! * [`Attempt`] — one correspondence attempt from a given virtual viewpoint
+//!   (SamplePoint → Synthesize → Match → Valid → Stereo), implemented by the
+//!   real pipeline and by fakes in tests;
+//! * [`Solver`] — GetTransform (Umeyama + RANSAC) on the collected pairs.
+//!
+//! Output: an [`Outcome`] with the pose, an optional [`FailureCode`], its
+//! [`Quality`] (inliers, RMS, per-iteration history) and work [`Stats`].
+//!
+//! Bounds: every call to [`Relocalizer::step`] does exactly one work unit (one
+//! attempt or one solve); the number of units of a whole run is bounded by
+//! [`Relocalizer::max_work_units`], computed from validated parameters. All
+//! buffers are fixed-size fields sized by `config` capacities. Random draws come
+//! from streams forked per attempt / round index, so the outcome does not
+//! depend on how the work is split across calls.
+
+mod engine;
+pub mod pipeline;
+pub mod policy;
+pub mod solver;
+pub mod viewpoint;
+pub mod workspace;
+
+pub use engine::{Relocalizer, StepResult};
+pub use pipeline::Pipeline;
+pub use policy::{MatchPolicy, Variant};
+pub use solver::RansacSolver;
+pub use workspace::{Workspace, WorkspaceSizes, PAPER_WORKSPACE_BYTES, TEST_WORKSPACE_BYTES};
+
+use crate::config::{Params, MAX_ITER, MAX_POSE_CANDIDATES};
+use crate::failure::{FailureCode, FailureLog};
+use crate::geom::Pose;
+use crate::rng::Rng;
+
+pub use crate::pose::{Candidate, Correspondence};
+
+/// Result of one GetTransform.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Solution {
+    /// Maximum-inlier `world_from_left`.
+    pub pose: Pose,
+    /// Inliers of `pose`.
+    pub inliers: u16,
+    /// RMS residual of the inliers, metres.
+    pub rms_m: f32,
+    /// RANSAC hypotheses evaluated.
+    pub iterations: u16,
+    /// Best distinct hypotheses, most inliers first.
+    pub candidates: heapless::Vec<Candidate, MAX_POSE_CANDIDATES>,
+}
+
+/// What one correspondence attempt is given by the engine.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AttemptContext {
+    /// The randomized virtual viewpoint `world_from_left`.
+    pub world_from_viewpoint: Pose,
+    /// Current translation search bound t̃, metres (sizes the search window).
+    pub t_m: f32,
+    /// Current rotation search bound r̃, radians (sizes the search window).
+    pub r_rad: f32,
+    /// Global attempt index (for logging).
+    pub index: u32,
+    /// Round index (iterations, Stall / Reseed rounds and seeds all count).
+    pub round: u32,
+}
+
+/// Per-attempt work: SamplePoint → Synthesize → Match → Valid → Stereo.
+///
+/// # Contract
+/// Must do a bounded amount of work, draw randomness only from `rng`, and
+/// return either one correspondence or the code of the step that rejected the
+/// sample. It may add to `stats` (renders, matches, rejections by cause).
+pub trait Attempt {
+    /// Try to produce one correspondence from `ctx.world_from_viewpoint`.
+    ///
+    /// # Errors
+    /// The code of the rejecting step (out of view, flat template, low score, ...).
+    fn attempt(
+        &mut self,
+        ctx: &AttemptContext,
+        rng: &mut Rng,
+        stats: &mut PipelineStats,
+    ) -> Result<Correspondence, FailureCode>;
+}
+
+/// GetTransform: robust rigid transform `world_from_left` from pairs.
+///
+/// # Contract
+/// Bounded work; randomness only from `rng`; `inlier_mask[i]` set for each
+/// inlier pair `i` of the returned solution (`inlier_mask.len() >= pairs.len()`).
+pub trait Solver {
+    /// Estimate the transform.
+    ///
+    /// # Errors
+    /// Pose-stage codes (too few points, degenerate, no consensus, non-finite).
+    fn solve(
+        &mut self,
+        pairs: &[Correspondence],
+        rng: &mut Rng,
+        inlier_mask: &mut [bool],
+    ) -> Result<Solution, FailureCode>;
+}
+
+/// A work and tick budget after which the best pose so far is returned with
+/// [`FailureCode::RelocBudgetExhausted`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Budget {
+    /// Largest number of work units (attempts + solves); `u32::MAX` = only the structural bound.
+    pub max_work_units: u32,
+    /// Caller ticks at or after which no more work is done; `u64::MAX` = none.
+    pub deadline_tick: u64,
+}
+
+impl Budget {
+    /// No budget beyond the structural bound of the parameters.
+    pub const UNLIMITED: Budget = Budget {
+        max_work_units: u32::MAX,
+        deadline_tick: u64::MAX,
+    };
+}
+
+/// Engine options that are not part of [`Params`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Options {
+    /// A solution with fewer inliers is treated as a failed GetTransform
+    /// (3..=n_corr); this is what keeps a wrong prior from yielding a confident pose.
+    pub min_inliers: u16,
+    /// Translation spread of the multi-seed mode (prior uncertainty), metres, (0, 5].
+    pub seed_t_m: f32,
+    /// Rotation spread of the multi-seed mode, degrees, (0, 45].
+    pub seed_r_deg: f32,
+    /// Work / tick budget.
+    pub budget: Budget,
+}
+
+impl Options {
+    /// Defaults for `params`: at least 30 % of N_corr as inliers, seeds within 0.5 m / 1.5°.
+    pub fn for_params(params: &Params) -> Self {
+        Self {
+            min_inliers: ((u32::from(params.n_corr) * 3).div_ceil(10)).max(3) as u16,
+            seed_t_m: 0.5,
+            seed_r_deg: params.r0_deg,
+            budget: Budget::UNLIMITED,
+        }
+    }
+
+    fn validate(&self, params: &Params) -> Result<(), FailureCode> {
+        let ok = (3..=params.n_corr).contains(&self.min_inliers)
+            && self.seed_t_m.is_finite()
+            && self.seed_t_m > 0.0
+            && self.seed_t_m <= 5.0
+            && self.seed_r_deg.is_finite()
+            && self.seed_r_deg > 0.0
+            && self.seed_r_deg <= 45.0;
+        if ok {
+            Ok(())
+        } else {
+            Err(FailureCode::ConfigParamOutOfRange)
+        }
+    }
+}
+
+/// Number of template variants counted in [`PipelineStats::matches`]:
+/// size (ℓ, ℓ/2) × filter (gray, Sobel, Laplacian), index `size * 3 + filter`.
+pub const MATCH_VARIANTS: usize = 6;
+
+/// Work counters of the per-attempt pipeline.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PipelineStats {
+    /// Template renders (left and right count separately).
+    pub renders: u32,
+    /// Pixels written by the rasterizer.
+    pub render_pixels: u64,
+    /// Template matches run, per variant.
+    pub matches: [u32; MATCH_VARIANTS],
+    /// Matches accepted, per variant.
+    pub accepted: [u32; MATCH_VARIANTS],
+    /// NCC positions scored.
+    pub ncc_positions: u64,
+    /// NCC multiply-accumulates.
+    pub ncc_macs: u64,
+    /// Samples rejected because the vertex projects out of view.
+    pub out_of_view: u32,
+    /// Samples rejected because the vertex is occluded.
+    pub occluded: u32,
+    /// Successful triangulations.
+    pub triangulations: u32,
+}
+
+/// Work counters of one run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Stats {
+    /// Work units done (attempts + solves).
+    pub work_units: u32,
+    /// Rounds started (successful and failed iterations, seeds included).
+    pub rounds: u32,
+    /// Correspondence attempts.
+    pub attempts: u32,
+    /// Correspondences produced by attempts.
+    pub correspondences: u32,
+    /// Correspondences carried over by Reuse.
+    pub reused: u32,
+    /// GetTransform calls.
+    pub solves: u32,
+    /// RANSAC hypotheses evaluated, summed.
+    pub ransac_iterations: u32,
+    /// Successful iterations (pose updates).
+    pub successes: u16,
+    /// Stall events.
+    pub stalls: u16,
+    /// Reseed events.
+    pub reseeds: u16,
+    /// Seeds evaluated in multi-seed mode.
+    pub seeds_tried: u16,
+    /// Pipeline counters.
+    pub pipeline: PipelineStats,
+}
+
+/// One successful iteration.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IterationRecord {
+    /// Round index at which it happened.
+    pub round: u32,
+    /// Inliers of the new estimate.
+    pub inliers: u16,
+    /// Correspondences given to GetTransform.
+    pub pairs: u16,
+    /// RMS residual of the inliers, metres.
+    pub rms_m: f32,
+    /// t̃ used for the viewpoints of this iteration, metres.
+    pub t_m: f32,
+    /// r̃ used for the viewpoints of this iteration, radians.
+    pub r_rad: f32,
+    /// Translation change of the estimate, metres.
+    pub update_m: f32,
+}
+
+/// Quality of the returned pose.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Quality {
+    /// Inliers of the returned pose (0 if no iteration succeeded).
+    pub inliers: u16,
+    /// RMS residual of those inliers, metres.
+    pub rms_m: f32,
+    /// Inliers over pairs given to GetTransform.
+    pub inlier_ratio: f32,
+    /// Successful iterations, in order (multi-seed winner first when used).
+    pub history: heapless::Vec<IterationRecord, MAX_ITER>,
+}
+
+/// The result of a relocalization.
+#[derive(Clone, Debug)]
+pub struct Outcome {
+    /// Best `world_from_left` (the prior if no iteration succeeded).
+    pub pose: Pose,
+    /// `None` on success; otherwise why it stopped (the pose is then not trusted,
+    /// except as the anytime estimate with `RelocBudgetExhausted`).
+    pub failure: Option<FailureCode>,
+    /// Quality of `pose`.
+    pub quality: Quality,
+    /// Work counters.
+    pub stats: Stats,
+    /// Rejections and failures by cause.
+    pub log: FailureLog,
+}

@@ -1,0 +1,792 @@
+//! The real per-attempt pipeline: SamplePoint → Synthesize → Match → Valid →
+//! Stereo (paper §III-C, §III-D), implementing [`super::Attempt`].
+//!
+//! Inputs: the map, the real left/right images, the rig, a [`MatchPolicy`] and a
+//! [`Workspace`] of caller-provided buffers sized by [`WorkspaceSizes`]. Output:
+//! one [`Correspondence`] (map vertex in world, triangulated point in the left
+//! camera) or the code of the rejecting step.
+//!
+//! Bounds per attempt: at most [`MAX_SAMPLE_TRIES`] vertex draws, two renders of
+//! ℓ×ℓ, at most two template searches per policy variant (≤ [`MATCH_VARIANTS`]),
+//! each in a window of at most `policy.search_px`² pixels, and one triangulation.
+
+use super::policy::MatchPolicy;
+use super::workspace::Workspace;
+use super::{Attempt, AttemptContext, Correspondence, PipelineStats};
+use crate::config::Params;
+use crate::failure::FailureCode;
+use crate::geom::{Pose, StereoRig, Vec3};
+use crate::image::{GrayView, Rect};
+use crate::map::MapView;
+use crate::ncc;
+use crate::raster::{self, Target};
+use crate::stereo;
+
+/// Vertex draws per attempt before the attempt is rejected as out of view.
+pub const MAX_SAMPLE_TRIES: u32 = 16;
+/// Occlusion tolerance: a vertex is hidden when the rendered depth at its pixel
+/// is nearer by more than this plus [`OCCLUSION_REL`] of its depth, metres.
+pub const OCCLUSION_ABS_M: f32 = 0.03;
+/// Relative part of the occlusion tolerance.
+pub const OCCLUSION_REL: f32 = 0.02;
+
+/// The real [`Attempt`]: renders, matches and triangulates one map vertex.
+pub struct Pipeline<'a, 'w> {
+    map: &'a MapView<'a>,
+    left: GrayView<'a>,
+    right: GrayView<'a>,
+    rig: StereoRig,
+    template_px: usize,
+    epsilon_px: f32,
+    policy: MatchPolicy,
+    ws: Workspace<'w>,
+}
+
+/// A sampled vertex and its projections.
+struct Sample {
+    world: Vec3,
+    cam: Vec3,
+    left: [f32; 2],
+    right: [f32; 2],
+}
+
+fn round_i32(v: f32) -> i32 {
+    libm::floorf(v + 0.5) as i32
+}
+
+/// Search rectangle of side ℓ + 2r centred on `px`, capped at `cap` and clipped to the image.
+fn search_rect(px: [f32; 2], l: usize, r: i32, cap: usize, w: usize, h: usize) -> Rect {
+    let half_max = (cap.saturating_sub(l) / 2) as i32;
+    let r = r.clamp(0, half_max);
+    let side = l as i32 + 2 * r;
+    // Saturating: `px` is checked in view by SamplePoint, but the arithmetic stays total.
+    let x0 = round_i32(px[0]).saturating_sub(side / 2);
+    let y0 = round_i32(px[1]).saturating_sub(side / 2);
+    let (w, h) = (w as i32, h as i32);
+    let cx0 = x0.clamp(0, w);
+    let cy0 = y0.clamp(0, h);
+    let cx1 = x0.saturating_add(side).clamp(0, w);
+    let cy1 = y0.saturating_add(side).clamp(0, h);
+    Rect::new(
+        cx0,
+        cy0,
+        (cx1 - cx0).max(0) as u32,
+        (cy1 - cy0).max(0) as u32,
+    )
+}
+
+impl<'a, 'w> Pipeline<'a, 'w> {
+    /// A pipeline over `map` and the real stereo pair.
+    ///
+    /// # Errors
+    /// [`FailureCode::ImageSizeMismatch`] if an image differs from the rig's size;
+    /// [`FailureCode::ConfigParamOutOfRange`] for an invalid policy or params;
+    /// [`FailureCode::ConfigCapacityTooSmall`] if the workspace was sized for a
+    /// smaller ℓ or search side; [`FailureCode::RelocNoVisibleMaskVertex`] if the
+    /// map has no mask vertex.
+    pub fn new(
+        map: &'a MapView<'a>,
+        left: GrayView<'a>,
+        right: GrayView<'a>,
+        rig: &StereoRig,
+        params: &Params,
+        policy: &MatchPolicy,
+        ws: Workspace<'w>,
+    ) -> Result<Self, FailureCode> {
+        params.validate()?;
+        let l = usize::from(params.template_px);
+        policy.validate(l)?;
+        let (w, h) = (rig.cam.width as usize, rig.cam.height as usize);
+        let same = |v: &GrayView| v.width() == w && v.height() == h;
+        if !same(&left) || !same(&right) {
+            return Err(FailureCode::ImageSizeMismatch);
+        }
+        if ws.sizes.template_px < l || ws.sizes.search_px < usize::from(policy.search_px) {
+            return Err(FailureCode::ConfigCapacityTooSmall);
+        }
+        if map.mask_vertex_count() == 0 {
+            return Err(FailureCode::RelocNoVisibleMaskVertex);
+        }
+        Ok(Self {
+            map,
+            left,
+            right,
+            rig: *rig,
+            template_px: l,
+            epsilon_px: params.epsilon_px,
+            policy: *policy,
+            ws,
+        })
+    }
+
+    /// SamplePoint: a random mask vertex whose left and right projections lie
+    /// ℓ/2 inside both images.
+    fn sample(
+        &self,
+        cam_from_world: &Pose,
+        rng: &mut crate::rng::Rng,
+        stats: &mut PipelineStats,
+    ) -> Result<Sample, FailureCode> {
+        let n = self.map.mask_vertex_count();
+        let margin = (self.template_px / 2) as f32;
+        for _ in 0..MAX_SAMPLE_TRIES {
+            let k = rng.below(n);
+            let Some(world) = self.map.mask_vertex(k).and_then(|i| self.map.vertex(i)) else {
+                continue;
+            };
+            let cam = cam_from_world.transform_point(&world);
+            match self.rig.project_stereo(&cam) {
+                Some((l, r))
+                    if self.rig.cam.contains(l[0], l[1], margin)
+                        && self.rig.cam.contains(r[0], r[1], margin) =>
+                {
+                    return Ok(Sample {
+                        world,
+                        cam,
+                        left: l,
+                        right: r,
+                    });
+                }
+                _ => stats.out_of_view = stats.out_of_view.saturating_add(1),
+            }
+        }
+        Err(FailureCode::RelocSampleOutOfView)
+    }
+}
+
+/// Window of side ℓ whose centre pixel holds `px`.
+fn template_rect(px: [f32; 2], l: usize) -> Rect {
+    let h = (l / 2) as i32;
+    Rect::new(
+        round_i32(px[0]) - h,
+        round_i32(px[1]) - h,
+        l as u32,
+        l as u32,
+    )
+}
+
+/// Accept a match under `policy`.
+fn accept(m: &ncc::Match, policy: &MatchPolicy) -> Result<(), FailureCode> {
+    if m.score < policy.min_score {
+        Err(FailureCode::NccLowScore)
+    } else if m.runner_up > policy.max_runner_up_ratio * m.score {
+        Err(FailureCode::NccAmbiguous)
+    } else {
+        Ok(())
+    }
+}
+
+impl Attempt for Pipeline<'_, '_> {
+    fn attempt(
+        &mut self,
+        ctx: &AttemptContext,
+        rng: &mut crate::rng::Rng,
+        stats: &mut PipelineStats,
+    ) -> Result<Correspondence, FailureCode> {
+        let l = self.template_px;
+        let cam = self.rig.cam;
+        let vp_left = ctx.world_from_viewpoint;
+        let s = self.sample(&vp_left.inverse(), rng, stats)?;
+
+        // Synthesize: left and right templates centred on the vertex's projections.
+        let ws = &mut self.ws;
+        let n = l * l;
+        let rect_l = template_rect(s.left, l);
+        let rect_r = template_rect(s.right, l);
+        let vp_right = self.rig.world_from_right(&vp_left);
+        for (pose, rect, inten, depth, mdepth) in [
+            (
+                &vp_left,
+                rect_l,
+                &mut *ws.inten_l,
+                &mut *ws.depth_l,
+                &mut *ws.mdepth_l,
+            ),
+            (
+                &vp_right,
+                rect_r,
+                &mut *ws.inten_r,
+                &mut *ws.depth_r,
+                &mut *ws.mdepth_r,
+            ),
+        ] {
+            let mut target = Target {
+                intensity: inten,
+                depth,
+                mask_depth: mdepth,
+            };
+            let rs = raster::render_window(self.map, &cam, pose, rect, &mut target)?;
+            stats.renders = stats.renders.saturating_add(1);
+            stats.render_pixels = stats
+                .render_pixels
+                .saturating_add(u64::from(rs.pixels_written));
+        }
+        // Occlusion: the surface drawn at the vertex's pixel must be the vertex's own.
+        let centre = (l / 2) * l + l / 2;
+        let drawn = ws.depth_l.get(centre).copied().and_then(raster::depth_to_m);
+        let tol = OCCLUSION_ABS_M + OCCLUSION_REL * s.cam.z;
+        if drawn.is_none_or(|z| z < s.cam.z - tol) {
+            stats.occluded = stats.occluded.saturating_add(1);
+            return Err(FailureCode::RelocSampleOccluded);
+        }
+        let (Some(dl), Some(ml), Some(dr), Some(mr)) = (
+            ws.depth_l.get(..n),
+            ws.mdepth_l.get(..n),
+            ws.depth_r.get(..n),
+            ws.mdepth_r.get(..n),
+        ) else {
+            return Err(FailureCode::ConfigCapacityTooSmall);
+        };
+        raster::template_mask(dl, ml, l, l, ws.mask_l);
+        raster::template_mask(dr, mr, l, l, ws.mask_r);
+
+        // Match: search windows from the projected uncertainty around the prediction.
+        let f = cam.fx.max(cam.fy);
+        let r_px = f * (2.0 * ctx.t_m / s.cam.z.max(0.1) + 2.0 * ctx.r_rad);
+        let r_px = if r_px.is_finite() {
+            libm::ceilf(r_px) as i32 + i32::from(self.policy.margin_px)
+        } else {
+            0
+        };
+        let cap = usize::from(self.policy.search_px);
+        let (w, h) = (cam.width as usize, cam.height as usize);
+        let search_l = search_rect(s.left, l, r_px, cap, w, h);
+        let search_r = search_rect(s.right, l, r_px, cap, w, h);
+        fn view(b: &[u8], l: usize) -> Result<GrayView<'_>, FailureCode> {
+            GrayView::new(b, l, l, l)
+        }
+        let (tl, tml, tr, tmr) = (
+            view(ws.inten_l, l)?,
+            view(ws.mask_l, l)?,
+            view(ws.inten_r, l)?,
+            view(ws.mask_r, l)?,
+        );
+        let mut last = FailureCode::NccLowScore;
+        for v in self.policy.variants.iter().flatten() {
+            fn crop(t: GrayView<'_>, half: bool) -> Option<GrayView<'_>> {
+                if half {
+                    ncc::sub_template(&t)
+                } else {
+                    Some(t)
+                }
+            }
+            let (Some(tl), Some(tml), Some(tr), Some(tmr)) = (
+                crop(tl, v.half),
+                crop(tml, v.half),
+                crop(tr, v.half),
+                crop(tmr, v.half),
+            ) else {
+                continue;
+            };
+            let (ox, oy) = if v.half {
+                let r = ncc::sub_template_rect(l, l);
+                (r.x as f32, r.y as f32)
+            } else {
+                (0.0, 0.0)
+            };
+            let idx = v.index();
+            let mut one = |t, m, img, search| -> Result<ncc::Match, FailureCode> {
+                if let Some(c) = stats.matches.get_mut(idx) {
+                    *c = c.saturating_add(1);
+                }
+                let (m, ms) = ncc::match_template(
+                    t,
+                    Some(m),
+                    img,
+                    search,
+                    v.filter,
+                    self.policy.search,
+                    &mut ws.scratch,
+                )?;
+                stats.ncc_positions = stats.ncc_positions.saturating_add(ms.positions_scored);
+                stats.ncc_macs = stats.ncc_macs.saturating_add(ms.macs);
+                accept(&m, &self.policy)?;
+                Ok(m)
+            };
+            let ml = match one(tl, tml, self.left, search_l) {
+                Ok(m) => m,
+                Err(e) => {
+                    last = e;
+                    continue;
+                }
+            };
+            let mr = match one(tr, tmr, self.right, search_r) {
+                Ok(m) => m,
+                Err(e) => {
+                    last = e;
+                    continue;
+                }
+            };
+            if let Some(c) = stats.accepted.get_mut(idx) {
+                *c = c.saturating_add(1);
+            }
+            // The vertex sits at (projection − template origin) inside the template.
+            let pl = [
+                ml.sub_x + (s.left[0] - rect_l.x as f32 - ox),
+                ml.sub_y + (s.left[1] - rect_l.y as f32 - oy),
+            ];
+            let pr = [
+                mr.sub_x + (s.right[0] - rect_r.x as f32 - ox),
+                mr.sub_y + (s.right[1] - rect_r.y as f32 - oy),
+            ];
+            // Valid + Stereo.
+            let p = stereo::triangulate(
+                &self.rig,
+                pl,
+                pr,
+                self.epsilon_px,
+                self.policy.sigma_d_px,
+                self.policy.min_disparity_px,
+            )?;
+            stats.triangulations = stats.triangulations.saturating_add(1);
+            return Ok(Correspondence {
+                world: s.world,
+                cam: p.p_cam,
+                sigma_m: p.sigma_z_m,
+            });
+        }
+        Err(last)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::super::policy::MatchPolicy;
+    use super::super::solver::RansacSolver;
+    use super::super::workspace::WorkspaceSizes;
+    use super::super::workspace::{Workspace, TEST_WORKSPACE};
+    use super::super::{Options, Outcome, Relocalizer, StepResult};
+    use super::*;
+    use crate::geom::Camera;
+    use crate::map::MapSource;
+    use crate::ncc::Run;
+    use crate::rng::Rng;
+    use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
+    use std::vec;
+    use std::vec::Vec;
+
+    const EXTENT_M: f32 = 8.0;
+    const GRID: usize = 81;
+    const TEX: usize = 1024;
+
+    /// Value noise: random lattice values every `cell` texels, bilinear in between.
+    fn value_noise(rng: &mut Rng, cell: usize, amp: f32, out: &mut [f32]) {
+        let n = TEX / cell + 2;
+        let lattice: Vec<f32> = (0..n * n).map(|_| rng.uniform(-amp, amp)).collect();
+        for y in 0..TEX {
+            for x in 0..TEX {
+                let (gx, gy) = (x / cell, y / cell);
+                let fx = (x % cell) as f32 / cell as f32;
+                let fy = (y % cell) as f32 / cell as f32;
+                let at = |i: usize, j: usize| lattice[j * n + i];
+                let top = at(gx, gy) * (1.0 - fx) + at(gx + 1, gy) * fx;
+                let bot = at(gx, gy + 1) * (1.0 - fx) + at(gx + 1, gy + 1) * fx;
+                out[y * TEX + x] += top * (1.0 - fy) + bot * fy;
+            }
+        }
+    }
+
+    /// A textured bumpy heightfield over [0, 8] × [-4, 4] m, every triangle in M̂.
+    fn build_map(seed: u64) -> Vec<u8> {
+        let mut rng = Rng::new(seed);
+        let bumps: Vec<(f32, f32, f32)> = (0..25)
+            .map(|_| {
+                (
+                    rng.uniform(0.0, EXTENT_M),
+                    rng.uniform(-4.0, 4.0),
+                    rng.uniform(0.05, 0.3),
+                )
+            })
+            .collect();
+        let height = |x: f32, y: f32| {
+            let mut z = 0.05 * libm::sinf(1.3 * x) * libm::cosf(1.1 * y);
+            for (bx, by, h) in &bumps {
+                let d2 = (x - bx) * (x - bx) + (y - by) * (y - by);
+                z += h * libm::expf(-d2 / (2.0 * 0.3 * 0.3));
+            }
+            z
+        };
+        let step = EXTENT_M / (GRID - 1) as f32;
+        let mut vertices = Vec::new();
+        for j in 0..GRID {
+            for i in 0..GRID {
+                let (x, y) = (i as f32 * step, -4.0 + j as f32 * step);
+                vertices.push([x, y, height(x, y)]);
+            }
+        }
+        let uv_of =
+            |i: usize, j: usize| [i as f32 / (GRID - 1) as f32, j as f32 / (GRID - 1) as f32];
+        let (mut triangles, mut uvs) = (Vec::new(), Vec::new());
+        for j in 0..GRID - 1 {
+            for i in 0..GRID - 1 {
+                let v = |i: usize, j: usize| (j * GRID + i) as u32;
+                triangles.push([v(i, j), v(i + 1, j), v(i + 1, j + 1)]);
+                uvs.push([uv_of(i, j), uv_of(i + 1, j), uv_of(i + 1, j + 1)]);
+                triangles.push([v(i, j), v(i + 1, j + 1), v(i, j + 1)]);
+                uvs.push([uv_of(i, j), uv_of(i + 1, j + 1), uv_of(i, j + 1)]);
+            }
+        }
+        let mask = vec![true; triangles.len()];
+        let mut acc = vec![128.0f32; TEX * TEX];
+        value_noise(&mut rng, 64, 50.0, &mut acc);
+        value_noise(&mut rng, 16, 40.0, &mut acc);
+        value_noise(&mut rng, 4, 20.0, &mut acc);
+        let texture: Vec<u8> = acc.iter().map(|v| v.clamp(0.0, 255.0) as u8).collect();
+        let src = MapSource {
+            vertices: &vertices,
+            triangles: &triangles,
+            uvs: &uvs,
+            mask: &mask,
+            texture: GrayView::new(&texture, TEX, TEX, TEX).unwrap(),
+            tile_size_m: 1.0,
+        };
+        let mut out = vec![0u8; crate::map::encoded_len(&src).unwrap()];
+        crate::map::encode(&src, &mut out).unwrap();
+        out
+    }
+
+    fn rig() -> StereoRig {
+        StereoRig::new(Camera::from_hfov(640, 480, 70.0).unwrap(), 0.3).unwrap()
+    }
+
+    /// Left camera at (x, y, 1.2 m) looking along world +x, pitched 40° down.
+    fn camera_pose(x: f32, y: f32) -> Pose {
+        let p = 40.0f32.to_radians();
+        let zc = Vec3::new(libm::cosf(p), 0.0, -libm::sinf(p));
+        let xc = Vec3::new(0.0, -1.0, 0.0);
+        let yc = zc.cross(&xc);
+        let r = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[xc, yc, zc]));
+        Pose::new(
+            UnitQuaternion::from_rotation_matrix(&r),
+            Vec3::new(x, y, 1.2),
+        )
+    }
+
+    /// Render the full image in `MAX_RENDER_PX` tiles, then apply gain and offset.
+    fn render_full(map: &MapView, cam: &Camera, pose: &Pose, gain: f32, offset: f32) -> Vec<u8> {
+        let (w, h) = (cam.width as usize, cam.height as usize);
+        let mut img = vec![0u8; w * h];
+        let t = crate::config::MAX_RENDER_PX;
+        let (mut inten, mut depth, mut md) =
+            (vec![0u8; t * t], vec![0u32; t * t], vec![0u32; t * t]);
+        for ty in (0..h).step_by(t) {
+            for tx in (0..w).step_by(t) {
+                let (tw, th) = (t.min(w - tx), t.min(h - ty));
+                let rect = Rect::new(tx as i32, ty as i32, tw as u32, th as u32);
+                let mut target = Target {
+                    intensity: &mut inten,
+                    depth: &mut depth,
+                    mask_depth: &mut md,
+                };
+                if raster::render_window(map, cam, pose, rect, &mut target).is_err() {
+                    continue;
+                }
+                for y in 0..th {
+                    for x in 0..tw {
+                        let v = f32::from(inten[y * tw + x]) * gain + offset;
+                        img[(ty + y) * w + tx + x] = v.clamp(0.0, 255.0) as u8;
+                    }
+                }
+            }
+        }
+        img
+    }
+
+    fn test_params() -> Params {
+        Params {
+            template_px: 64,
+            n_corr: 40,
+            n_iter: 5,
+            attempts_per_iter: 400,
+            ransac_iter: 400,
+            max_reseed: 4,
+            ..Params::paper()
+        }
+    }
+
+    fn relocalize(map: &MapView, left: &[u8], right: &[u8], prior: &Pose, seed: u64) -> Outcome {
+        relocalize_with(map, left, right, prior, seed, &test_params())
+    }
+
+    fn relocalize_with(
+        map: &MapView,
+        left: &[u8],
+        right: &[u8],
+        prior: &Pose,
+        seed: u64,
+        p: &Params,
+    ) -> Outcome {
+        relocalize_stepped(map, left, right, prior, seed, p, 0)
+    }
+
+    /// `chunk` = 0: run to completion; otherwise `step_n(chunk)` until done.
+    fn relocalize_stepped(
+        map: &MapView,
+        left: &[u8],
+        right: &[u8],
+        prior: &Pose,
+        seed: u64,
+        p: &Params,
+        chunk: u32,
+    ) -> Outcome {
+        let rig = rig();
+        let p = *p;
+        let mut policy = MatchPolicy::for_params(&p);
+        policy.search_px = TEST_WORKSPACE.search_px as u16;
+        let sizes = TEST_WORKSPACE;
+        let mut bytes = vec![0u8; sizes.bytes];
+        let mut words = vec![0u32; sizes.words];
+        let mut runs = vec![Run::default(); sizes.runs];
+        let ws = Workspace::new(sizes, &mut bytes, &mut words, &mut runs).unwrap();
+        let lv = GrayView::new(left, 640, 480, 640).unwrap();
+        let rv = GrayView::new(right, 640, 480, 640).unwrap();
+        let pipe = Pipeline::new(map, lv, rv, &rig, &p, &policy, ws).unwrap();
+        let mut o = Options::for_params(&p);
+        o.min_inliers = 15;
+        let mut r =
+            Relocalizer::new(pipe, RansacSolver::from_params(&p), &p, &o, prior, seed).unwrap();
+        if chunk == 0 {
+            return r.run_to_completion(0);
+        }
+        let mut now = 0;
+        loop {
+            now += 1;
+            if let StepResult::Done(o) = r.step_n(now, chunk) {
+                return o;
+            }
+        }
+    }
+
+    fn scene() -> (Vec<u8>, Pose) {
+        (build_map(1), camera_pose(0.6, 0.2))
+    }
+
+    fn workspace_buffers(s: &WorkspaceSizes) -> (Vec<u8>, Vec<u32>, Vec<Run>) {
+        (
+            vec![0u8; s.bytes],
+            vec![0u32; s.words],
+            vec![Run::default(); s.runs],
+        )
+    }
+
+    /// Verifies: VTSM-RELOC-019
+    #[test]
+    fn attempts_from_the_true_pose_give_consistent_correspondences() {
+        let (bytes, truth) = scene();
+        let map = MapView::new_checked(&bytes).unwrap();
+        let rig = rig();
+        let left = render_full(&map, &rig.cam, &truth, 0.85, 20.0);
+        let right = render_full(&map, &rig.cam, &rig.world_from_right(&truth), 0.85, 20.0);
+        let p = test_params();
+        let mut policy = MatchPolicy::for_params(&p);
+        policy.search_px = TEST_WORKSPACE.search_px as u16;
+        let (mut b, mut w, mut r) = workspace_buffers(&TEST_WORKSPACE);
+        let ws = Workspace::new(TEST_WORKSPACE, &mut b, &mut w, &mut r).unwrap();
+        let lv = GrayView::new(&left, 640, 480, 640).unwrap();
+        let rv = GrayView::new(&right, 640, 480, 640).unwrap();
+        let mut pipe = Pipeline::new(&map, lv, rv, &rig, &p, &policy, ws).unwrap();
+        let mut stats = PipelineStats::default();
+        let ctx = AttemptContext {
+            world_from_viewpoint: truth,
+            t_m: 0.05,
+            r_rad: 0.01,
+            index: 0,
+            round: 0,
+        };
+        let cam_from_world = truth.inverse();
+        let (mut ok, mut occluded, mut other) = (0u32, 0u32, 0u32);
+        let n = 60u32;
+        for i in 0..n {
+            let mut rng = Rng::new(9).fork(u64::from(i));
+            match pipe.attempt(&ctx, &mut rng, &mut stats) {
+                Ok(c) => {
+                    ok += 1;
+                    // Independent reference: the vertex seen from the true pose.
+                    let expect = cam_from_world.transform_point(&c.world);
+                    let err = (c.cam - expect).norm();
+                    assert!(
+                        err < 0.03 + 3.0 * c.sigma_m,
+                        "pair {i}: {err} m (sigma {})",
+                        c.sigma_m
+                    );
+                }
+                Err(FailureCode::RelocSampleOccluded) => occluded += 1,
+                Err(_) => other += 1,
+            }
+        }
+        std::println!("ok {ok} occluded {occluded} other {other} {stats:?}");
+        assert!(ok >= n * 3 / 4, "only {ok} of {n}");
+        assert_eq!(stats.occluded, occluded);
+        assert_eq!(stats.triangulations, ok);
+        assert!(stats.renders <= 2 * n);
+        assert_eq!(stats.accepted.iter().sum::<u32>(), ok);
+        assert!(stats.matches.iter().sum::<u32>() <= 2 * 6 * n);
+
+        // Looking at the sky: every draw is out of view and the attempt says so.
+        let up = Pose::new(
+            UnitQuaternion::from_axis_angle(&Vec3::x_axis(), core::f32::consts::PI)
+                * truth.rotation(),
+            truth.translation(),
+        );
+        let before = stats.out_of_view;
+        let sky = AttemptContext {
+            world_from_viewpoint: Pose::new(up.rotation(), Vec3::new(-50.0, 0.0, 30.0)),
+            ..ctx
+        };
+        let got = pipe.attempt(&sky, &mut Rng::new(1), &mut stats).err();
+        assert_eq!(got, Some(FailureCode::RelocSampleOutOfView));
+        assert_eq!(stats.out_of_view - before, MAX_SAMPLE_TRIES);
+    }
+
+    /// Verifies: VTSM-RELOC-016
+    #[test]
+    fn pipeline_refuses_mismatched_images_and_small_workspaces() {
+        let (bytes, _) = scene();
+        let map = MapView::new_checked(&bytes).unwrap();
+        let rig = rig();
+        let p = test_params();
+        let policy = MatchPolicy {
+            search_px: 256,
+            ..MatchPolicy::for_params(&p)
+        };
+        let img = vec![0u8; 640 * 480];
+        let small = vec![0u8; 320 * 240];
+        let lv = GrayView::new(&img, 640, 480, 640).unwrap();
+        let sv = GrayView::new(&small, 320, 240, 320).unwrap();
+        let (mut b, mut w, mut r) = workspace_buffers(&TEST_WORKSPACE);
+        let ws = Workspace::new(TEST_WORKSPACE, &mut b, &mut w, &mut r).unwrap();
+        let e = Pipeline::new(&map, lv, sv, &rig, &p, &policy, ws).err();
+        assert_eq!(e, Some(FailureCode::ImageSizeMismatch));
+        let tiny = WorkspaceSizes::new(32, 256, ncc::Search::CoarseToFine);
+        let (mut b, mut w, mut r) = workspace_buffers(&tiny);
+        let ws = Workspace::new(tiny, &mut b, &mut w, &mut r).unwrap();
+        let e = Pipeline::new(&map, lv, lv, &rig, &p, &policy, ws).err();
+        assert_eq!(e, Some(FailureCode::ConfigCapacityTooSmall));
+        let (mut b, mut w, mut r) = workspace_buffers(&TEST_WORKSPACE);
+        let ws = Workspace::new(TEST_WORKSPACE, &mut b, &mut w, &mut r).unwrap();
+        let wide = MatchPolicy {
+            search_px: 512,
+            ..policy
+        };
+        let e = Pipeline::new(&map, lv, lv, &rig, &p, &wide, ws).err();
+        assert_eq!(e, Some(FailureCode::ConfigCapacityTooSmall));
+    }
+
+    proptest::proptest! {
+        /// Verifies: VTSM-RELOC-019
+        #[test]
+        fn search_window_is_inside_the_image_and_under_the_cap(
+            u in -100.0f32..800.0, v in -100.0f32..600.0, r in -10i32..600, l in 16usize..128,
+        ) {
+            let l = l & !1;
+            let cap = 256usize.max(l);
+            let s = search_rect([u, v], l, r, cap, 640, 480);
+            proptest::prop_assert!(s.x >= 0 && s.y >= 0);
+            proptest::prop_assert!(s.x as u32 + s.w <= 640 && s.y as u32 + s.h <= 480);
+            proptest::prop_assert!(s.w as usize <= cap && s.h as usize <= cap);
+            // Away from the border the window is centred on the prediction and holds the template.
+            let inner = u > 300.0 && u < 340.0 && v > 220.0 && v < 260.0;
+            if inner && r >= 0 {
+                proptest::prop_assert!(s.w as usize >= l && s.h as usize >= l);
+                let cx = s.x as f32 + s.w as f32 / 2.0;
+                proptest::prop_assert!((cx - u).abs() <= 1.0);
+            }
+        }
+    }
+
+    fn perturb(truth: &Pose, rng: &mut Rng, t_m: f32, r_deg: f32) -> Pose {
+        let axis = rng.unit_vector3();
+        let az = rng.uniform(0.0, core::f32::consts::TAU);
+        let d = Vec3::new(libm::cosf(az), libm::sinf(az), rng.uniform(-0.2, 0.2)).normalize() * t_m;
+        let rot = truth.rotation() * UnitQuaternion::from_scaled_axis(axis * r_deg.to_radians());
+        Pose::new(rot, truth.translation() + d)
+    }
+
+    /// Verifies: VTSM-RELOC-001
+    #[test]
+    fn converges_from_perturbed_priors_on_a_textured_scene() {
+        let bytes = build_map(1);
+        let map = MapView::new_checked(&bytes).unwrap();
+        let rig = rig();
+        let truth = camera_pose(0.6, 0.2);
+        let left = render_full(&map, &rig.cam, &truth, 0.85, 20.0);
+        let right = render_full(&map, &rig.cam, &rig.world_from_right(&truth), 0.85, 20.0);
+        let mut rng = Rng::new(77);
+        for (k, (t, r)) in [(0.10f32, 1.0f32), (0.15, 1.5), (0.20, 1.2)]
+            .iter()
+            .enumerate()
+        {
+            let prior = perturb(&truth, &mut rng, *t, *r);
+            let out = relocalize(&map, &left, &right, &prior, 100 + k as u64);
+            let (et, er) = out.pose.error_to(&truth);
+            std::println!(
+                "prior {t} m {r}°: err {et:.4} m {:.3}°, failure {:?}, inliers {}, iters {}, attempts {}",
+                er.to_degrees(),
+                out.failure,
+                out.quality.inliers,
+                out.stats.successes,
+                out.stats.attempts
+            );
+            assert_eq!(out.failure, None);
+            assert!(et < 0.05, "error {et} m");
+            assert!(out.quality.inliers >= 15);
+            if k == 0 {
+                // Same seed, stepped 3 units at a time: bit-identical outcome.
+                let p = test_params();
+                let stepped = relocalize_stepped(&map, &left, &right, &prior, 100, &p, 3);
+                assert_eq!(
+                    stepped.pose.t().map(f32::to_bits),
+                    out.pose.t().map(f32::to_bits)
+                );
+                assert_eq!(
+                    stepped.pose.q().map(f32::to_bits),
+                    out.pose.q().map(f32::to_bits)
+                );
+                assert_eq!(stepped.stats, out.stats);
+                assert_eq!(stepped.quality, out.quality);
+            }
+        }
+    }
+
+    /// Verifies: VTSM-RELOC-015
+    #[test]
+    fn wrong_prior_or_wrong_place_gives_a_failure_code() {
+        let bytes = build_map(1);
+        let map = MapView::new_checked(&bytes).unwrap();
+        let rig = rig();
+        let truth = camera_pose(0.6, 0.2);
+        // Images of a different place: another random scene.
+        let other_bytes = build_map(2);
+        let other = MapView::new_checked(&other_bytes).unwrap();
+        let left = render_full(&other, &rig.cam, &truth, 1.0, 0.0);
+        let right = render_full(&other, &rig.cam, &rig.world_from_right(&truth), 1.0, 0.0);
+        // Fewer attempts per round keep the failing cases short; the rules are the same.
+        let quick = Params {
+            attempts_per_iter: 100,
+            max_reseed: 1,
+            ..test_params()
+        };
+        let out = relocalize_with(&map, &left, &right, &truth, 5, &quick);
+        std::println!(
+            "other place: {:?} inliers {}",
+            out.failure,
+            out.quality.inliers
+        );
+        assert!(out.failure.is_some());
+        // A prior 1 m off: either a failure code or (if it still finds the truth) a correct pose.
+        let left = render_full(&map, &rig.cam, &truth, 1.0, 0.0);
+        let right = render_full(&map, &rig.cam, &rig.world_from_right(&truth), 1.0, 0.0);
+        let prior = Pose::new(
+            truth.rotation(),
+            truth.translation() + Vec3::new(0.7, 0.7, 0.0).normalize(),
+        );
+        let out = relocalize_with(&map, &left, &right, &prior, 6, &quick);
+        let (et, _) = out.pose.error_to(&truth);
+        std::println!("1 m off: {:?} err {et}", out.failure);
+        assert!(
+            out.failure.is_some() || et < 0.05,
+            "confident wrong pose, error {et} m"
+        );
+    }
+}

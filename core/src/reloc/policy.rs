@@ -1,0 +1,140 @@
+//! The Match policy (paper §III-D): which template variants to try, in what
+//! order, and how to accept a match. Plain data, validated once.
+
+use super::MATCH_VARIANTS;
+use crate::config::{Params, MAX_SEARCH_PX};
+use crate::failure::FailureCode;
+use crate::ncc::{Filter, Search};
+
+/// One template variant: size (ℓ or the centred ℓ/2) and filter domain.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Variant {
+    /// Use the centred ℓ/2 sub-template.
+    pub half: bool,
+    /// Correlation domain.
+    pub filter: Filter,
+}
+
+impl Variant {
+    /// Index into [`PipelineStats::matches`]: `size * 3 + filter`.
+    pub const fn index(self) -> usize {
+        let f = match self.filter {
+            Filter::Gray => 0,
+            Filter::Sobel => 1,
+            Filter::Laplacian => 2,
+        };
+        (self.half as usize) * 3 + f
+    }
+}
+
+/// Which variants to try, in what order, and how to accept a match.
+///
+/// A variant is accepted when both the left and the right search score at
+/// least `min_score` and their runner-up is at most `max_runner_up_ratio` times
+/// the score; the first accepted variant gives the pixel pair.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MatchPolicy {
+    /// Variants in order of trial; `None` entries are skipped.
+    pub variants: [Option<Variant>; MATCH_VARIANTS],
+    /// Minimum NCC score, (0, 1).
+    pub min_score: f32,
+    /// Largest runner-up / score ratio, (0, 1].
+    pub max_runner_up_ratio: f32,
+    /// Search strategy.
+    pub search: Search,
+    /// Largest search-window side, pixels, ℓ..=MAX_SEARCH_PX.
+    pub search_px: u16,
+    /// Disparity 1-σ for the correspondence's sigma, pixels, ≥ 0.
+    pub sigma_d_px: f32,
+    /// Smallest plausible disparity, pixels, ≥ 0.
+    pub min_disparity_px: f32,
+    /// Extra margin added to the projected uncertainty, pixels.
+    pub margin_px: u16,
+}
+
+impl MatchPolicy {
+    /// Gray, Sobel, Laplacian at ℓ, then (with `params.sub_template`) at ℓ/2;
+    /// `min_score` from `params`, runner-up ratio 0.9, coarse-to-fine search.
+    pub fn for_params(params: &Params) -> Self {
+        let v = |half, filter| Some(Variant { half, filter });
+        let sub = params.sub_template;
+        Self {
+            variants: [
+                v(false, Filter::Gray),
+                v(false, Filter::Sobel),
+                v(false, Filter::Laplacian),
+                if sub { v(true, Filter::Gray) } else { None },
+                if sub { v(true, Filter::Sobel) } else { None },
+                if sub {
+                    v(true, Filter::Laplacian)
+                } else {
+                    None
+                },
+            ],
+            min_score: params.min_score,
+            max_runner_up_ratio: 0.9,
+            search: Search::CoarseToFine,
+            search_px: MAX_SEARCH_PX as u16,
+            sigma_d_px: 0.5,
+            min_disparity_px: 1.0,
+            margin_px: 4,
+        }
+    }
+
+    /// Check the ranges documented on each field for template side `template_px`.
+    ///
+    /// # Errors
+    /// [`FailureCode::ConfigParamOutOfRange`].
+    pub fn validate(&self, template_px: usize) -> Result<(), FailureCode> {
+        let s = usize::from(self.search_px);
+        let ok = self.min_score.is_finite()
+            && self.min_score > 0.0
+            && self.min_score < 1.0
+            && self.max_runner_up_ratio.is_finite()
+            && self.max_runner_up_ratio > 0.0
+            && self.max_runner_up_ratio <= 1.0
+            && (template_px..=MAX_SEARCH_PX).contains(&s)
+            && self.sigma_d_px.is_finite()
+            && self.sigma_d_px >= 0.0
+            && self.min_disparity_px.is_finite()
+            && self.min_disparity_px >= 0.0
+            && self.variants.iter().any(Option::is_some);
+        if ok {
+            Ok(())
+        } else {
+            Err(FailureCode::ConfigParamOutOfRange)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Verifies: VTSM-RELOC-017
+    #[test]
+    fn default_policy_orders_full_then_half_and_validates_ranges() {
+        let mut p = Params::paper();
+        let pol = MatchPolicy::for_params(&p);
+        assert_eq!(pol.validate(256), Ok(()));
+        let idx: heapless::Vec<usize, 6> =
+            pol.variants.iter().flatten().map(|v| v.index()).collect();
+        assert_eq!(idx.as_slice(), &[0, 1, 2, 3, 4, 5]);
+        p.sub_template = false;
+        let pol = MatchPolicy::for_params(&p);
+        assert_eq!(pol.variants.iter().flatten().count(), 3);
+        assert!(pol.variants.iter().flatten().all(|v| !v.half));
+        let bad = |f: fn(&mut MatchPolicy)| {
+            let mut q = MatchPolicy::for_params(&Params::paper());
+            f(&mut q);
+            q.validate(256)
+        };
+        let err = Err(FailureCode::ConfigParamOutOfRange);
+        assert_eq!(bad(|q| q.min_score = 1.0), err);
+        assert_eq!(bad(|q| q.max_runner_up_ratio = 0.0), err);
+        assert_eq!(bad(|q| q.search_px = 200), err);
+        assert_eq!(bad(|q| q.search_px = MAX_SEARCH_PX as u16 + 1), err);
+        assert_eq!(bad(|q| q.sigma_d_px = f32::NAN), err);
+        assert_eq!(bad(|q| q.variants = [None; MATCH_VARIANTS]), err);
+    }
+}

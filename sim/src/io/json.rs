@@ -1,0 +1,279 @@
+//! The JSON files of design §5: `calib.json` ([`Calib`]), `prior.json` /
+//! `truth.json` ([`PoseFile`]) and `result.json` ([`ResultFile`]).
+//!
+//! Readers reject unknown fields (a misspelt key is an error, not a default),
+//! non-finite or out-of-range numbers, non-positive sizes, focal lengths and
+//! baselines, and quaternions further than [`QUAT_NORM_TOL`] from unit norm.
+//! Errors name the file and, where known, the line.
+
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+use vtsm_core::config::MAX_IMAGE_DIM;
+use vtsm_core::geom::{Camera, Pose, StereoRig};
+use vtsm_core::FailureCode;
+
+/// Largest accepted deviation of a quaternion's norm from 1.
+pub const QUAT_NORM_TOL: f64 = 1.0e-3;
+
+/// `calib.json`: a rectified stereo pair (both cameras share the intrinsics;
+/// the right camera is `baseline_m` along the left camera's +x).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Calib {
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+    /// Focal length along x, pixels.
+    pub fx: f64,
+    /// Focal length along y, pixels.
+    pub fy: f64,
+    /// Principal point x, pixels (pixel-centre convention, design §3).
+    pub cx: f64,
+    /// Principal point y, pixels.
+    pub cy: f64,
+    /// Stereo baseline, metres.
+    pub baseline_m: f64,
+}
+
+impl Calib {
+    /// The core's checked stereo rig.
+    ///
+    /// # Errors
+    /// The core's failure code if a value is out of range (cannot happen for a
+    /// calibration returned by [`read_calib`]).
+    pub fn rig(&self) -> std::result::Result<StereoRig, FailureCode> {
+        let cam = Camera::new(
+            self.fx as f32,
+            self.fy as f32,
+            self.cx as f32,
+            self.cy as f32,
+            self.width,
+            self.height,
+        )?;
+        StereoRig::new(cam, self.baseline_m as f32)
+    }
+
+    /// Check every field; returns the name of the bad field and why.
+    pub fn validate(&self) -> std::result::Result<(), (&'static str, String)> {
+        let dim = |name: &'static str, v: u32| {
+            if v == 0 || v as usize > MAX_IMAGE_DIM {
+                Err((name, format!("{v} is outside 1..={MAX_IMAGE_DIM}")))
+            } else {
+                Ok(())
+            }
+        };
+        dim("width", self.width)?;
+        dim("height", self.height)?;
+        let positive = |name: &'static str, v: f64| {
+            if !(v.is_finite() && v > 0.0 && v < f64::from(f32::MAX)) {
+                Err((name, format!("{v} must be a finite positive number")))
+            } else {
+                Ok(())
+            }
+        };
+        positive("fx", self.fx)?;
+        positive("fy", self.fy)?;
+        positive("baseline_m", self.baseline_m)?;
+        let finite = |name: &'static str, v: f64| {
+            if !(v.is_finite() && v.abs() < f64::from(f32::MAX)) {
+                Err((name, format!("{v} must be finite")))
+            } else {
+                Ok(())
+            }
+        };
+        finite("cx", self.cx)?;
+        finite("cy", self.cy)?;
+        Ok(())
+    }
+}
+
+/// A pose in JSON: `world_from_left`, `p_world = R(q) p_cam + t`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PoseJson {
+    /// Translation, metres.
+    pub t: [f64; 3],
+    /// Rotation quaternion `[w, x, y, z]`.
+    pub q: [f64; 4],
+}
+
+impl PoseJson {
+    /// From a core pose.
+    pub fn from_pose(p: &Pose) -> Self {
+        Self {
+            t: p.t().map(f64::from),
+            q: p.q().map(f64::from),
+        }
+    }
+
+    /// Check finiteness and unit norm; returns the reason.
+    pub fn validate(&self) -> std::result::Result<(), String> {
+        if !self
+            .t
+            .iter()
+            .all(|v| v.is_finite() && v.abs() < f64::from(f32::MAX))
+        {
+            return Err("translation `t` is not finite".to_string());
+        }
+        if !self.q.iter().all(|v| v.is_finite()) {
+            return Err("quaternion `q` is not finite".to_string());
+        }
+        let n = self.q.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if (n - 1.0).abs() > QUAT_NORM_TOL {
+            return Err(format!(
+                "quaternion `q` has norm {n:.6}, not within {QUAT_NORM_TOL} of 1"
+            ));
+        }
+        Ok(())
+    }
+
+    /// The core pose (quaternion renormalised).
+    ///
+    /// # Errors
+    /// The core's failure code for a non-finite or non-unit pose.
+    pub fn pose(&self) -> std::result::Result<Pose, FailureCode> {
+        Pose::from_t_q(self.t.map(|v| v as f32), self.q.map(|v| v as f32))
+    }
+}
+
+/// `prior.json` / `truth.json`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PoseFile {
+    /// Pose of the left camera in the world.
+    pub world_from_left: PoseJson,
+}
+
+/// `result.json`, written by `vtsm relocalize` and `vtsm demo`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ResultFile {
+    /// `"ok"` or `"failed"`.
+    pub status: String,
+    /// Failure code name (e.g. `"RELOC_..."`) or `null`.
+    pub failure: Option<String>,
+    /// Final estimate (the last estimate when failed), or `null` if none.
+    pub world_from_left: Option<PoseJson>,
+    /// RANSAC inliers of the final estimate.
+    pub inliers: u32,
+    /// Successful iterations.
+    pub iterations: u32,
+    /// Work counters, by name (ordered, so the file is deterministic).
+    pub stats: std::collections::BTreeMap<String, u64>,
+}
+
+/// The 1-based line on which `"key"` first appears in `text`, if it does.
+fn key_line(text: &str, key: &str) -> Option<usize> {
+    let needle = format!("\"{key}\"");
+    text.lines()
+        .position(|l| l.contains(&needle))
+        .map(|i| i + 1)
+}
+
+fn parse_json<T: for<'de> Deserialize<'de>>(bytes: &[u8], path: &Path) -> Result<T> {
+    serde_json::from_slice(bytes).map_err(|e| {
+        let msg = format!("invalid JSON: {e}");
+        // serde_json appends " at line L column C"; the line goes in front instead.
+        let msg = match msg.rfind(" at line ") {
+            Some(i) => msg.get(..i).unwrap_or(&msg).to_string(),
+            None => msg,
+        };
+        if e.line() > 0 {
+            Error::at(path, e.line(), msg)
+        } else {
+            Error::file(path, msg)
+        }
+    })
+}
+
+fn field_error(bytes: &[u8], path: &Path, key: &str, why: String) -> Error {
+    let text = String::from_utf8_lossy(bytes);
+    let msg = format!("`{key}`: {why}");
+    match key_line(&text, key) {
+        Some(l) => Error::at(path, l, msg),
+        None => Error::file(path, msg),
+    }
+}
+
+/// Parse and validate `calib.json` bytes.
+///
+/// # Errors
+/// Malformed JSON, a missing or unknown field, or a value out of range.
+pub fn parse_calib(bytes: &[u8], path: &Path) -> Result<Calib> {
+    let c: Calib = parse_json(bytes, path)?;
+    c.validate()
+        .map_err(|(k, why)| field_error(bytes, path, k, why))?;
+    Ok(c)
+}
+
+/// Read and validate `calib.json`.
+///
+/// # Errors
+/// As [`parse_calib`], plus I/O errors.
+pub fn read_calib(path: &Path) -> Result<Calib> {
+    parse_calib(&super::read_file(path)?, path)
+}
+
+/// Parse and validate `prior.json` / `truth.json` bytes into a core pose.
+///
+/// # Errors
+/// Malformed JSON, a missing or unknown field, non-finite numbers, or a
+/// quaternion not within [`QUAT_NORM_TOL`] of unit norm.
+pub fn parse_pose(bytes: &[u8], path: &Path) -> Result<Pose> {
+    let f: PoseFile = parse_json(bytes, path)?;
+    f.world_from_left.validate().map_err(|why| {
+        let key = if why.contains("`t`") { "t" } else { "q" };
+        let text = String::from_utf8_lossy(bytes);
+        match key_line(&text, key) {
+            Some(l) => Error::at(path, l, why),
+            None => Error::file(path, why),
+        }
+    })?;
+    f.world_from_left
+        .pose()
+        .map_err(|c| Error::file(path, format!("pose rejected: {}", c.name())).with_code(c))
+}
+
+/// Read and validate `prior.json` / `truth.json`.
+///
+/// # Errors
+/// As [`parse_pose`], plus I/O errors.
+pub fn read_pose(path: &Path) -> Result<Pose> {
+    parse_pose(&super::read_file(path)?, path)
+}
+
+/// Serialise a pose file (`prior.json` / `truth.json`), pretty-printed.
+pub fn pose_file_text(pose: &Pose) -> String {
+    let f = PoseFile {
+        world_from_left: PoseJson::from_pose(pose),
+    };
+    serde_json::to_string_pretty(&f).unwrap_or_default() + "\n"
+}
+
+/// Serialise a calibration, pretty-printed.
+pub fn calib_text(c: &Calib) -> String {
+    serde_json::to_string_pretty(c).unwrap_or_default() + "\n"
+}
+
+/// Serialise `result.json`, pretty-printed.
+pub fn result_text(r: &ResultFile) -> String {
+    serde_json::to_string_pretty(r).unwrap_or_default() + "\n"
+}
+
+/// Write `result.json` atomically (see [`super::write_atomic`]).
+///
+/// # Errors
+/// I/O errors, or an existing file without `force`.
+pub fn write_result(path: &Path, r: &ResultFile, force: bool) -> Result<()> {
+    super::write_atomic(path, result_text(r).as_bytes(), force)
+}
+
+/// Parse `result.json` bytes (for tools and tests that read results back).
+///
+/// # Errors
+/// Malformed JSON or a missing/unknown field.
+pub fn parse_result(bytes: &[u8], path: &Path) -> Result<ResultFile> {
+    parse_json(bytes, path)
+}

@@ -1,0 +1,450 @@
+//! Wavefront OBJ meshes with MTL textures.
+//!
+//! Statements read: `v x y z [w]` and the common vertex-colour extension
+//! `v x y z r g b` (colour in [0, 1], or [0, 255] when any component exceeds 1);
+//! `vt u [v [w]]`; `f` with corners `a`, `a/b`, `a/b/c` or `a//c`, positive
+//! (1-based) or negative (relative to the end) indices, polygons fan-triangulated
+//! around their first corner; `mtllib` and `usemtl`. `vn` and every other
+//! statement (`o`, `g`, `s`, `l`, ...) are ignored; `#` starts a comment.
+//!
+//! Materials: `newmtl` and `map_Kd [options] file` in the MTL file, with the
+//! texture path relative to the MTL file. A map product holds one texture, so all
+//! faces must use materials with the same `map_Kd` (or none). The texture is
+//! loaded by [`crate::io::image`] and converted to 8-bit gray.
+//!
+//! Errors name the OBJ or MTL file and line. Bounds: counts fit `u32`; lines are
+//! processed one at a time, so memory grows with the mesh only.
+
+use crate::error::{Error, Result};
+use crate::io::image::Gray8;
+use crate::io::mesh::RawMesh;
+use crate::io::{clip, parse_finite};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// A material of an MTL file: only its diffuse texture matters here.
+#[derive(Clone, Debug, PartialEq)]
+struct Material {
+    /// Resolved `map_Kd` path, with the MTL file and line that named it.
+    map_kd: Option<(PathBuf, PathBuf, usize)>,
+}
+
+/// Read an OBJ file. With `appearance`, also read its MTL libraries and texture;
+/// without, only geometry and texture coordinates (for mask meshes).
+///
+/// # Errors
+/// See the module doc.
+pub fn read(path: &Path, appearance: bool) -> Result<RawMesh> {
+    let bytes = super::read_file(path)?;
+    parse(&bytes, path, appearance)
+}
+
+/// Parse OBJ `bytes`; `path` names errors and locates MTL files.
+///
+/// # Errors
+/// See the module doc.
+pub fn parse(bytes: &[u8], path: &Path, appearance: bool) -> Result<RawMesh> {
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let mut vertices: Vec<[f32; 3]> = Vec::new();
+    let mut colours: Vec<Option<[f32; 3]>> = Vec::new();
+    let mut texcoords: Vec<[f32; 2]> = Vec::new();
+    let mut triangles: Vec<[u32; 3]> = Vec::new();
+    let mut tri_vt: Vec<Option<[u32; 3]>> = Vec::new();
+    let mut tri_mat: Vec<Option<usize>> = Vec::new();
+    let mut tri_line: Vec<usize> = Vec::new();
+    let mut materials: BTreeMap<String, usize> = BTreeMap::new();
+    let mut mat_list: Vec<Material> = Vec::new();
+    let mut current: Option<usize> = None;
+    let mut saw_usemtl = false;
+
+    for (i, raw_line) in bytes.split(|&b| b == b'\n').enumerate() {
+        let ln = i + 1;
+        let err = |m: String| Error::at(path, ln, m);
+        let text =
+            std::str::from_utf8(raw_line).map_err(|_| err("line is not UTF-8 text".to_string()))?;
+        let text = text.split('#').next().unwrap_or("");
+        let mut toks = text.split_whitespace();
+        let Some(key) = toks.next() else { continue };
+        match key {
+            "v" => {
+                let vals: Vec<&str> = toks.collect();
+                if !matches!(vals.len(), 3 | 4 | 6 | 7) {
+                    return Err(err(format!(
+                        "vertex needs 3 coordinates (optionally w or r g b), found {} values",
+                        vals.len()
+                    )));
+                }
+                let mut f = [0f32; 6];
+                for (k, (slot, tok)) in f.iter_mut().zip(vals.iter()).enumerate() {
+                    *slot = parse_finite(tok, &format!("vertex value {}", k + 1)).map_err(err)?;
+                }
+                if vertices.len() >= u32::MAX as usize {
+                    return Err(err("too many vertices".to_string()));
+                }
+                vertices.push([f[0], f[1], f[2]]);
+                colours.push((vals.len() == 6).then_some([f[3], f[4], f[5]]));
+            }
+            "vt" => {
+                let vals: Vec<&str> = toks.collect();
+                if vals.is_empty() || vals.len() > 3 {
+                    return Err(err(format!(
+                        "texture coordinate needs 1 to 3 values, found {}",
+                        vals.len()
+                    )));
+                }
+                let u = parse_finite(vals[0], "texture u").map_err(err)?;
+                let v = match vals.get(1) {
+                    Some(t) => parse_finite(t, "texture v").map_err(err)?,
+                    None => 0.0,
+                };
+                if texcoords.len() >= u32::MAX as usize {
+                    return Err(err("too many texture coordinates".to_string()));
+                }
+                texcoords.push([u, v]);
+            }
+            "f" => {
+                let corners: Vec<&str> = toks.collect();
+                if corners.len() < 3 {
+                    return Err(err(format!(
+                        "face needs at least 3 corners, found {}",
+                        corners.len()
+                    )));
+                }
+                let mut vi = Vec::with_capacity(corners.len());
+                let mut ti = Vec::with_capacity(corners.len());
+                for c in &corners {
+                    let (v, t) = parse_corner(c, vertices.len(), texcoords.len()).map_err(err)?;
+                    vi.push(v);
+                    ti.push(t);
+                }
+                let with_vt = ti.iter().filter(|t| t.is_some()).count();
+                if with_vt != 0 && with_vt != ti.len() {
+                    return Err(err(
+                        "face mixes corners with and without texture coordinates".to_string(),
+                    ));
+                }
+                for k in 1..vi.len() - 1 {
+                    if triangles.len() >= u32::MAX as usize {
+                        return Err(err("too many triangles".to_string()));
+                    }
+                    triangles.push([vi[0], vi[k], vi[k + 1]]);
+                    tri_vt.push(match (ti[0], ti[k], ti[k + 1]) {
+                        (Some(a), Some(b), Some(c)) => Some([a, b, c]),
+                        _ => None,
+                    });
+                    tri_mat.push(current);
+                    tri_line.push(ln);
+                }
+            }
+            "mtllib" if appearance => {
+                let rest: Vec<&str> = toks.collect();
+                if rest.is_empty() {
+                    return Err(err("mtllib names no file".to_string()));
+                }
+                let joined = rest.join(" ");
+                let names: Vec<String> = if dir.join(&joined).is_file() || rest.len() == 1 {
+                    vec![joined]
+                } else {
+                    rest.iter().map(|s| s.to_string()).collect()
+                };
+                for name in names {
+                    let mtl_path = dir.join(name.replace('\\', "/"));
+                    let bytes = std::fs::read(&mtl_path).map_err(|e| {
+                        err(format!(
+                            "cannot read material library `{}`: {}",
+                            mtl_path.display(),
+                            super::io_reason(&e)
+                        ))
+                    })?;
+                    for (mname, m) in parse_mtl(&bytes, &mtl_path)? {
+                        let idx = mat_list.len();
+                        mat_list.push(m);
+                        materials.insert(mname, idx);
+                    }
+                }
+            }
+            "usemtl" if appearance => {
+                let name = toks.collect::<Vec<_>>().join(" ");
+                if name.is_empty() {
+                    return Err(err("usemtl names no material".to_string()));
+                }
+                let Some(&idx) = materials.get(&name) else {
+                    return Err(err(format!(
+                        "material `{}` is not defined by any mtllib before this line",
+                        clip(&name)
+                    )));
+                };
+                current = Some(idx);
+                saw_usemtl = true;
+            }
+            _ => {}
+        }
+    }
+
+    if triangles.is_empty() {
+        return Err(Error::file(path, "no faces"));
+    }
+
+    let all_vt = tri_vt.iter().all(Option::is_some);
+    let uvs: Option<Vec<[[f32; 2]; 3]>> = if all_vt {
+        Some(
+            tri_vt
+                .iter()
+                .flatten()
+                .map(|t| t.map(|k| texcoords.get(k as usize).copied().unwrap_or([0.0, 0.0])))
+                .collect(),
+        )
+    } else {
+        None
+    };
+
+    let vertex_gray = vertex_gray(&colours);
+    let texture = if appearance {
+        pick_texture(path, &mat_list, &tri_mat, saw_usemtl)?
+    } else {
+        None
+    };
+    if texture.is_some() && !all_vt {
+        let line = tri_vt
+            .iter()
+            .zip(tri_line.iter())
+            .find(|(t, _)| t.is_none())
+            .map_or(0, |(_, &l)| l);
+        return Err(Error::at(
+            path,
+            line,
+            "face has no texture coordinates (vt) but the mesh is textured",
+        ));
+    }
+    Ok(RawMesh {
+        vertices,
+        triangles,
+        uvs,
+        vertex_gray,
+        texture,
+    })
+}
+
+/// One face corner → (vertex index, texture index), both 0-based and range-checked.
+fn parse_corner(
+    tok: &str,
+    nv: usize,
+    nt: usize,
+) -> std::result::Result<(u32, Option<u32>), String> {
+    let parts: Vec<&str> = tok.split('/').collect();
+    if parts.len() > 3 {
+        return Err(format!("face corner `{}` has too many `/`", clip(tok)));
+    }
+    let v = resolve(parts[0], nv, "vertex", tok)?;
+    let t = match parts.get(1) {
+        Some(s) if !s.is_empty() => Some(resolve(s, nt, "texture coordinate", tok)?),
+        _ => None,
+    };
+    if let Some(n) = parts.get(2).filter(|s| !s.is_empty()) {
+        // Normals are not used, but a malformed index is still a malformed file.
+        n.parse::<i64>()
+            .map_err(|_| format!("normal index in `{}` is not an integer", clip(tok)))?;
+    }
+    Ok((v, t))
+}
+
+fn resolve(s: &str, count: usize, what: &str, tok: &str) -> std::result::Result<u32, String> {
+    let i: i64 = s
+        .parse()
+        .map_err(|_| format!("{what} index in `{}` is not an integer", clip(tok)))?;
+    let count_i = count as i64;
+    let idx = if i > 0 {
+        i - 1
+    } else if i < 0 {
+        count_i + i
+    } else {
+        return Err(format!(
+            "{what} index 0 in `{}` (OBJ indices start at 1)",
+            clip(tok)
+        ));
+    };
+    if idx < 0 || idx >= count_i {
+        return Err(format!(
+            "{what} index {i} out of range: {count} {what}s defined so far"
+        ));
+    }
+    Ok(idx as u32)
+}
+
+fn vertex_gray(colours: &[Option<[f32; 3]>]) -> Option<Vec<u8>> {
+    if colours.is_empty() || colours.iter().any(Option::is_none) {
+        return None;
+    }
+    let max = colours
+        .iter()
+        .flatten()
+        .flat_map(|c| c.iter())
+        .fold(0f32, |m, &v| m.max(v));
+    let scale = if max > 1.0 { 1.0 } else { 255.0 };
+    Some(
+        colours
+            .iter()
+            .flatten()
+            .map(|c| {
+                let [r, g, b] = c.map(|v| (v * scale).round().clamp(0.0, 255.0) as u8);
+                super::image::luma8(r, g, b)
+            })
+            .collect(),
+    )
+}
+
+/// The one texture used by the faces, loaded as gray.
+fn pick_texture(
+    path: &Path,
+    mats: &[Material],
+    tri_mat: &[Option<usize>],
+    saw_usemtl: bool,
+) -> Result<Option<Gray8>> {
+    let mut used: BTreeMap<PathBuf, (PathBuf, usize)> = BTreeMap::new();
+    if saw_usemtl {
+        for m in tri_mat.iter().flatten() {
+            if let Some((tex, mtl, line)) = mats.get(*m).and_then(|m| m.map_kd.clone()) {
+                used.entry(tex).or_insert((mtl, line));
+            }
+        }
+    } else {
+        // No usemtl: a library with exactly one textured material is taken as meant.
+        for (tex, mtl, line) in mats.iter().filter_map(|m| m.map_kd.clone()) {
+            used.entry(tex).or_insert((mtl, line));
+        }
+    }
+    if used.len() > 1 {
+        return Err(Error::file(
+            path,
+            format!(
+                "faces use {} different textures; a map product holds one texture",
+                used.len()
+            ),
+        ));
+    }
+    let Some((tex, (mtl, line))) = used.into_iter().next() else {
+        return Ok(None);
+    };
+    if !tex.is_file() {
+        return Err(Error::at(
+            &mtl,
+            line,
+            format!("texture `{}` not found", tex.display()),
+        ));
+    }
+    super::image::read_gray(&tex).map(Some)
+}
+
+/// Options of `map_Kd` and how many values each takes (`None`: 1 to 3 numbers).
+fn option_arity(opt: &str) -> Option<Option<usize>> {
+    match opt {
+        "-blendu" | "-blendv" | "-cc" | "-clamp" | "-bm" | "-boost" | "-texres" | "-imfchan"
+        | "-type" => Some(Some(1)),
+        "-mm" => Some(Some(2)),
+        "-o" | "-s" | "-t" => Some(None),
+        _ => None,
+    }
+}
+
+/// Parse an MTL file into (material name, material). Texture paths are resolved
+/// relative to the MTL file's directory.
+fn parse_mtl(bytes: &[u8], mtl_path: &Path) -> Result<Vec<(String, Material)>> {
+    let dir = mtl_path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let mut out: Vec<(String, Material)> = Vec::new();
+    for (i, raw_line) in bytes.split(|&b| b == b'\n').enumerate() {
+        let ln = i + 1;
+        let err = |m: &str| Error::at(mtl_path, ln, m.to_string());
+        let text = std::str::from_utf8(raw_line).map_err(|_| err("line is not UTF-8 text"))?;
+        let text = text.split('#').next().unwrap_or("");
+        let toks: Vec<&str> = text.split_whitespace().collect();
+        let Some((&key, rest)) = toks.split_first() else {
+            continue;
+        };
+        match key {
+            "newmtl" => {
+                if rest.is_empty() {
+                    return Err(err("newmtl names no material"));
+                }
+                out.push((rest.join(" "), Material { map_kd: None }));
+            }
+            "map_Kd" | "map_kd" => {
+                let mut k = 0usize;
+                while let Some(arity) = rest.get(k).and_then(|t| option_arity(t)) {
+                    k += 1;
+                    match arity {
+                        Some(n) => k += n,
+                        None => {
+                            let mut taken = 0;
+                            while taken < 3 && rest.get(k).is_some_and(|t| t.parse::<f32>().is_ok())
+                            {
+                                k += 1;
+                                taken += 1;
+                            }
+                        }
+                    }
+                }
+                let file = rest.get(k..).map(|r| r.join(" ")).unwrap_or_default();
+                if file.is_empty() {
+                    return Err(err("map_Kd names no texture file"));
+                }
+                let Some((_, m)) = out.last_mut() else {
+                    return Err(err("map_Kd before any newmtl"));
+                };
+                m.map_kd = Some((
+                    dir.join(file.replace('\\', "/")),
+                    mtl_path.to_path_buf(),
+                    ln,
+                ));
+            }
+            _ => {}
+        }
+    }
+    Ok(out)
+}
+
+/// Write a mesh as OBJ text (positions, per-corner `vt`, faces `a/b`), with an
+/// optional `mtllib` line. Used to export meshes and to build test fixtures.
+pub fn to_obj_text(
+    vertices: &[[f32; 3]],
+    triangles: &[[u32; 3]],
+    uvs: Option<&[[[f32; 2]; 3]]>,
+    mtllib: Option<(&str, &str)>,
+) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    if let Some((lib, mat)) = mtllib {
+        let _ = writeln!(s, "mtllib {lib}");
+        let _ = writeln!(s, "usemtl {mat}");
+    }
+    for v in vertices {
+        let _ = writeln!(s, "v {} {} {}", v[0], v[1], v[2]);
+    }
+    match uvs {
+        Some(uvs) => {
+            for t in uvs {
+                for c in t {
+                    let _ = writeln!(s, "vt {} {}", c[0], c[1]);
+                }
+            }
+            for (k, t) in triangles.iter().enumerate() {
+                let b = 3 * k + 1;
+                let _ = writeln!(
+                    s,
+                    "f {}/{} {}/{} {}/{}",
+                    t[0] + 1,
+                    b,
+                    t[1] + 1,
+                    b + 1,
+                    t[2] + 1,
+                    b + 2
+                );
+            }
+        }
+        None => {
+            for t in triangles {
+                let _ = writeln!(s, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1);
+            }
+        }
+    }
+    s
+}

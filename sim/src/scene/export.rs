@@ -1,0 +1,157 @@
+//! Writers for the design §5 scene files: `map.obj` + `map.mtl` + `map_texture.png`,
+//! `mask.obj`, `calib.json`, `left.png`, `right.png`, `prior.json`, `truth.json`, and a
+//! `scene.json` describing how the scene was made.
+//!
+//! Small, dependency-light writers (the readers live in `io`). OBJ vertices are written
+//! with 5 decimals (10 µm), texture coordinates with 6; faces reference per-corner `vt`
+//! entries; the mask OBJ repeats the same vertex list and holds only the masked faces.
+
+use crate::error::{Error, Result};
+use crate::mapping::MeshData;
+use std::fmt::Write as _;
+use std::fs;
+use std::path::{Path, PathBuf};
+use vtsm_core::geom::{Pose, StereoRig};
+
+/// Names of the files a scene export writes, in writing order.
+pub const FILES: [&str; 10] = [
+    "map.obj",
+    "map.mtl",
+    "map_texture.png",
+    "mask.obj",
+    "calib.json",
+    "left.png",
+    "right.png",
+    "prior.json",
+    "truth.json",
+    "scene.json",
+];
+
+fn io_err(path: &Path, e: impl std::fmt::Display) -> Error {
+    Error::file(path, format!("cannot write: {e}"))
+}
+
+/// Write an 8-bit gray PNG.
+pub fn write_png_gray(path: &Path, width: u32, height: u32, data: &[u8]) -> Result<()> {
+    let img = image::GrayImage::from_raw(width, height, data.to_vec())
+        .ok_or_else(|| Error::file(path, "image buffer does not match its size"))?;
+    img.save_with_format(path, image::ImageFormat::Png)
+        .map_err(|e| io_err(path, e))
+}
+
+/// The OBJ text of `mesh` (all faces, or only masked ones), referencing `mtl` if given.
+pub fn obj_text(mesh: &MeshData, mtl: Option<&str>, masked_only: bool) -> String {
+    let mut s = String::with_capacity(mesh.vertices.len() * 40 + mesh.triangles.len() * 120);
+    if let Some(m) = mtl {
+        let _ = writeln!(s, "mtllib {m}\nusemtl depot");
+    }
+    for v in &mesh.vertices {
+        let _ = writeln!(s, "v {:.5} {:.5} {:.5}", v[0], v[1], v[2]);
+    }
+    let mut vt = 0usize;
+    for (k, tri) in mesh.triangles.iter().enumerate() {
+        if masked_only && !mesh.mask.get(k).copied().unwrap_or(false) {
+            continue;
+        }
+        if !masked_only {
+            if let Some(uv) = mesh.uvs.get(k) {
+                for c in uv {
+                    let _ = writeln!(s, "vt {:.6} {:.6}", c[0], c[1]);
+                }
+            }
+            let _ = writeln!(
+                s,
+                "f {}/{} {}/{} {}/{}",
+                tri[0] + 1,
+                vt + 1,
+                tri[1] + 1,
+                vt + 2,
+                tri[2] + 1,
+                vt + 3
+            );
+            vt += 3;
+        } else {
+            let _ = writeln!(s, "f {} {} {}", tri[0] + 1, tri[1] + 1, tri[2] + 1);
+        }
+    }
+    s
+}
+
+fn write_text(path: &Path, text: &str) -> Result<()> {
+    fs::write(path, text).map_err(|e| io_err(path, e))
+}
+
+/// `{"world_from_left":{"t":[..],"q":[w,x,y,z]}}`.
+pub fn pose_json(pose: &Pose) -> String {
+    let t = pose.t();
+    let q = pose.q();
+    serde_json::json!({"world_from_left": {"t": t, "q": q}}).to_string()
+}
+
+/// `{"width":W,"height":H,"fx":..,"fy":..,"cx":..,"cy":..,"baseline_m":B}`.
+pub fn calib_json(rig: &StereoRig) -> String {
+    let c = rig.cam;
+    serde_json::json!({
+        "width": c.width, "height": c.height, "fx": c.fx, "fy": c.fy,
+        "cx": c.cx, "cy": c.cy, "baseline_m": rig.baseline_m
+    })
+    .to_string()
+}
+
+/// Everything a scene export writes.
+#[derive(Clone, Debug)]
+pub struct SceneFiles<'a> {
+    /// The map product.
+    pub map: &'a MeshData,
+    /// The rig.
+    pub rig: &'a StereoRig,
+    /// Left image.
+    pub left: &'a [u8],
+    /// Right image.
+    pub right: &'a [u8],
+    /// Prior `world_from_left`.
+    pub prior: &'a Pose,
+    /// Truth `world_from_left`.
+    pub truth: &'a Pose,
+    /// Free-form description written to `scene.json`.
+    pub meta: serde_json::Value,
+}
+
+/// Files of [`FILES`] that already exist in `dir`.
+pub fn existing(dir: &Path) -> Vec<PathBuf> {
+    FILES
+        .iter()
+        .map(|f| dir.join(f))
+        .filter(|p| p.exists())
+        .collect()
+}
+
+/// Write all scene files into `dir` (created if missing). Refuses, writing nothing, if
+/// any of them exists and `force` is false.
+pub fn write_scene(dir: &Path, files: &SceneFiles<'_>, force: bool) -> Result<()> {
+    if !force {
+        if let Some(p) = existing(dir).first() {
+            return Err(Error::file(p, "already exists (use --force to overwrite)"));
+        }
+    }
+    fs::create_dir_all(dir).map_err(|e| io_err(dir, e))?;
+    let (w, h) = (files.rig.cam.width, files.rig.cam.height);
+    write_text(
+        &dir.join("map.obj"),
+        &obj_text(files.map, Some("map.mtl"), false),
+    )?;
+    write_text(
+        &dir.join("map.mtl"),
+        "newmtl depot\nKa 1 1 1\nKd 1 1 1\nKs 0 0 0\nillum 1\nmap_Kd map_texture.png\n",
+    )?;
+    let (tw, th, ref tex) = files.map.texture;
+    write_png_gray(&dir.join("map_texture.png"), tw, th, tex)?;
+    write_text(&dir.join("mask.obj"), &obj_text(files.map, None, true))?;
+    write_text(&dir.join("calib.json"), &calib_json(files.rig))?;
+    write_png_gray(&dir.join("left.png"), w, h, files.left)?;
+    write_png_gray(&dir.join("right.png"), w, h, files.right)?;
+    write_text(&dir.join("prior.json"), &pose_json(files.prior))?;
+    write_text(&dir.join("truth.json"), &pose_json(files.truth))?;
+    write_text(&dir.join("scene.json"), &files.meta.to_string())?;
+    Ok(())
+}

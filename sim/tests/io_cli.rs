@@ -1,0 +1,305 @@
+//! `vtsm map build` and `vtsm relocalize` input handling, through the binary.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, missing_docs)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use vtsm_core::map::MapView;
+use vtsm_sim::io::image::{write_png, Gray8};
+
+fn dir(name: &str) -> PathBuf {
+    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("io_cli_{name}"));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn vtsm(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_vtsm"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// A 3x3-vertex textured patch and a mask holding two of its eight triangles.
+fn scene(d: &Path) -> (PathBuf, PathBuf) {
+    let tex = Gray8 {
+        width: 4,
+        height: 4,
+        pixels: (0..16).map(|v| v * 16).collect(),
+    };
+    write_png(&d.join("t.png"), &tex, true).unwrap();
+    std::fs::write(d.join("m.mtl"), "newmtl g\nmap_Kd t.png\n").unwrap();
+    let mut obj = String::from("mtllib m.mtl\nusemtl g\n");
+    for j in 0..3 {
+        for i in 0..3 {
+            obj += &format!(
+                "v {} {} {}\nvt {} {}\n",
+                i,
+                j,
+                (i * j) as f32 * 0.1,
+                i as f32 / 2.0,
+                j as f32 / 2.0
+            );
+        }
+    }
+    for j in 0..2 {
+        for i in 0..2 {
+            let a = j * 3 + i + 1;
+            obj += &format!(
+                "f {a}/{a} {b}/{b} {c}/{c}\nf {a}/{a} {c}/{c} {d}/{d}\n",
+                b = a + 1,
+                c = a + 4,
+                d = a + 3
+            );
+        }
+    }
+    let mesh = d.join("m.obj");
+    std::fs::write(&mesh, obj).unwrap();
+    // mask: triangles (1,2,5) and (5,6,9) of the mesh, written with other numbering
+    let mask = d.join("k.obj");
+    std::fs::write(
+        &mask,
+        "v 1 1 0.1\nv 0 0 0\nv 1 0 0\nv 2 1 0.2\nv 2 2 0.4\nf 3 1 2\nf 1 4 5\n",
+    )
+    .unwrap();
+    (mesh, mask)
+}
+
+fn no_temp_files(d: &Path) -> bool {
+    std::fs::read_dir(d)
+        .unwrap()
+        .all(|e| !e.unwrap().file_name().to_string_lossy().contains(".tmp."))
+}
+
+/// Verifies: VTSM-CLI-010, VTSM-CLI-011, VTSM-CLI-012
+#[test]
+fn map_build_writes_a_valid_product_and_refuses_to_overwrite() {
+    let d = dir("build");
+    let (mesh, mask) = scene(&d);
+    let out = d.join("d.vmap");
+    let o = vtsm(&[
+        "map",
+        "build",
+        "--mesh",
+        s(&mesh),
+        "--mask",
+        s(&mask),
+        "--out",
+        s(&out),
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let bytes = std::fs::read(&out).unwrap();
+    let map = MapView::new_checked(&bytes).unwrap();
+    assert_eq!((map.vertex_count(), map.triangle_count()), (9, 8));
+    let masked: Vec<[u32; 3]> = (0..8)
+        .map(|i| map.triangle(i).unwrap())
+        .filter(|t| t.mask)
+        .map(|t| {
+            let mut v = t.v;
+            v.sort_unstable();
+            v
+        })
+        .collect();
+    let mut masked = masked;
+    masked.sort_unstable();
+    assert_eq!(masked, vec![[0, 1, 4], [4, 5, 8]]);
+
+    // Second run without --force: exit 2, one line on stderr, file untouched.
+    std::fs::write(&out, b"keep me").unwrap();
+    let o = vtsm(&["map", "build", "--mesh", s(&mesh), "--out", s(&out)]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains("--force") && err.contains("d.vmap"), "{err}");
+    assert_eq!(std::fs::read(&out).unwrap(), b"keep me");
+    let o = vtsm(&[
+        "map",
+        "build",
+        "--mesh",
+        s(&mesh),
+        "--out",
+        s(&out),
+        "--force",
+    ]);
+    assert_eq!(o.status.code(), Some(0));
+    assert!(MapView::new_checked(&std::fs::read(&out).unwrap()).is_ok());
+    assert!(no_temp_files(&d));
+}
+
+/// Verifies: VTSM-CLI-009, VTSM-CLI-008
+#[test]
+fn map_build_bad_input_exits_2_and_writes_nothing() {
+    let d = dir("bad");
+    let (mesh, _) = scene(&d);
+    let good = std::fs::read_to_string(&mesh).unwrap();
+    let out = d.join("d.vmap");
+    let bad = d.join("bad.obj");
+    let cases: Vec<(String, &str)> = vec![
+        (good.replacen("v 1 0 0", "v 1 nan 0", 1), "bad.obj:5:"),
+        (
+            good.replacen("f 1/1 2/2 5/5", "f 1/1 2/2 50/5", 1),
+            "bad.obj:21:",
+        ),
+        (good.replace("m.mtl", "gone.mtl"), "bad.obj:1:"),
+        (good.replace("usemtl g", "usemtl h"), "bad.obj:2:"),
+    ];
+    for (text, want) in cases {
+        std::fs::write(&bad, text).unwrap();
+        let o = vtsm(&["map", "build", "--mesh", s(&bad), "--out", s(&out)]);
+        assert_eq!(o.status.code(), Some(2));
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(err.contains(want), "{want}: {err}");
+        assert!(!out.exists());
+    }
+    for args in [
+        vec!["--mesh", s(&mesh), "--mask", "/nonexistent/k.obj"],
+        vec!["--mesh", s(&mesh), "--tile-size-m", "0"],
+        vec!["--mesh", "/nonexistent/m.stl"],
+    ] {
+        let mut a = vec!["map", "build", "--out", s(&out)];
+        a.extend(args);
+        let o = vtsm(&a);
+        assert_eq!(o.status.code(), Some(2), "{a:?}");
+        assert!(!out.exists());
+    }
+    assert!(no_temp_files(&d));
+}
+
+/// Verifies: VTSM-CLI-009, VTSM-CLI-013
+#[test]
+fn relocalize_rejects_bad_inputs_before_writing_anything() {
+    let d = dir("reloc");
+    let (mesh, _) = scene(&d);
+    let map = d.join("d.vmap");
+    assert_eq!(
+        vtsm(&["map", "build", "--mesh", s(&mesh), "--out", s(&map)])
+            .status
+            .code(),
+        Some(0)
+    );
+    let calib = d.join("calib.json");
+    std::fs::write(
+        &calib,
+        r#"{"width":32,"height":24,"fx":30,"fy":30,"cx":15.5,"cy":11.5,"baseline_m":0.4}"#,
+    )
+    .unwrap();
+    let prior = d.join("prior.json");
+    std::fs::write(&prior, r#"{"world_from_left":{"t":[1,1,2],"q":[1,0,0,0]}}"#).unwrap();
+    let left = d.join("l.png");
+    let right = d.join("r.png");
+    write_png(&left, &Gray8::filled(32, 24, 100), true).unwrap();
+    write_png(&right, &Gray8::filled(32, 24, 100), true).unwrap();
+    let small = d.join("small.png");
+    write_png(&small, &Gray8::filled(32, 23, 100), true).unwrap();
+    let tilted = d.join("tilted.json");
+    std::fs::write(
+        &tilted,
+        r#"{"world_from_left":{"t":[1,1,2],"q":[1,0.1,0,0]}}"#,
+    )
+    .unwrap();
+    let mut corrupt = std::fs::read(&map).unwrap();
+    let last = corrupt.len() - 1;
+    corrupt[last] ^= 0x55;
+    let bad_map = d.join("bad.vmap");
+    std::fs::write(&bad_map, corrupt).unwrap();
+    let out = d.join("result.json");
+
+    let base = |l: &Path, r: &Path, p: &Path, m: &Path| -> Vec<String> {
+        [
+            "relocalize",
+            "--map",
+            s(m),
+            "--calib",
+            s(&calib),
+            "--left",
+            s(l),
+            "--right",
+            s(r),
+            "--prior",
+            s(p),
+            "--out",
+            s(&out),
+        ]
+        .iter()
+        .map(|a| a.to_string())
+        .collect()
+    };
+    let cases = [
+        (base(&left, &small, &prior, &map), "small.png", "32x23"),
+        (base(&left, &right, &tilted, &map), "tilted.json", "norm"),
+        (
+            base(&left, &right, &prior, &bad_map),
+            "bad.vmap",
+            "MAP_CRC_MISMATCH",
+        ),
+        (
+            base(&left, Path::new("/nonexistent/r.png"), &prior, &map),
+            "r.png",
+            "no such file",
+        ),
+    ];
+    for (args, file, what) in cases {
+        let a: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = vtsm(&a);
+        assert_eq!(o.status.code(), Some(2));
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(
+            err.contains(file) && err.contains(what),
+            "{file} {what}: {err}"
+        );
+        assert!(!out.exists());
+    }
+    // --mesh and --map together is a usage error (clap's exit code is 2 as well).
+    let o = vtsm(&[
+        "relocalize",
+        "--mesh",
+        s(&mesh),
+        "--map",
+        s(&map),
+        "--calib",
+        s(&calib),
+        "--left",
+        s(&left),
+        "--right",
+        s(&right),
+        "--prior",
+        s(&prior),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+}
+
+/// Verifies: VTSM-CLI-014
+#[test]
+fn budget_prints_the_config_capacities() {
+    let o = vtsm(&["budget", "--json"]);
+    assert_eq!(o.status.code(), Some(0));
+    let text = String::from_utf8_lossy(&o.stdout);
+    let rows: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let get = |item: &str| {
+        rows.iter()
+            .find(|r| r["item"] == item)
+            .map(|r| r["value"].as_u64().unwrap())
+    };
+    use vtsm_core::config as c;
+    assert_eq!(get("MAX_TEMPLATE_PX"), Some(c::MAX_TEMPLATE_PX as u64));
+    assert_eq!(get("MAX_SEARCH_PX"), Some(c::MAX_SEARCH_PX as u64));
+    assert_eq!(get("MAX_CORR"), Some(c::MAX_CORR as u64));
+    assert_eq!(
+        get("template, MAX_TEMPLATE_PX² u8"),
+        Some((c::MAX_TEMPLATE_PX * c::MAX_TEMPLATE_PX) as u64)
+    );
+}

@@ -1,0 +1,161 @@
+//! calib.json, prior.json / truth.json and result.json.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, missing_docs)]
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use vtsm_core::geom::Pose;
+use vtsm_sim::io::json::{self, PoseJson, ResultFile};
+
+const CALIB: &str = r#"{
+  "width": 640,
+  "height": 480,
+  "fx": 500.5,
+  "fy": 501.0,
+  "cx": 319.5,
+  "cy": 239.5,
+  "baseline_m": 0.4
+}"#;
+
+fn p() -> &'static Path {
+    Path::new("calib.json")
+}
+
+/// Verifies: VTSM-CLI-006
+#[test]
+fn valid_calib_gives_the_stereo_rig() {
+    let c = json::parse_calib(CALIB.as_bytes(), p()).unwrap();
+    let rig = c.rig().unwrap();
+    assert_eq!((rig.cam.width, rig.cam.height), (640, 480));
+    assert_eq!(
+        (rig.cam.fx, rig.cam.fy, rig.cam.cx, rig.cam.cy),
+        (500.5, 501.0, 319.5, 239.5)
+    );
+    assert_eq!(rig.baseline_m, 0.4);
+    // written and read back unchanged
+    assert_eq!(
+        json::parse_calib(json::calib_text(&c).as_bytes(), p()).unwrap(),
+        c
+    );
+}
+
+/// Verifies: VTSM-CLI-006, VTSM-CLI-008
+#[test]
+fn bad_calib_values_are_rejected_with_field_and_line() {
+    let cases: &[(&str, &str, usize, &str)] = &[
+        ("\"fx\": 500.5", "\"fx\": -1", 4, "fx"),
+        ("\"fy\": 501.0", "\"fy\": 0", 5, "fy"),
+        ("\"width\": 640", "\"width\": 0", 2, "width"),
+        ("\"height\": 480", "\"height\": 100000", 3, "height"),
+        (
+            "\"baseline_m\": 0.4",
+            "\"baseline_m\": 0.0",
+            8,
+            "baseline_m",
+        ),
+        ("\"cx\": 319.5", "\"cx\": 1e300", 6, "cx"),
+        ("\"fx\": 500.5", "\"fx\": NaN", 4, "invalid JSON"),
+        ("\"fx\": 500.5", "\"fx\": 1e999", 4, "invalid JSON"),
+        ("\"fx\": 500.5", "\"focal\": 500.5", 4, "unknown field"),
+        ("\"width\": 640", "\"width\": -640", 2, "invalid JSON"),
+        (
+            "\"baseline_m\": 0.4\n}",
+            "\"baseline_m\": 0.4\n",
+            9,
+            "invalid JSON",
+        ),
+    ];
+    for (from, to, line, what) in cases {
+        let text = CALIB.replace(from, to);
+        let e = json::parse_calib(text.as_bytes(), p()).unwrap_err();
+        assert_eq!(e.file.as_deref(), Some(p()));
+        assert_eq!(e.line, Some(*line), "{to}: {e}");
+        assert!(e.msg.contains(what), "{to}: {e}");
+        assert_eq!(e.to_string().lines().count(), 1);
+    }
+    let missing = CALIB.replace("  \"cy\": 239.5,\n", "");
+    let e = json::parse_calib(missing.as_bytes(), p()).unwrap_err();
+    assert!(e.msg.contains("missing field `cy`"), "{e}");
+}
+
+fn pose_text(t: [f64; 3], q: [f64; 4]) -> String {
+    format!(
+        "{{\"world_from_left\": {{\n  \"t\": [{}, {}, {}],\n  \"q\": [{}, {}, {}, {}]\n}}}}",
+        t[0], t[1], t[2], q[0], q[1], q[2], q[3]
+    )
+}
+
+/// Verifies: VTSM-CLI-006
+#[test]
+fn prior_pose_reads_and_rejects_non_unit_quaternions() {
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    let pose = json::parse_pose(
+        pose_text([1.0, -2.0, 0.5], [h, 0.0, 0.0, h]).as_bytes(),
+        p(),
+    )
+    .unwrap();
+    assert_eq!(pose.t(), [1.0, -2.0, 0.5]);
+    // 90° about z maps x to y
+    let v = pose.transform_vector(&vtsm_core::geom::Vec3::new(1.0, 0.0, 0.0));
+    assert!((v.x).abs() < 1e-6 && (v.y - 1.0).abs() < 1e-6);
+    // Within tolerance is accepted and renormalised.
+    let near =
+        json::parse_pose(pose_text([0.0; 3], [1.0005, 0.0, 0.0, 0.0]).as_bytes(), p()).unwrap();
+    let q = near.q();
+    assert!((q.iter().map(|v| v * v).sum::<f32>() - 1.0).abs() < 1e-6);
+    for q in [[1.01, 0.0, 0.0, 0.0], [0.0; 4], [0.5, 0.5, 0.5, 0.4]] {
+        let e = json::parse_pose(pose_text([0.0; 3], q).as_bytes(), p()).unwrap_err();
+        assert_eq!(e.line, Some(3), "{e}");
+        assert!(e.msg.contains("norm"), "{e}");
+    }
+    let e = json::parse_pose(
+        pose_text([1e300, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]).as_bytes(),
+        p(),
+    )
+    .unwrap_err();
+    assert_eq!(
+        (e.line, e.msg.contains("not finite")),
+        (Some(2), true),
+        "{e}"
+    );
+    let e = json::parse_pose(
+        b"{\"world_from_left\": {\"t\": [0, 0], \"q\": [1, 0, 0, 0]}}",
+        p(),
+    )
+    .unwrap_err();
+    assert!(e.msg.contains("invalid JSON"), "{e}");
+    // Round trip through the writer.
+    let back = json::parse_pose(json::pose_file_text(&pose).as_bytes(), p()).unwrap();
+    assert_eq!(back.t(), pose.t());
+    assert_eq!(back.q(), pose.q());
+}
+
+/// Verifies: VTSM-CLI-007
+#[test]
+fn result_file_has_the_design_fields() {
+    let mut stats = BTreeMap::new();
+    stats.insert("templates_rendered".to_string(), 12u64);
+    let r = ResultFile {
+        status: "ok".into(),
+        failure: None,
+        world_from_left: Some(PoseJson::from_pose(&Pose::identity())),
+        inliers: 87,
+        iterations: 5,
+        stats,
+    };
+    let text = json::result_text(&r);
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(v["status"], "ok");
+    assert!(v["failure"].is_null());
+    assert_eq!(
+        v["world_from_left"]["q"],
+        serde_json::json!([1.0, 0.0, 0.0, 0.0])
+    );
+    assert_eq!(
+        v["world_from_left"]["t"],
+        serde_json::json!([0.0, 0.0, 0.0])
+    );
+    assert_eq!(v["inliers"], 87);
+    assert_eq!(v["iterations"], 5);
+    assert_eq!(v["stats"]["templates_rendered"], 12);
+    assert_eq!(json::parse_result(text.as_bytes(), p()).unwrap(), r);
+}
