@@ -187,9 +187,28 @@ pub fn write_frame<W: embedded_io::Write>(
 ) -> Result<(), TelemetryError<W::Error>> {
     let h = header(kind, payload).map_err(|_| TelemetryError::PayloadTooLong)?;
     let crc = frame_crc(&h, payload).to_le_bytes();
-    w.write_all(&h).map_err(TelemetryError::Io)?;
-    w.write_all(payload).map_err(TelemetryError::Io)?;
-    w.write_all(&crc).map_err(TelemetryError::Io)?;
+    write_all(w, &h)?;
+    write_all(w, payload)?;
+    write_all(w, &crc)
+}
+
+/// `embedded_io::Write::write_all` without its panic on `Ok(0)`: a writer that
+/// accepts nothing is an error. At most `buf.len()` calls, since every other
+/// success consumes at least one byte.
+fn write_all<W: embedded_io::Write>(
+    w: &mut W,
+    mut buf: &[u8],
+) -> Result<(), TelemetryError<W::Error>> {
+    for _ in 0..buf.len() {
+        if buf.is_empty() {
+            break;
+        }
+        match w.write(buf) {
+            Ok(0) => return Err(TelemetryError::WriteZero),
+            Ok(n) => buf = buf.get(n..).unwrap_or(&[]),
+            Err(e) => return Err(TelemetryError::Io(e)),
+        }
+    }
     Ok(())
 }
 
@@ -234,6 +253,8 @@ pub enum TelemetryError<E> {
     Io(E),
     /// The payload is longer than [`MAX_PAYLOAD`]; nothing was written.
     PayloadTooLong,
+    /// The writer accepted no bytes (`Ok(0)`); the frame is incomplete.
+    WriteZero,
 }
 
 impl<E: embedded_io::Error> Error for TelemetryError<E> {
@@ -246,6 +267,7 @@ impl<E: embedded_io::Error> Error for TelemetryError<E> {
                 _ => ErrorKind::Other,
             },
             TelemetryError::PayloadTooLong => ErrorKind::Other,
+            TelemetryError::WriteZero => ErrorKind::Truncated,
         }
     }
 }
@@ -396,6 +418,49 @@ mod tests {
         );
         assert!(tl.writer().0.is_empty());
         assert_eq!(tl.failed(), 1);
+    }
+
+    /// Accepts at most `per_call` bytes per write, and nothing once `budget` is spent.
+    struct Trickle {
+        out: Vec<u8>,
+        per_call: usize,
+        budget: usize,
+    }
+    impl embedded_io::ErrorType for Trickle {
+        type Error = core::convert::Infallible;
+    }
+    impl embedded_io::Write for Trickle {
+        fn write(&mut self, buf: &[u8]) -> Result<usize, Self::Error> {
+            let n = buf.len().min(self.per_call).min(self.budget);
+            self.out.extend_from_slice(&buf[..n]);
+            self.budget -= n;
+            Ok(n)
+        }
+        fn flush(&mut self) -> Result<(), Self::Error> {
+            Ok(())
+        }
+    }
+
+    /// Verifies: VTSM-HAL-006
+    #[test]
+    fn short_writes_are_completed_and_a_stalled_writer_is_an_error() {
+        let payload = [7u8; 40];
+        let mut t = Trickle {
+            out: Vec::new(),
+            per_call: 1,
+            budget: usize::MAX,
+        };
+        write_frame(&mut t, 9, &payload).unwrap();
+        assert_eq!(decode(&t.out).unwrap().payload, &payload[..]);
+        let mut t = Trickle {
+            out: Vec::new(),
+            per_call: 3,
+            budget: 20,
+        };
+        let e = write_frame(&mut t, 9, &payload).unwrap_err();
+        assert_eq!(e, TelemetryError::WriteZero);
+        assert_eq!(e.kind(), ErrorKind::Truncated);
+        assert_eq!(t.out.len(), 20);
     }
 
     /// Verifies: VTSM-HAL-007
