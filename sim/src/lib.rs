@@ -12,6 +12,7 @@ pub mod devices;
 pub mod error;
 pub mod eval;
 pub mod io;
+pub mod locate;
 pub mod mapping;
 pub mod panel;
 pub mod render;

@@ -1,12 +1,347 @@
-//! `vtsm demo`.
+//! `vtsm demo`: build a simulated depot, make its map at one time of day,
+//! capture one stereo pair at another, relocalize it from a perturbed prior,
+//! print a short report and write `result.json` plus a picture panel like the
+//! paper's Fig. 6b (synthetic templates at the random start, the real image,
+//! synthetic templates at the final pose).
+
+use crate::cli::relocalize::{outcome_from_core, outcome_result};
+use crate::error::{Error, Result, EXIT_RELOC_FAILED};
+use crate::io::{json, mesh};
+use crate::locate::{self, Request};
+use crate::panel::Canvas;
+use crate::scene::{perturbed_prior, Capture, Profile, Scene, STOPS_PER_CIRCLE};
+use crate::terrain::TerrainKind;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use vtsm_core::geom::{Camera, Pose};
+use vtsm_core::image::Rect;
+use vtsm_core::map::MapView;
+use vtsm_core::raster::{self, Target};
+use vtsm_core::rng::Rng;
+
+/// Hour of the day at which the simulated depot is mapped (the paper's "am").
+pub const MAP_HOURS: f32 = 9.5;
 
 /// Arguments of `vtsm demo`.
 #[derive(Debug, Clone, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Terrain: flagstone, cfa6 or cfa2.
+    #[arg(long, default_value = "flagstone")]
+    pub terrain: String,
+    /// Hours between mapping (9:30) and relocalization: 0, 3 or 6 (any 0..=8 works).
+    #[arg(long, default_value_t = 0.0)]
+    pub hours: f32,
+    /// Seed of the depot, the capture noise, the prior perturbation and the relocalization.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Capture stop on the paper's grid (0..30).
+    #[arg(long, default_value_t = 3)]
+    pub stop: u32,
+    /// Image profile: demo (1368×912), test (480×320) or paper (5472×3648).
+    #[arg(long, default_value = "demo")]
+    pub profile: String,
+    /// Output directory (default: the first free `vtsm-demo/run-N`).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Overwrite existing outputs in `--out`.
+    #[arg(long)]
+    pub force: bool,
+}
+
+fn default_out() -> PathBuf {
+    (1..)
+        .map(|k| PathBuf::from(format!("vtsm-demo/run-{k}")))
+        .find(|p| !p.exists())
+        .unwrap_or_else(|| PathBuf::from("vtsm-demo/run"))
+}
 
 /// Run the command; returns the exit code.
-pub fn run(_args: &Args) -> crate::Result<u8> {
-    Err(crate::Error::msg(
-        "`vtsm demo` is not available in this build",
-    ))
+pub fn run(args: &Args) -> Result<u8> {
+    let kind = TerrainKind::parse(&args.terrain).ok_or_else(|| {
+        Error::msg(format!(
+            "unknown --terrain `{}` (flagstone, cfa6, cfa2)",
+            args.terrain
+        ))
+    })?;
+    let profile = Profile::parse(&args.profile).ok_or_else(|| {
+        Error::msg(format!(
+            "unknown --profile `{}` (demo, test, paper)",
+            args.profile
+        ))
+    })?;
+    if !(args.hours.is_finite() && (0.0..=8.0).contains(&args.hours)) {
+        return Err(Error::msg("--hours must be between 0 and 8"));
+    }
+    if args.stop >= 2 * STOPS_PER_CIRCLE {
+        return Err(Error::msg("--stop must be 0..30"));
+    }
+    let out = args.out.clone().unwrap_or_else(default_out);
+    let result_path = out.join("result.json");
+    let panel_path = out.join("panel.png");
+    std::fs::create_dir_all(&out)
+        .map_err(|e| Error::file(&out, format!("cannot create directory: {e}")))?;
+    for p in [&result_path, &panel_path] {
+        crate::io::check_output(p, args.force)?;
+    }
+
+    let t_all = Instant::now();
+    println!(
+        "vtsm demo: terrain {}, map at {:.1} h, images at {:.1} h (Δ{} h), profile {}, seed {}",
+        kind.name(),
+        MAP_HOURS,
+        MAP_HOURS + args.hours,
+        args.hours,
+        profile.name(),
+        args.seed
+    );
+    let t0 = Instant::now();
+    let scene = Scene::new(kind, args.seed, profile);
+    let map_mesh: mesh::MeshData = scene.map(&scene.lighting(MAP_HOURS)).into();
+    let map_bytes = map_mesh.encode_map(0.5)?;
+    let capture = Capture::from_index(args.stop, 0, 0.40);
+    let (rig, truth, pair) = scene.capture(&scene.lighting(MAP_HOURS + args.hours), &capture);
+    let prior = perturbed_prior(&truth, args.seed);
+    println!(
+        "  depot and map: {} triangles ({} in the sampling mask), texture {}×{}; stereo pair {}×{}, baseline {:.2} m  [{:.1} s]",
+        map_mesh.triangles.len(),
+        map_mesh.mask_count(),
+        map_mesh.texture.width,
+        map_mesh.texture.height,
+        pair.width,
+        pair.height,
+        rig.baseline_m,
+        t0.elapsed().as_secs_f64()
+    );
+
+    let req = Request {
+        map: &map_bytes,
+        left: &pair.left,
+        right: &pair.right,
+        rig,
+        prior,
+        params: locate::params_for_width(rig.cam.width),
+        seed: args.seed,
+    };
+    let report = locate::relocalize(&req)?;
+    let o = &report.outcome;
+    let (t0_m, r0) = prior.error_to(&truth);
+    let (t1_m, r1) = o.pose.error_to(&truth);
+    let status = match o.failure {
+        None => "SUCCESS".to_string(),
+        Some(c) => format!(
+            "FAILED {} (0x{:04x}): {}",
+            c.name(),
+            c.code(),
+            c.description()
+        ),
+    };
+    println!(
+        "  initial error: {:7.1} mm  {:6.3}°",
+        t0_m * 1e3,
+        r0.to_degrees()
+    );
+    println!(
+        "  final error:   {:7.1} mm  {:6.3}°",
+        t1_m * 1e3,
+        r1.to_degrees()
+    );
+    println!(
+        "  inliers {} (ratio {:.2}, RMS {:.1} mm), iterations {}, attempts {}, stalls {}, reseeds {}, templates ℓ = {} px",
+        o.quality.inliers,
+        o.quality.inlier_ratio,
+        o.quality.rms_m * 1e3,
+        o.stats.successes,
+        o.stats.attempts,
+        o.stats.stalls,
+        o.stats.reseeds,
+        report.template_px
+    );
+    println!(
+        "  relocalization time {:.2} s (single thread), workspace {:.1} MB",
+        report.elapsed.as_secs_f64(),
+        report.workspace_bytes as f64 / 1e6
+    );
+    println!("  status: {status}");
+
+    let map = MapView::new_checked(&map_bytes)?;
+    let canvas = panel(
+        &map,
+        &rig.cam,
+        &pair.left,
+        &prior,
+        &o.pose,
+        &truth,
+        report.template_px,
+        args.seed,
+    );
+    std::fs::create_dir_all(&out)
+        .map_err(|e| Error::file(&out, format!("cannot create directory: {e}")))?;
+    canvas.save_png(&panel_path, args.force)?;
+    let result = outcome_result(&outcome_from_core(o));
+    json::write_result(&result_path, &result, args.force)?;
+    println!(
+        "  wrote {} and {}  [total {:.1} s]",
+        show(&result_path),
+        show(&panel_path),
+        t_all.elapsed().as_secs_f64()
+    );
+    Ok(if o.failure.is_none() {
+        0
+    } else {
+        EXIT_RELOC_FAILED
+    })
+}
+
+fn show(p: &Path) -> String {
+    p.display().to_string()
+}
+
+/// Render an ℓ×ℓ template of the map centred on `p_world` as seen from `pose`.
+/// Returns the template and its §III-C mask, or `None` if it is out of view.
+fn template(
+    map: &MapView,
+    cam: &Camera,
+    pose: &Pose,
+    p_world: &vtsm_core::geom::Vec3,
+    l: usize,
+) -> Option<(Vec<u8>, Vec<u8>)> {
+    let [u, v] = cam.project(&pose.inverse().transform_point(p_world))?;
+    let rect = Rect::new(
+        u.round() as i32 - l as i32 / 2,
+        v.round() as i32 - l as i32 / 2,
+        l as u32,
+        l as u32,
+    );
+    let (mut inten, mut depth, mut md) = (vec![0u8; l * l], vec![0u32; l * l], vec![0u32; l * l]);
+    let mut t = Target {
+        intensity: &mut inten,
+        depth: &mut depth,
+        mask_depth: &mut md,
+    };
+    raster::render_window(map, cam, pose, rect, &mut t).ok()?;
+    let mut mask = vec![0u8; l * l];
+    raster::template_mask(&depth, &md, l, l, &mut mask);
+    Some((inten, mask))
+}
+
+/// The Fig. 6b-like panel: the real left image with the template locations,
+/// then per sampled mask point: the template at the prior, the real image
+/// around the point's true location, and the template at the final pose.
+#[allow(clippy::too_many_arguments)]
+fn panel(
+    map: &MapView,
+    cam: &Camera,
+    left: &[u8],
+    prior: &Pose,
+    fin: &Pose,
+    truth: &Pose,
+    template_px: u16,
+    seed: u64,
+) -> Canvas {
+    const K: usize = 6;
+    let l = usize::from(template_px);
+    let cell = 150usize;
+    let pad = 12usize;
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let img_w = K * (cell + pad) - pad;
+    let img_h = img_w * h / w;
+    let label_h = 26;
+    let width = img_w + 2 * pad;
+    let height = pad + label_h + img_h + 3 * (label_h + cell) + 2 * pad;
+    let mut c = Canvas::new(width, height, [24, 24, 28]);
+    let white = [235, 235, 235];
+    c.text(
+        pad as i64,
+        pad as i64,
+        "REAL LEFT IMAGE WITH SAMPLED POINTS",
+        2,
+        white,
+    );
+    let y_img = (pad + label_h) as i64;
+    c.blit_gray(left, w, h, None, pad as i64, y_img, img_w, img_h);
+
+    // Mask vertices in view (with a template's margin) at the true pose.
+    let mut rng = Rng::new(seed).fork(0x50414E454C);
+    let mut points = Vec::new();
+    let n = map.mask_vertex_count();
+    for _ in 0..(64 * K) {
+        if points.len() == K || n == 0 {
+            break;
+        }
+        let Some(p) = map.mask_vertex(rng.below(n)).and_then(|i| map.vertex(i)) else {
+            continue;
+        };
+        let Some([u, v]) = cam.project(&truth.inverse().transform_point(&p)) else {
+            continue;
+        };
+        if cam.contains(u, v, l as f32)
+            && points
+                .iter()
+                .all(|(_, q): &(vtsm_core::geom::Vec3, [f32; 2])| {
+                    (q[0] - u).hypot(q[1] - v) > l as f32
+                })
+        {
+            points.push((p, [u, v]));
+        }
+    }
+    let colors = [
+        [230, 80, 60],
+        [80, 200, 90],
+        [70, 140, 240],
+        [240, 200, 50],
+        [200, 90, 220],
+        [60, 210, 210],
+    ];
+    let rows = [
+        ("SYNTHETIC AT PRIOR (RANDOM START)", 0),
+        ("REAL IMAGE", 1),
+        ("SYNTHETIC AT FINAL POSE", 2),
+    ];
+    for (title, r) in rows {
+        let y = y_img + (img_h + pad + r * (label_h + cell)) as i64;
+        c.text(pad as i64, y + 4, title, 2, white);
+    }
+    for (k, (p, [u, v])) in points.iter().enumerate() {
+        let color = colors[k % colors.len()];
+        let (sx, sy) = (img_w as f32 / w as f32, img_h as f32 / h as f32);
+        let bx = pad as i64 + ((u - l as f32 / 2.0) * sx) as i64;
+        let by = y_img + ((v - l as f32 / 2.0) * sy) as i64;
+        c.rect(
+            bx,
+            by,
+            (l as f32 * sx) as i64,
+            (l as f32 * sy) as i64,
+            2,
+            color,
+        );
+        let x = (pad + k * (cell + pad)) as i64;
+        let row_y = |r: usize| y_img + (img_h + pad + r * (label_h + cell) + label_h) as i64;
+        if let Some((t, m)) = template(map, cam, prior, p, l) {
+            c.blit_gray(&t, l, l, Some(&m), x, row_y(0), cell, cell);
+        }
+        let crop: Vec<u8> = (0..l * l)
+            .map(|i| {
+                let xx =
+                    (*u as i64 - l as i64 / 2 + (i % l) as i64).clamp(0, w as i64 - 1) as usize;
+                let yy =
+                    (*v as i64 - l as i64 / 2 + (i / l) as i64).clamp(0, h as i64 - 1) as usize;
+                left[yy * w + xx]
+            })
+            .collect();
+        c.blit_gray(&crop, l, l, None, x, row_y(1), cell, cell);
+        if let Some((t, m)) = template(map, cam, fin, p, l) {
+            c.blit_gray(&t, l, l, Some(&m), x, row_y(2), cell, cell);
+        }
+        for r in 0..3 {
+            c.rect(
+                x - 2,
+                row_y(r) - 2,
+                cell as i64 + 4,
+                cell as i64 + 4,
+                2,
+                color,
+            );
+        }
+    }
+    c
 }

@@ -158,14 +158,65 @@ pub struct Outcome {
     pub stats: BTreeMap<String, u64>,
 }
 
-/// The relocalization engine call (`vtsm_core::reloc`).
+/// The relocalization engine call: the same [`crate::locate::relocalize`] as
+/// `vtsm demo` and `vtsm eval`, with the paper's parameters and ℓ scaled to the
+/// image width.
 ///
 /// # Errors
-/// Until the engine is connected to the command line, always an error saying so.
-pub fn run_engine(_inputs: &Inputs) -> Result<Outcome> {
-    Err(Error::msg(
-        "the relocalization engine is not connected to `vtsm relocalize` in this build",
-    ))
+/// Inputs the core rejects (map, image sizes, parameters), with their codes.
+pub fn run_engine(inputs: &Inputs) -> Result<Outcome> {
+    let req = crate::locate::Request {
+        map: &inputs.map,
+        left: &inputs.left.pixels,
+        right: &inputs.right.pixels,
+        rig: inputs.rig,
+        prior: inputs.prior,
+        params: crate::locate::params_for_width(inputs.rig.cam.width),
+        seed: inputs.seed,
+    };
+    let report = crate::locate::relocalize(&req)?;
+    Ok(outcome_from_core(&report.outcome))
+}
+
+/// The command-line view of a core outcome (pose, inliers, iterations and
+/// every work counter by name).
+pub fn outcome_from_core(o: &vtsm_core::reloc::Outcome) -> Outcome {
+    let s = &o.stats;
+    let p = &s.pipeline;
+    let mut stats = BTreeMap::new();
+    for (k, v) in [
+        ("work_units", u64::from(s.work_units)),
+        ("rounds", u64::from(s.rounds)),
+        ("attempts", u64::from(s.attempts)),
+        ("correspondences", u64::from(s.correspondences)),
+        ("reused", u64::from(s.reused)),
+        ("solves", u64::from(s.solves)),
+        ("ransac_iterations", u64::from(s.ransac_iterations)),
+        ("stalls", u64::from(s.stalls)),
+        ("reseeds", u64::from(s.reseeds)),
+        ("seeds_tried", u64::from(s.seeds_tried)),
+        ("renders", u64::from(p.renders)),
+        ("render_pixels", p.render_pixels),
+        ("ncc_matches", p.matches.iter().map(|&m| u64::from(m)).sum()),
+        (
+            "ncc_accepted",
+            p.accepted.iter().map(|&m| u64::from(m)).sum(),
+        ),
+        ("ncc_positions", p.ncc_positions),
+        ("ncc_macs", p.ncc_macs),
+        ("samples_out_of_view", u64::from(p.out_of_view)),
+        ("samples_occluded", u64::from(p.occluded)),
+        ("triangulations", u64::from(p.triangulations)),
+    ] {
+        stats.insert(k.to_string(), v);
+    }
+    Outcome {
+        failure: o.failure,
+        pose: Some(o.pose),
+        inliers: u32::from(o.quality.inliers),
+        iterations: u32::from(s.successes),
+        stats,
+    }
 }
 
 /// The `result.json` content of an outcome.

@@ -1,0 +1,122 @@
+//! One relocalization on the desktop: allocate the core's workspace on the
+//! heap (sized by its `const` requirement), wire the real pipeline and the
+//! RANSAC solver, and run the engine to completion. Used by `vtsm demo`,
+//! `vtsm relocalize`, `vtsm eval` and the end-to-end tests, so every path runs
+//! exactly the same code.
+
+use crate::error::{Error, Result};
+use std::time::{Duration, Instant};
+use vtsm_core::config::Params;
+use vtsm_core::geom::{Pose, StereoRig};
+use vtsm_core::image::GrayView;
+use vtsm_core::map::MapView;
+use vtsm_core::ncc::{Run, Search};
+use vtsm_core::reloc::workspace::WorkspaceSizes;
+use vtsm_core::reloc::{
+    MatchPolicy, Options, Outcome, Pipeline, RansacSolver, Relocalizer, Workspace,
+};
+
+/// Template side ℓ for an image width: the paper's 256 px at 5472 px, scaled
+/// with the image (so templates cover the same angle), even, at least 32 px.
+pub fn template_px_for_width(width: u32) -> u16 {
+    let l = (256.0 * f64::from(width) / 5472.0).round() as u32;
+    let l = l.clamp(32, vtsm_core::config::MAX_TEMPLATE_PX as u32);
+    (l & !1) as u16
+}
+
+/// Search-window cap for a template side: the paper's ~800 px for ℓ = 256,
+/// i.e. about 3.2 ℓ, within the core's capacity.
+pub fn search_px_for_template(template_px: u16) -> u16 {
+    let s = (u32::from(template_px) * 16 / 5).max(u32::from(template_px) * 2);
+    s.min(vtsm_core::config::MAX_SEARCH_PX as u32) as u16
+}
+
+/// The parameters used for an image width: the paper's, with ℓ scaled to the image.
+pub fn params_for_width(width: u32) -> Params {
+    Params {
+        template_px: template_px_for_width(width),
+        ..Params::paper()
+    }
+}
+
+/// Everything one relocalization needs.
+#[derive(Clone, Copy)]
+pub struct Request<'a> {
+    /// Encoded map product (checked here).
+    pub map: &'a [u8],
+    /// Left image, row-major, `rig.cam.width × rig.cam.height`.
+    pub left: &'a [u8],
+    /// Right image, same size.
+    pub right: &'a [u8],
+    /// Calibrated rig.
+    pub rig: StereoRig,
+    /// Prior `world_from_left`.
+    pub prior: Pose,
+    /// Relocalization parameters (validated by the core).
+    pub params: Params,
+    /// Seed of the relocalization's random streams.
+    pub seed: u64,
+}
+
+/// What one relocalization produced.
+pub struct Report {
+    /// The engine's outcome.
+    pub outcome: Outcome,
+    /// Wall time of the engine alone (not of loading or workspace allocation).
+    pub elapsed: Duration,
+    /// Template side used.
+    pub template_px: u16,
+    /// Search-window cap used.
+    pub search_px: u16,
+    /// Workspace bytes allocated for the core.
+    pub workspace_bytes: usize,
+}
+
+/// Run one relocalization to completion.
+///
+/// # Errors
+/// Bad map product, image sizes that disagree with the rig, or parameters the
+/// core rejects — each with its failure code. A relocalization that fails
+/// cleanly is not an error: it is an [`Outcome`] with a failure code.
+pub fn relocalize(req: &Request<'_>) -> Result<Report> {
+    let map = MapView::new_checked(req.map)?;
+    let (w, h) = (req.rig.cam.width as usize, req.rig.cam.height as usize);
+    if req.left.len() != w * h || req.right.len() != w * h {
+        return Err(Error::from(vtsm_core::FailureCode::ImageSizeMismatch));
+    }
+    let left = GrayView::new(req.left, w, h, w)?;
+    let right = GrayView::new(req.right, w, h, w)?;
+    let p = req.params;
+    p.validate().map_err(vtsm_core::FailureCode::from)?;
+    let search_px = search_px_for_template(p.template_px);
+    let sizes = WorkspaceSizes::new(
+        usize::from(p.template_px),
+        usize::from(search_px),
+        Search::CoarseToFine,
+    );
+    let mut bytes = vec![0u8; sizes.bytes];
+    let mut words = vec![0u32; sizes.words];
+    let mut runs = vec![Run::default(); sizes.runs];
+    let ws = Workspace::new(sizes, &mut bytes, &mut words, &mut runs)?;
+    let mut policy = MatchPolicy::for_params(&p);
+    policy.search_px = search_px;
+    let pipeline = Pipeline::new(&map, left, right, &req.rig, &p, &policy, ws)?;
+    let options = Options::for_params(&p);
+    let mut reloc = Relocalizer::new(
+        pipeline,
+        RansacSolver::from_params(&p),
+        &p,
+        &options,
+        &req.prior,
+        req.seed,
+    )?;
+    let t0 = Instant::now();
+    let outcome = reloc.run_to_completion(0);
+    Ok(Report {
+        outcome,
+        elapsed: t0.elapsed(),
+        template_px: p.template_px,
+        search_px,
+        workspace_bytes: sizes.total_bytes(),
+    })
+}
