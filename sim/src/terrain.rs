@@ -632,6 +632,52 @@ impl Terrain {
         }
     }
 
+    /// The same depot after "wind" between mapping and relocalization: sand ripples
+    /// moved (up to ±4 mm of height on sand cells, scaled by `strength`), dust deposited
+    /// in streaks (sand brightened by up to 0.05, rocks blended toward dust by up to
+    /// 15 %). Rock heights and labels are unchanged; pebbles are not displaced.
+    /// `strength` is clamped to [0, 1]; 0 returns an identical terrain.
+    pub fn with_wind(&self, seed: u64, strength: f32) -> Terrain {
+        let k = strength.clamp(0.0, 1.0);
+        let mut out = self.clone();
+        if k == 0.0 {
+            return out;
+        }
+        let (nx, x0, y0, c) = (self.nx, self.x0, self.y0, self.cell_m);
+        let wseed = seed ^ 0x5749_4E44;
+        out.height
+            .par_chunks_mut(nx)
+            .zip(out.albedo.par_chunks_mut(nx))
+            .zip(out.label.par_chunks(nx))
+            .enumerate()
+            .for_each(|(j, ((hrow, arow), lrow))| {
+                let y = y0 + j as f32 * c;
+                for (i, ((h, a), l)) in hrow
+                    .iter_mut()
+                    .zip(arow.iter_mut())
+                    .zip(lrow.iter())
+                    .enumerate()
+                {
+                    let x = x0 + i as f32 * c;
+                    let streak = smoothstep(-0.1, 0.2, fbm(wseed, x * 0.4 + y, y * 0.3, 0.6, 4));
+                    match *l {
+                        LABEL_SAND => {
+                            *h += k
+                                * 0.008
+                                * fbm(wseed ^ 1, x * 0.6 + y * 0.8, y * 1.4 - x * 0.3, 0.08, 3);
+                            *a = (*a + k * 0.05 * streak).clamp(0.03, 0.95);
+                        }
+                        LABEL_ROCK => *a += (0.30 - *a) * k * 0.15 * streak,
+                        _ => {}
+                    }
+                }
+            });
+        out.max_height_m = out.height.iter().copied().fold(f32::MIN, f32::max);
+        out.sky = sky_visibility(&out.height, nx, self.ny, c);
+        out.accel = build_accel(&out.height, nx, self.ny);
+        out
+    }
+
     /// Continuous cell coordinates of a world point.
     #[inline]
     fn grid_coords(&self, x: f32, y: f32) -> (f32, f32) {
@@ -920,6 +966,38 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    /// Verifies: VTSM-SIM-012
+    #[test]
+    fn wind_changes_sand_but_not_rocks() {
+        let t = Terrain::generate(TerrainKind::Cfa6, 8, 0.04);
+        assert_eq!(t.with_wind(3, 0.0).height, t.height);
+        let w = t.with_wind(3, 1.0);
+        let (mut sand_dh, mut sand_da, mut n_sand) = (0.0f32, 0.0f32, 0usize);
+        for k in 0..t.height.len() {
+            match t.label[k] {
+                LABEL_SAND => {
+                    sand_dh = sand_dh.max((w.height[k] - t.height[k]).abs());
+                    sand_da += (w.albedo[k] - t.albedo[k]).abs();
+                    n_sand += 1;
+                }
+                _ => assert_eq!(w.height[k], t.height[k]),
+            }
+        }
+        assert_eq!(w.label, t.label);
+        assert!(
+            sand_dh > 0.001 && sand_dh <= 0.0041,
+            "sand moved by {sand_dh}"
+        );
+        let mean_da = sand_da / n_sand as f32;
+        assert!(mean_da > 0.005 && mean_da <= 0.05, "dust {mean_da}");
+        // The acceleration bounds still hold after the change.
+        let mut rng = Rng::new(2);
+        for _ in 0..500 {
+            let (x, y) = (rng.uniform(-3.5, 3.5), rng.uniform(-6.5, 6.5));
+            assert!(w.height(x, y) <= w.max_height_near(0, x, y) + 1e-6);
         }
     }
 

@@ -38,6 +38,9 @@ pub struct Args {
     /// Stereo baseline in metres: 0.40 or 0.20.
     #[arg(long, default_value_t = 0.40)]
     pub baseline: f32,
+    /// Wind between mapping and capture, 0..1 (sand moved, dust deposited); 0 = none.
+    #[arg(long, default_value_t = 0.0)]
+    pub wind: f32,
     /// Overwrite files already in DIR.
     #[arg(long)]
     pub force: bool,
@@ -72,6 +75,9 @@ pub fn run(args: &Args) -> Result<u8> {
     if args.stop >= 2 * STOPS_PER_CIRCLE || args.look_at > 1 {
         return Err(Error::msg("--stop must be 0..30 and --look-at 0 or 1"));
     }
+    if !(args.wind.is_finite() && (0.0..=1.0).contains(&args.wind)) {
+        return Err(Error::msg("--wind must be in [0, 1]"));
+    }
     if !(args.baseline.is_finite() && args.baseline > 0.0 && args.baseline < 2.0) {
         return Err(Error::msg("--baseline must be in (0, 2) metres"));
     }
@@ -81,7 +87,15 @@ pub fn run(args: &Args) -> Result<u8> {
         }
     }
     let t0 = Instant::now();
-    let scene = Scene::new(kind, args.seed, profile);
+    let map_scene = Scene::new(kind, args.seed, profile);
+    let scene = if args.wind > 0.0 {
+        Scene {
+            terrain: map_scene.terrain.with_wind(args.seed, args.wind),
+            ..map_scene.clone()
+        }
+    } else {
+        map_scene.clone()
+    };
     let terrain_s = t0.elapsed().as_secs_f64();
     let cap = Capture::from_index(args.stop, args.look_at, args.baseline);
     let t1 = Instant::now();
@@ -93,18 +107,18 @@ pub fn run(args: &Args) -> Result<u8> {
     let pair_s = t2.elapsed().as_secs_f64();
     let pair_cpu_s = process_cpu_s().zip(cpu2).map(|(b, a)| b - a);
     let t3 = Instant::now();
-    let map_light = if (map_hours - hours).abs() < 1e-6 {
+    let map_light = if (map_hours - hours).abs() < 1e-6 && args.wind <= 0.0 {
         light.clone()
     } else {
-        scene.lighting(map_hours)
+        map_scene.lighting(map_hours)
     };
-    let map = scene.map(&map_light);
+    let map = map_scene.map(&map_light);
     let map_s = t3.elapsed().as_secs_f64();
     let prior = perturbed_prior(&truth, args.seed);
     let meta = serde_json::json!({
         "terrain": kind.name(), "seed": args.seed, "profile": profile.name(),
         "hours": hours, "map_hours": map_hours, "stop": args.stop, "look_at": args.look_at,
-        "baseline_m": args.baseline, "sun_elevation_deg": light.sun.elevation_deg,
+        "baseline_m": args.baseline, "wind": args.wind, "sun_elevation_deg": light.sun.elevation_deg,
         "sun_azimuth_deg": light.sun.azimuth_deg, "triangles": map.triangles.len(),
         "masked_triangles": map.mask.iter().filter(|&&m| m).count(),
     });

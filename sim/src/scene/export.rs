@@ -81,10 +81,15 @@ fn write_text(path: &Path, text: &str) -> Result<()> {
     fs::write(path, text).map_err(|e| io_err(path, e))
 }
 
+/// An f32 as the f64 with the same shortest decimal form (0.4 stays 0.4 in JSON).
+fn short(x: f32) -> f64 {
+    x.to_string().parse().unwrap_or(f64::from(x))
+}
+
 /// `{"world_from_left":{"t":[..],"q":[w,x,y,z]}}`.
 pub fn pose_json(pose: &Pose) -> String {
-    let t = pose.t();
-    let q = pose.q();
+    let t = pose.t().map(short);
+    let q = pose.q().map(short);
     serde_json::json!({"world_from_left": {"t": t, "q": q}}).to_string()
 }
 
@@ -92,8 +97,8 @@ pub fn pose_json(pose: &Pose) -> String {
 pub fn calib_json(rig: &StereoRig) -> String {
     let c = rig.cam;
     serde_json::json!({
-        "width": c.width, "height": c.height, "fx": c.fx, "fy": c.fy,
-        "cx": c.cx, "cy": c.cy, "baseline_m": rig.baseline_m
+        "width": c.width, "height": c.height, "fx": short(c.fx), "fy": short(c.fy),
+        "cx": short(c.cx), "cy": short(c.cy), "baseline_m": short(rig.baseline_m)
     })
     .to_string()
 }
