@@ -172,7 +172,6 @@ pub struct Triangle {
 
 /// One tile: a contiguous run of triangles and the 3D box that bounds them.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Tile {
     /// Lower corner of the box, world metres.
     pub min: Vec3,
@@ -182,6 +181,24 @@ pub struct Tile {
     pub first_triangle: u32,
     /// Number of triangles in the tile (may be 0 for an empty grid cell).
     pub triangle_count: u32,
+}
+
+#[cfg(feature = "defmt")]
+impl defmt::Format for Tile {
+    fn format(&self, f: defmt::Formatter) {
+        defmt::write!(
+            f,
+            "Tile {{ min: [{}, {}, {}], max: [{}, {}, {}], first_triangle: {}, triangle_count: {} }}",
+            self.min.x,
+            self.min.y,
+            self.min.z,
+            self.max.x,
+            self.max.y,
+            self.max.z,
+            self.first_triangle,
+            self.triangle_count
+        );
+    }
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
