@@ -1,21 +1,48 @@
 //! Determinism across targets: the workload of `tests/firmware/src/workload.rs`
-//! runs here on the host and, in CI, as a Cortex-M7 image under QEMU
-//! (`.ci/run`, step "firmware under QEMU"). Both must print the digest checked in
-//! at `tests/firmware/expected-digest.txt`.
+//! (PRNG, geometry, map encoding, rasterized stereo images and a complete
+//! relocalization) runs here on the host and, in CI, as a Cortex-M7 image under
+//! QEMU (`.ci/run`, step "firmware under QEMU"). Both must produce the digest
+//! checked in at `tests/firmware/expected-digest.txt`.
 
 mod workload_mod {
-    #![allow(dead_code, missing_docs)]
+    #![allow(dead_code, missing_docs, clippy::indexing_slicing)]
     use vtsm_core::nalgebra;
     include!("../firmware/src/workload.rs");
+}
+
+/// The workload keeps its buffers on the stack, as the firmware does.
+fn on_big_stack<T: Send + 'static>(f: fn() -> T) -> T {
+    std::thread::Builder::new()
+        .stack_size(64 << 20)
+        .spawn(f)
+        .unwrap()
+        .join()
+        .unwrap()
 }
 
 /// Verifies: VTSM-RNG-002
 #[test]
 fn host_digest_matches_the_checked_in_cross_target_digest() {
     let expected = include_str!("../firmware/expected-digest.txt").trim();
-    let got = format!("{:016x}", workload_mod::workload());
+    let got = format!("{:016x}", on_big_stack(workload_mod::workload));
     assert_eq!(
         got, expected,
         "host digest differs from the bare-metal digest on record"
+    );
+}
+
+/// Verifies: VTSM-RELOC-001
+#[test]
+fn workload_relocalization_converges() {
+    let s = on_big_stack(workload_mod::relocalization);
+    assert!(s.success, "failure code 0x{:04x}", s.failure);
+    assert!(
+        s.initial_error_um > 100_000,
+        "prior must start over 10 cm off"
+    );
+    assert!(
+        s.final_error_um < 50_000,
+        "final error {} µm",
+        s.final_error_um
     );
 }

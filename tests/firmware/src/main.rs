@@ -15,6 +15,15 @@ mod workload_mod {
 fn main() -> ! {
     let digest = workload_mod::workload();
     hprintln!("VTSM-DIGEST {:016x}", digest);
+    let s = workload_mod::relocalization();
+    hprintln!(
+        "relocalization: success {} (code 0x{:04x}), error {} um -> {} um, {} attempts",
+        s.success,
+        s.failure,
+        s.initial_error_um,
+        s.final_error_um,
+        s.attempts
+    );
     debug::exit(debug::EXIT_SUCCESS);
     loop {}
 }

@@ -33,21 +33,47 @@ impl Digest {
 
 /// Run the workload and return the digest.
 pub fn workload() -> u64 {
+    let mut d = Digest::new();
+    base_block(&mut d);
+    let summary = reloc_block(&mut d);
+    d.u64(u64::from(summary.final_error_um));
+    d.0
+}
+
+/// Summary of the relocalization part of the workload.
+pub struct Summary {
+    /// Whether the engine reported success.
+    pub success: bool,
+    /// Failure code value (0 when none).
+    pub failure: u16,
+    /// Final translation error against the truth, micrometres.
+    pub final_error_um: u32,
+    /// Initial translation error, micrometres.
+    pub initial_error_um: u32,
+    /// Correspondence attempts.
+    pub attempts: u32,
+}
+
+/// Run only the relocalization part (for reporting).
+pub fn relocalization() -> Summary {
+    reloc_block(&mut Digest::new())
+}
+
+fn base_block(d: &mut Digest) {
     use vtsm_core::geom::{Camera, Pose, StereoRig, Vec3};
     use vtsm_core::rng::Rng;
 
-    let mut d = Digest::new();
     let mut rng = Rng::new(2026);
     for _ in 0..64 {
         d.u64(rng.next_u64());
     }
     let cam = match Camera::from_hfov(1368, 912, 77.0) {
         Ok(c) => c,
-        Err(e) => return u64::from(e.code()),
+        Err(e) => return d.u64(u64::from(e.code())),
     };
     let rig = match StereoRig::new(cam, 0.4) {
         Ok(r) => r,
-        Err(e) => return u64::from(e.code()),
+        Err(e) => return d.u64(u64::from(e.code())),
     };
     for _ in 0..256 {
         let axis = rng.unit_vector3();
@@ -68,5 +94,197 @@ pub fn workload() -> u64 {
             d.f32(v);
         }
     }
-    d.0
+}
+
+// ---- a small but complete relocalization -------------------------------------
+//
+// A 4 m × 4 m textured bumpy heightfield is encoded as a map product, stereo
+// images are rendered from it with a gain/offset lighting change, and the engine
+// relocalizes from a prior 13 cm / 1° off. Every output bit (pose, quality,
+// counters) goes into the digest.
+
+const GRID: usize = 33;
+const EXTENT_M: f32 = 4.0;
+const TEX: usize = 256;
+const W: usize = 320;
+const H: usize = 240;
+const TILE: usize = 64;
+const WS: vtsm_core::reloc::WorkspaceSizes =
+    vtsm_core::reloc::WorkspaceSizes::new(32, 128, vtsm_core::ncc::Search::CoarseToFine);
+const MAP_BYTES: usize = 200_000;
+
+fn height(bumps: &[[f32; 3]; 12], x: f32, y: f32) -> f32 {
+    let mut z = 0.04 * libm::sinf(1.7 * x) * libm::cosf(1.3 * y);
+    for b in bumps {
+        let d2 = (x - b[0]) * (x - b[0]) + (y - b[1]) * (y - b[1]);
+        z += b[2] * libm::expf(-d2 / (2.0 * 0.12 * 0.12));
+    }
+    z
+}
+
+fn camera_pose(x: f32, y: f32, z: f32, yaw: f32) -> vtsm_core::geom::Pose {
+    use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
+    use vtsm_core::geom::{Pose, Vec3};
+    let pitch = 35.0f32.to_radians();
+    let fwd = Vec3::new(libm::cosf(yaw) * libm::cosf(pitch), libm::sinf(yaw) * libm::cosf(pitch), -libm::sinf(pitch));
+    let right = Vec3::new(libm::sinf(yaw), -libm::cosf(yaw), 0.0);
+    let down = fwd.cross(&right);
+    let r = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[right, down, fwd]));
+    Pose::new(UnitQuaternion::from_rotation_matrix(&r), Vec3::new(x, y, z))
+}
+
+#[allow(clippy::too_many_lines)]
+fn reloc_block(d: &mut Digest) -> Summary {
+    use vtsm_core::config::Params;
+    use vtsm_core::geom::{Camera, StereoRig, Vec3};
+    use vtsm_core::image::{GrayView, Rect};
+    use vtsm_core::map::{MapSource, MapView};
+    use vtsm_core::ncc::Run;
+    use vtsm_core::raster::{self, Target};
+    use vtsm_core::reloc::{MatchPolicy, Options, Pipeline, RansacSolver, Relocalizer, Workspace};
+    use vtsm_core::rng::Rng;
+
+    let fail = |code: u16| Summary { success: false, failure: code, final_error_um: u32::MAX, initial_error_um: 0, attempts: 0 };
+    let mut rng = Rng::new(7);
+    let mut bumps = [[0.0f32; 3]; 12];
+    for b in bumps.iter_mut() {
+        *b = [rng.uniform(0.5, 3.8), rng.uniform(-1.8, 1.8), rng.uniform(0.03, 0.15)];
+    }
+    let step = EXTENT_M / (GRID - 1) as f32;
+    let mut vertices = [[0.0f32; 3]; GRID * GRID];
+    for (k, v) in vertices.iter_mut().enumerate() {
+        let (i, j) = (k % GRID, k / GRID);
+        let (x, y) = (i as f32 * step, -2.0 + j as f32 * step);
+        *v = [x, y, height(&bumps, x, y)];
+    }
+    const NT: usize = 2 * (GRID - 1) * (GRID - 1);
+    let mut triangles = [[0u32; 3]; NT];
+    let mut uvs = [[[0.0f32; 2]; 3]; NT];
+    let mut mask = [true; NT];
+    let uv = |i: usize, j: usize| [i as f32 / (GRID - 1) as f32, j as f32 / (GRID - 1) as f32];
+    let vid = |i: usize, j: usize| (j * GRID + i) as u32;
+    for j in 0..GRID - 1 {
+        for i in 0..GRID - 1 {
+            let t = 2 * (j * (GRID - 1) + i);
+            triangles[t] = [vid(i, j), vid(i + 1, j), vid(i + 1, j + 1)];
+            uvs[t] = [uv(i, j), uv(i + 1, j), uv(i + 1, j + 1)];
+            triangles[t + 1] = [vid(i, j), vid(i + 1, j + 1), vid(i, j + 1)];
+            uvs[t + 1] = [uv(i, j), uv(i + 1, j + 1), uv(i, j + 1)];
+        }
+    }
+    // Leave a band of ground out of the sampling mask, as sand would be.
+    for (t, m) in mask.iter_mut().enumerate() {
+        *m = (t / (2 * (GRID - 1))) % 8 != 3;
+    }
+    // Two-octave value noise texture.
+    let mut texture = [0u8; TEX * TEX];
+    let mut lattice = [[0.0f32; 18]; 18];
+    let mut fine = [[0.0f32; 66]; 66];
+    for row in lattice.iter_mut() {
+        for v in row.iter_mut() {
+            *v = rng.uniform(-60.0, 60.0);
+        }
+    }
+    for row in fine.iter_mut() {
+        for v in row.iter_mut() {
+            *v = rng.uniform(-35.0, 35.0);
+        }
+    }
+    let sample = |l: &[[f32; 18]; 18], x: f32, y: f32| {
+        let (i, j) = (x as usize, y as usize);
+        let (fx, fy) = (x - i as f32, y - j as f32);
+        let a = l[j][i] * (1.0 - fx) + l[j][i + 1] * fx;
+        let b = l[j + 1][i] * (1.0 - fx) + l[j + 1][i + 1] * fx;
+        a * (1.0 - fy) + b * fy
+    };
+    for (k, px) in texture.iter_mut().enumerate() {
+        let (x, y) = ((k % TEX) as f32, (k / TEX) as f32);
+        let coarse = sample(&lattice, x / 16.0, y / 16.0);
+        let (i, j) = ((x / 4.0) as usize, (y / 4.0) as usize);
+        let v = 128.0 + coarse + fine[j.min(65)][i.min(65)];
+        *px = v.clamp(0.0, 255.0) as u8;
+    }
+    let Ok(tex_view) = GrayView::new(&texture, TEX, TEX, TEX) else { return fail(1) };
+    let src = MapSource { vertices: &vertices, triangles: &triangles, uvs: &uvs, mask: &mask, texture: tex_view, tile_size_m: 0.5 };
+    let mut map_bytes = [0u8; MAP_BYTES];
+    let n = match vtsm_core::map::encode(&src, &mut map_bytes) {
+        Ok(n) => n,
+        Err(e) => return fail(e.code()),
+    };
+    let Some(encoded) = map_bytes.get(..n) else { return fail(2) };
+    d.bytes(encoded);
+    let map = match MapView::new_checked(encoded) {
+        Ok(m) => m,
+        Err(e) => return fail(e.code()),
+    };
+
+    let Ok(cam) = Camera::from_hfov(W as u32, H as u32, 70.0) else { return fail(3) };
+    let Ok(rig) = StereoRig::new(cam, 0.3) else { return fail(4) };
+    let truth = camera_pose(0.1, -0.15, 1.1, 0.05);
+    // Real images: rendered from the map at the true pose, with another gain and offset.
+    let mut left = [0u8; W * H];
+    let mut right = [0u8; W * H];
+    let (mut inten, mut depth, mut mdepth) = ([0u8; TILE * TILE], [0u32; TILE * TILE], [0u32; TILE * TILE]);
+    for (img, pose) in [(&mut left, truth), (&mut right, rig.world_from_right(&truth))] {
+        for ty in (0..H).step_by(TILE) {
+            for tx in (0..W).step_by(TILE) {
+                let (tw, th) = (TILE.min(W - tx), TILE.min(H - ty));
+                let rect = Rect::new(tx as i32, ty as i32, tw as u32, th as u32);
+                let mut target = Target { intensity: &mut inten, depth: &mut depth, mask_depth: &mut mdepth };
+                if raster::render_window(&map, &cam, &pose, rect, &mut target).is_err() {
+                    continue;
+                }
+                for y in 0..th {
+                    for x in 0..tw {
+                        let v = f32::from(inten[y * tw + x]) * 0.85 + 14.0;
+                        img[(ty + y) * W + tx + x] = v.clamp(0.0, 255.0) as u8;
+                    }
+                }
+            }
+        }
+    }
+    d.bytes(&left);
+    d.bytes(&right);
+
+    let p = Params { template_px: 32, n_corr: 24, n_iter: 3, attempts_per_iter: 300, ransac_iter: 300, max_reseed: 3, ..Params::paper() };
+    let mut policy = MatchPolicy::for_params(&p);
+    policy.search_px = WS.search_px as u16;
+    let options = Options::for_params(&p);
+    let mut bytes = [0u8; WS.bytes];
+    let mut words = [0u32; WS.words];
+    let mut runs = [Run::default(); WS.runs];
+    let (Ok(lv), Ok(rv)) = (GrayView::new(&left, W, H, W), GrayView::new(&right, W, H, W)) else { return fail(5) };
+    let ws = match Workspace::new(WS, &mut bytes, &mut words, &mut runs) {
+        Ok(w) => w,
+        Err(e) => return fail(e.code()),
+    };
+    let pipe = match Pipeline::new(&map, lv, rv, &rig, &p, &policy, ws) {
+        Ok(x) => x,
+        Err(e) => return fail(e.code()),
+    };
+    let dq = nalgebra::UnitQuaternion::from_scaled_axis(Vec3::new(0.3, -0.5, 0.8).normalize() * 1.0f32.to_radians());
+    let prior = vtsm_core::geom::Pose::new(dq * truth.rotation(), truth.translation() + Vec3::new(0.11, -0.06, 0.03));
+    let mut reloc = match Relocalizer::new(pipe, RansacSolver::from_params(&p), &p, &options, &prior, 2026) {
+        Ok(r) => r,
+        Err(e) => return fail(e.code()),
+    };
+    let out = reloc.run_to_completion(0);
+    for v in out.pose.t().into_iter().chain(out.pose.q()) {
+        d.f32(v);
+    }
+    d.f32(out.quality.rms_m);
+    d.u64(u64::from(out.quality.inliers));
+    d.u64(u64::from(out.stats.attempts));
+    d.u64(u64::from(out.stats.ransac_iterations));
+    d.u64(out.stats.pipeline.ncc_macs);
+    d.u64(u64::from(out.failure.map_or(0, |c| c.code())));
+    let (e1, _) = out.pose.error_to(&truth);
+    let (e0, _) = prior.error_to(&truth);
+    Summary {
+        success: out.failure.is_none(),
+        failure: out.failure.map_or(0, |c| c.code()),
+        final_error_um: (e1 * 1e6) as u32,
+        initial_error_um: (e0 * 1e6) as u32,
+        attempts: out.stats.attempts,
+    }
 }
