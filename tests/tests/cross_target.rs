@@ -12,12 +12,12 @@ mod workload_mod {
 
 /// The workload keeps its buffers on the stack, as the firmware does.
 fn on_big_stack<T: Send + 'static>(f: fn() -> T) -> T {
-    std::thread::Builder::new()
-        .stack_size(64 << 20)
-        .spawn(f)
-        .unwrap()
-        .join()
-        .unwrap()
+    let handle = std::thread::Builder::new().stack_size(64 << 20).spawn(f);
+    match handle.map(std::thread::JoinHandle::join) {
+        Ok(Ok(v)) => v,
+        Ok(Err(p)) => std::panic::resume_unwind(p),
+        Err(e) => panic!("cannot spawn the workload thread: {e}"),
+    }
 }
 
 /// Verifies: VTSM-RNG-002
