@@ -4,6 +4,8 @@
 //! QEMU (`.ci/run`, step "firmware under QEMU"). Both must produce the digest
 //! checked in at `tests/firmware/expected-digest.txt`.
 
+#![allow(clippy::panic)] // test-only helper below panics by design
+
 mod workload_mod {
     #![allow(dead_code, missing_docs, clippy::indexing_slicing)]
     use vtsm_core::nalgebra;
