@@ -36,7 +36,7 @@ fn host_digest_matches_the_checked_in_cross_target_digest() {
 /// Verifies: VTSM-RELOC-001
 #[test]
 fn workload_relocalization_converges() {
-    let s = on_big_stack(workload_mod::relocalization);
+    let s = on_big_stack(|| workload_mod::relocalization(&|| 0));
     assert!(s.success, "failure code 0x{:04x}", s.failure);
     assert!(
         s.initial_error_um > 100_000,

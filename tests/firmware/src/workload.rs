@@ -35,7 +35,7 @@ impl Digest {
 pub fn workload() -> u64 {
     let mut d = Digest::new();
     base_block(&mut d);
-    let summary = reloc_block(&mut d);
+    let summary = reloc_block(&mut d, &|| 0);
     d.u64(u64::from(summary.final_error_um));
     d.0
 }
@@ -52,11 +52,14 @@ pub struct Summary {
     pub initial_error_um: u32,
     /// Correspondence attempts.
     pub attempts: u32,
+    /// Clock ticks spent in the engine alone (`run_to_completion`).
+    pub engine_ticks: u64,
 }
 
-/// Run only the relocalization part (for reporting).
-pub fn relocalization() -> Summary {
-    reloc_block(&mut Digest::new())
+/// Run only the relocalization part (for reporting), timing the engine's
+/// `run_to_completion` with `clock`.
+pub fn relocalization(clock: &dyn Fn() -> u64) -> Summary {
+    reloc_block(&mut Digest::new(), clock)
 }
 
 fn base_block(d: &mut Digest) {
@@ -134,7 +137,7 @@ fn camera_pose(x: f32, y: f32, z: f32, yaw: f32) -> vtsm_core::geom::Pose {
 }
 
 #[allow(clippy::too_many_lines)]
-fn reloc_block(d: &mut Digest) -> Summary {
+fn reloc_block(d: &mut Digest, clock: &dyn Fn() -> u64) -> Summary {
     use vtsm_core::config::Params;
     use vtsm_core::geom::{Camera, StereoRig, Vec3};
     use vtsm_core::image::{GrayView, Rect};
@@ -144,7 +147,7 @@ fn reloc_block(d: &mut Digest) -> Summary {
     use vtsm_core::reloc::{MatchPolicy, Options, Pipeline, RansacSolver, Relocalizer, Workspace};
     use vtsm_core::rng::Rng;
 
-    let fail = |code: u16| Summary { success: false, failure: code, final_error_um: u32::MAX, initial_error_um: 0, attempts: 0 };
+    let fail = |code: u16| Summary { success: false, failure: code, final_error_um: u32::MAX, initial_error_um: 0, attempts: 0, engine_ticks: 0 };
     let mut rng = Rng::new(7);
     let mut bumps = [[0.0f32; 3]; 12];
     for b in bumps.iter_mut() {
@@ -268,7 +271,9 @@ fn reloc_block(d: &mut Digest) -> Summary {
         Ok(r) => r,
         Err(e) => return fail(e.code()),
     };
+    let e0 = clock();
     let out = reloc.run_to_completion(0);
+    let engine_ticks = clock().wrapping_sub(e0);
     for v in out.pose.t().into_iter().chain(out.pose.q()) {
         d.f32(v);
     }
@@ -286,5 +291,6 @@ fn reloc_block(d: &mut Digest) -> Summary {
         final_error_um: (e1 * 1e6) as u32,
         initial_error_um: (e0 * 1e6) as u32,
         attempts: out.stats.attempts,
+        engine_ticks,
     }
 }
