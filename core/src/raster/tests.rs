@@ -751,8 +751,9 @@ fn template_mask_reference(depth: &[u32], mdepth: &[u32], w: usize, h: usize) ->
                         let zm = f64::from(m) / 65536.0;
                         let jump = f64::from(TEMPLATE_MASK_JUMP_M)
                             + zm / f64::from(TEMPLATE_MASK_JUMP_REL_DIV);
-                        // Half an LSB of slack each way for the fixed-point threshold.
-                        if d > zm + jump + 1.5 / 65536.0 {
+                        // Exact real threshold; the fixed-point one rounds each term
+                        // down, so it lies at most 2 LSB below this (see the caller).
+                        if d > zm + jump {
                             keep = true;
                         }
                     }
