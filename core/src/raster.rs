@@ -117,6 +117,31 @@ pub(crate) struct Frag {
 /// Receives every covered pixel of a render.
 pub(crate) trait PixelSink {
     fn put(&mut self, f: Frag);
+
+    /// A run of `n ≥ 1` covered pixels at consecutive indices from `idx`, with
+    /// depth and texture coordinates stepped linearly: pixel `k` has
+    /// `acc + k·step` (depth, u, v) scaled by `2^SEG_SHIFT`. Same effect as
+    /// [`Self::put`] on each pixel in order.
+    #[inline]
+    fn put_run(&mut self, idx: usize, n: usize, acc: [i64; 3], step: [i64; 3], mask: bool) {
+        let mut acc = acc;
+        for k in 0..n {
+            self.put(run_frag(idx.wrapping_add(k), acc, mask));
+            acc = [acc[0] + step[0], acc[1] + step[1], acc[2] + step[2]];
+        }
+    }
+}
+
+/// The fragment of a linear run at accumulator `acc` (values scaled by `2^SEG_SHIFT`).
+#[inline(always)]
+fn run_frag(idx: usize, acc: [i64; 3], mask: bool) -> Frag {
+    Frag {
+        idx,
+        depth: (acc[0] >> SEG_SHIFT).clamp(0, i64::from(DEPTH_MAX)) as u32,
+        u_q16: acc[1] >> SEG_SHIFT,
+        v_q16: acc[2] >> SEG_SHIFT,
+        mask,
+    }
 }
 
 impl<F: FnMut(Frag)> PixelSink for F {
@@ -153,6 +178,47 @@ impl PixelSink for ZBuffer<'_, '_> {
                 self.written += 1;
             }
         }
+    }
+
+    #[inline(always)]
+    fn put_run(&mut self, idx: usize, n: usize, acc: [i64; 3], step: [i64; 3], mask: bool) {
+        let end = idx.wrapping_add(n);
+        // One bounds check per run: the three buffers have the same length (w·h).
+        let (Some(ds), Some(ms), Some(is)) = (
+            self.depth.get_mut(idx..end),
+            self.mask_depth.get_mut(idx..end),
+            self.intensity.get_mut(idx..end),
+        ) else {
+            // Not reached for runs inside the window; the per-pixel path skips
+            // out-of-range pixels the same way.
+            let mut acc = acc;
+            for k in 0..n {
+                self.put(run_frag(idx.wrapping_add(k), acc, mask));
+                acc = [acc[0] + step[0], acc[1] + step[1], acc[2] + step[2]];
+            }
+            return;
+        };
+        let (tex, tw, th) = (self.tex, self.tw, self.th);
+        let mut acc = acc;
+        let mut written = 0u32;
+        for ((slot, m), p) in ds.iter_mut().zip(ms.iter_mut()).zip(is.iter_mut()) {
+            let d = (acc[0] >> SEG_SHIFT).clamp(0, i64::from(DEPTH_MAX)) as u32;
+            if d < *slot {
+                *slot = d;
+                *m = if mask { d } else { DEPTH_NONE };
+                *p = sample_bilinear(tex, tw, th, acc[1] >> SEG_SHIFT, acc[2] >> SEG_SHIFT);
+                // At most n ≤ MAX_RENDER_PX per run.
+                written = written.wrapping_add(1);
+            }
+            // Accumulators stay within ±2^40 (depth ≤ 2^32, UVs clamped to ±2^36
+            // in 16.16, times SEG) plus one segment's step: no i64 overflow.
+            acc = [
+                acc[0].wrapping_add(step[0]),
+                acc[1].wrapping_add(step[1]),
+                acc[2].wrapping_add(step[2]),
+            ];
+        }
+        self.written = self.written.saturating_add(written);
     }
 }
 
@@ -490,13 +556,22 @@ fn fill_triangle<S: PixelSink>(
             )
         };
         let mut px = xl;
+        // The exact values at the end of one segment are those at the start of the
+        // next (same column, same arithmetic): evaluated once per boundary.
+        let mut next: Option<(i64, Option<[i64; 3]>)> = None;
         // Bounded: each pass advances px to the next segment boundary (at most
         // w / SEG + 2 passes per span).
         while px <= xr {
             let s0 = px & !(SEG - 1);
             let s1 = s0 + SEG;
             let end = xr.min(s1 - 1);
-            match (at(s0), at(s1)) {
+            let e0 = match next {
+                Some((col, e)) if col == s0 => e,
+                _ => at(s0),
+            };
+            let e1 = at(s1);
+            next = Some((s1, e1));
+            match (e0, e1) {
                 // Linear depth and UVs deviate from perspective-correct values by about
                 // δ²/4 of depth with δ the relative change of depth over the segment;
                 // segments with δ > 1/64 are evaluated exactly at every pixel instead.
@@ -504,21 +579,18 @@ fn fill_triangle<S: PixelSink>(
                     let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
                     let k = px - s0;
                     // acc / SEG is the linear interpolation between the segment ends.
-                    let mut acc = [
+                    let acc = [
                         a[0] * SEG + d[0] * k,
                         a[1] * SEG + d[1] * k,
                         a[2] * SEG + d[2] * k,
                     ];
-                    for x in px..=end {
-                        sink.put(Frag {
-                            idx: row.wrapping_add(x as usize),
-                            depth: (acc[0] >> SEG_SHIFT).clamp(0, i64::from(DEPTH_MAX)) as u32,
-                            u_q16: acc[1] >> SEG_SHIFT,
-                            v_q16: acc[2] >> SEG_SHIFT,
-                            mask,
-                        });
-                        acc = [acc[0] + d[0], acc[1] + d[1], acc[2] + d[2]];
-                    }
+                    sink.put_run(
+                        row.wrapping_add(px as usize),
+                        (end - px + 1) as usize,
+                        acc,
+                        d,
+                        mask,
+                    );
                 }
                 _ => {
                     for x in px..=end {
@@ -652,22 +724,29 @@ pub(crate) fn rasterize<S: PixelSink>(
 }
 
 /// Bilinear sample of a texture (stride = width) at texture pixel `(u, v)`,
-/// clamped to the edge texels; 8-bit weights, rounded.
+/// clamped to the edge texels; 8-bit weights, rounded. 32-bit arithmetic: the map
+/// validates `1 ≤ tw, th ≤ MAX_TEXTURE_DIM = 2^14`, so clamped coordinates are
+/// below 2^30 in 16.16, texel indices below 2^28, and every weighted sum below
+/// 255·256·256 + 2^15 < 2^24 (the wrapping operations never wrap).
+const _: () = assert!(crate::config::MAX_TEXTURE_DIM <= 1 << 14);
+
 #[inline(always)]
 fn sample_bilinear(tex: &[u8], tw: usize, th: usize, u_q16: i64, v_q16: i64) -> u8 {
     // max/min rather than clamp: no bounds-order check per pixel.
-    let u = u_q16.max(0).min((tw as i64 - 1) << 16);
-    let v = v_q16.max(0).min((th as i64 - 1) << 16);
+    let u = u_q16.max(0).min((tw as i64 - 1) << 16) as u32;
+    let v = v_q16.max(0).min((th as i64 - 1) << 16) as u32;
     let (x0, y0) = ((u >> 16) as usize, (v >> 16) as usize);
-    let fx = ((u >> 8) & 0xFF) as u32;
-    let fy = ((v >> 8) & 0xFF) as u32;
+    let fx = (u >> 8) & 0xFF;
+    let fy = (v >> 8) & 0xFF;
     let dx = usize::from(x0 + 1 < tw);
     let dy = if y0 + 1 < th { tw } else { 0 };
-    let i = y0 * tw + x0;
+    let i = y0.wrapping_mul(tw).wrapping_add(x0);
     let px = |k: usize| u32::from(tex.get(k).copied().unwrap_or(0));
-    let top = px(i) * (256 - fx) + px(i + dx) * fx;
-    let bot = px(i + dy) * (256 - fx) + px(i + dy + dx) * fx;
-    ((top * (256 - fy) + bot * fy + (1 << 15)) >> 16) as u8
+    let lerp = |a: u32, b: u32, f: u32| a.wrapping_mul(256 - f).wrapping_add(b.wrapping_mul(f));
+    let top = lerp(px(i), px(i.wrapping_add(dx)), fx);
+    let j = i.wrapping_add(dy);
+    let bot = lerp(px(j), px(j.wrapping_add(dx)), fx);
+    (lerp(top, bot, fy).wrapping_add(1 << 15) >> 16) as u8
 }
 
 /// Render `window` (a pixel rectangle of the full virtual image of `cam`) of the
