@@ -15,7 +15,8 @@
 //! and the yield of candidate match policies (first accepted variant wins).
 //!
 //! ```text
-//! cargo run --release -p vtsm-sim --example match_study -- [--profile demo] [--samples 40] [--seed 1] [--tol 2] [--csv out.csv]
+//! cargo run --release -p vtsm-sim --example match_study -- [--profile demo] [--terrains flagstone,cfa6,cfa2]
+//!     [--stops 3,11] [--samples 40] [--seed 1] [--tol 2] [--csv out.csv]
 //! ```
 
 use nalgebra::UnitQuaternion;
@@ -241,12 +242,12 @@ fn main() {
     let csv = get("--csv");
     let t_all = Instant::now();
     let mut records: Vec<Record> = Vec::new();
-    let terrains = [
-        TerrainKind::parse("flagstone"),
-        TerrainKind::parse("cfa6"),
-        TerrainKind::parse("cfa2"),
-    ];
-    for kind in terrains.into_iter().flatten() {
+    let names = get("--terrains").unwrap_or_else(|| "flagstone,cfa6,cfa2".into());
+    let terrains: Vec<TerrainKind> = names
+        .split(',')
+        .map(|n| TerrainKind::parse(n).expect("--terrains flagstone,cfa6,cfa2"))
+        .collect();
+    for kind in terrains {
         let t0 = Instant::now();
         let scene = Scene::new(kind, seed, profile);
         let map_mesh: mesh::MeshData = scene.map(&scene.lighting(MAP_HOURS)).into();
