@@ -19,6 +19,8 @@
 //!     [--stops 3,11] [--samples 40] [--seed 1] [--tol 2] [--csv out.csv]
 //! ```
 
+#![allow(clippy::expect_used)] // a study harness: a failed setup step should stop it loudly
+
 use nalgebra::UnitQuaternion;
 use rayon::prelude::*;
 use std::fmt::Write as _;
@@ -52,6 +54,9 @@ struct Found {
     /// Pixel distance of the placed vertex from its true projection.
     err_px: f32,
 }
+
+/// Per variant: (index, exhaustive result, coarse-to-fine result).
+type SampleResult = Vec<(usize, Option<Found>, Option<Found>)>;
 
 #[derive(Clone, Debug)]
 struct Record {
@@ -136,7 +141,7 @@ fn one_sample(
     r_deg: f32,
     tol: f32,
     bufs: &mut (Buffers, Buffers),
-) -> Option<Vec<(usize, Option<Found>, Option<Found>)>> {
+) -> Option<SampleResult> {
     let l = locate::template_px_for_width(cam.width) as usize;
     let cap = locate::search_px_for_template(l as u16) as usize;
     let margin = (l / 2) as f32;
