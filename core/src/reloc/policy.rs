@@ -53,23 +53,28 @@ pub struct MatchPolicy {
 }
 
 impl MatchPolicy {
-    /// Gray, Sobel, Laplacian at ℓ, then (with `params.sub_template`) at ℓ/2;
-    /// `min_score` from `params`, runner-up ratio 0.9, coarse-to-fine search.
+    /// Sobel then gray at ℓ, then (with `params.sub_template`) Sobel then gray
+    /// at ℓ/2; no Laplacian. `min_score` from `params`, runner-up ratio 0.9,
+    /// coarse-to-fine search.
+    ///
+    /// Chosen from the simulated-depot study in `fsw-docs/eval/matching.md`
+    /// (`sim/examples/match_study.rs`): under a 3–6 h lighting change the
+    /// Sobel domain gives the most correct matches and, tried first, the fewest
+    /// false accepts at the same yield; the Laplacian domain has the lowest
+    /// correct-match rate, its accepted matches are the most often wrong, and
+    /// its coarse-to-fine search agrees least with the exhaustive one, so it
+    /// only adds searches. The two free slots stay `None`.
     pub fn for_params(params: &Params) -> Self {
         let v = |half, filter| Some(Variant { half, filter });
         let sub = params.sub_template;
         Self {
             variants: [
-                v(false, Filter::Gray),
                 v(false, Filter::Sobel),
-                v(false, Filter::Laplacian),
-                if sub { v(true, Filter::Gray) } else { None },
+                v(false, Filter::Gray),
                 if sub { v(true, Filter::Sobel) } else { None },
-                if sub {
-                    v(true, Filter::Laplacian)
-                } else {
-                    None
-                },
+                if sub { v(true, Filter::Gray) } else { None },
+                None,
+                None,
             ],
             min_score: params.min_score,
             max_runner_up_ratio: 0.9,
@@ -119,10 +124,16 @@ mod tests {
         assert_eq!(pol.validate(256), Ok(()));
         let idx: heapless::Vec<usize, 6> =
             pol.variants.iter().flatten().map(|v| v.index()).collect();
-        assert_eq!(idx.as_slice(), &[0, 1, 2, 3, 4, 5]);
+        // Sobel ℓ, gray ℓ, Sobel ℓ/2, gray ℓ/2 (index = half * 3 + filter).
+        assert_eq!(idx.as_slice(), &[1, 0, 4, 3]);
+        assert!(pol
+            .variants
+            .iter()
+            .flatten()
+            .all(|v| v.filter != Filter::Laplacian));
         p.sub_template = false;
         let pol = MatchPolicy::for_params(&p);
-        assert_eq!(pol.variants.iter().flatten().count(), 3);
+        assert_eq!(pol.variants.iter().flatten().count(), 2);
         assert!(pol.variants.iter().flatten().all(|v| !v.half));
         let bad = |f: fn(&mut MatchPolicy)| {
             let mut q = MatchPolicy::for_params(&Params::paper());
