@@ -170,7 +170,16 @@ fn file_path_equals_in_memory_path_bit_for_bit() {
 #[test]
 fn exporter_floats_round_trip() {
     let mut rng = vtsm_core::rng::Rng::new(11);
-    let mut values: Vec<f32> = vec![0.0, -0.0, 1.0e-7, 3.4e38, -1.17549435e-38, 0.1, 1.0 / 3.0];
+    let mut values: Vec<f32> = vec![
+        0.0,
+        -0.0,
+        1.0e-7,
+        3.4e38,
+        -f32::MIN_POSITIVE,
+        f32::MAX,
+        0.1,
+        1.0 / 3.0,
+    ];
     values.extend((0..2000).map(|_| f32::from_bits(rng.next_u32() & 0x7f7f_ffff) * 1.0e-30));
     values.extend((0..2000).map(|_| rng.uniform(-50.0, 50.0)));
     let mesh = vtsm_sim::mapping::MeshData {
