@@ -232,8 +232,9 @@ fn exporter_floats_round_trip() {
     }
 }
 
-/// Exit codes of `vtsm relocalize`: 0 success, 1 clean failure (prior 1 m off,
-/// `result.json` written with status `failed`), 2 bad input (nothing written).
+/// Exit codes of `vtsm relocalize`: 0 success, 1 clean failure (featureless
+/// images; `result.json` written with status `failed`), 2 bad input (nothing
+/// written). A prior 1 m off gives 1, or 0 only with a pose within 5 cm.
 ///
 /// Verifies: VTSM-CLI-017, VTSM-CLI-009
 #[test]
@@ -273,6 +274,18 @@ fn relocalize_exit_codes() {
         assert_eq!(code, EXIT_RELOC_FAILED);
         assert!(text.contains("\"failed\""), "{text}");
     }
+
+    // Featureless images (uniform gray) of the right size: nothing to match,
+    // so the relocalization must fail cleanly with exit code 1.
+    let (w, h) = (e.rig.cam.width, e.rig.cam.height);
+    let gray = vec![128u8; (w * h) as usize];
+    vtsm_sim::scene::export::write_png_gray(&e.dir.join("blank.png"), w, h, &gray).unwrap();
+    let mut blank = args(&e.dir, "prior.json", Some(out_dir.join("blank.json")));
+    blank.left = e.dir.join("blank.png");
+    blank.right = e.dir.join("blank.png");
+    assert_eq!(relocalize::run(&blank).unwrap(), EXIT_RELOC_FAILED);
+    let text = std::fs::read_to_string(out_dir.join("blank.json")).unwrap();
+    assert!(text.contains("\"failed\""), "{text}");
 
     // Bad input: a prior that is not a unit quaternion.
     std::fs::write(
