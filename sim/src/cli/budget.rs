@@ -4,9 +4,21 @@
 //! `core::mem::size_of` of the core's types, never typed in. Each stage adds its
 //! rows to [`rows`] (measured work counters belong in the section of the stage
 //! that measures them).
+//!
+//! The `measured` section ([`measured_rows`]) comes from actually running one
+//! relocalization of a simulated test-profile scene through the same
+//! [`crate::locate::relocalize`] as every other command.
 
+use crate::io::mesh;
+use crate::locate::{self, Request};
+use crate::scene::{perturbed_prior, Capture, Profile, Scene};
+use crate::terrain::TerrainKind;
 use std::mem::size_of;
 use vtsm_core::config as cfg;
+use vtsm_core::reloc::workspace::{
+    WorkspaceSizes, PAPER_WORKSPACE, PAPER_WORKSPACE_BYTES, TEST_WORKSPACE, TEST_WORKSPACE_BYTES,
+};
+use vtsm_core::reloc::{Outcome, Pipeline, RansacSolver, Relocalizer};
 
 /// Arguments of `vtsm budget`.
 #[derive(Debug, Clone, clap::Args)]
@@ -14,6 +26,12 @@ pub struct Args {
     /// Print JSON lines (one object per row) instead of a Markdown table.
     #[arg(long)]
     pub json: bool,
+    /// Skip the measured relocalization (static rows only; no scene is built).
+    #[arg(long)]
+    pub no_run: bool,
+    /// Seed of the measured test-profile scene, prior and relocalization.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub seed: u64,
 }
 
 /// One line of the budget.
@@ -86,12 +104,133 @@ pub fn rows() -> Vec<Row> {
             render * (size_of::<u8>() + 2 * size_of::<u32>()),
             "bytes",
         ),
+        row(
+            "memory",
+            workspace_item("paper", &PAPER_WORKSPACE),
+            PAPER_WORKSPACE_BYTES,
+            "bytes",
+        ),
+        row(
+            "memory",
+            workspace_item("test", &TEST_WORKSPACE),
+            TEST_WORKSPACE_BYTES,
+            "bytes",
+        ),
+        row(
+            "memory",
+            "core::reloc::Relocalizer<(), ()> (engine state)",
+            size_of::<Relocalizer<(), ()>>(),
+            "bytes",
+        ),
+        row(
+            "memory",
+            "core::reloc::Relocalizer<Pipeline, RansacSolver>",
+            size_of::<Relocalizer<Pipeline<'static, 'static>, RansacSolver>>(),
+            "bytes",
+        ),
+        row(
+            "memory",
+            "core::reloc::Outcome",
+            size_of::<Outcome>(),
+            "bytes",
+        ),
     ]
+}
+
+fn workspace_item(scale: &str, w: &WorkspaceSizes) -> String {
+    format!(
+        "pipeline workspace, {scale} (ℓ {}, W {}, coarse-to-fine)",
+        w.template_px, w.search_px
+    )
+}
+
+/// The scene of the measured row: terrain, map and image time, stop.
+pub const MEASURED_SCENE: (TerrainKind, f32, u32) = (TerrainKind::Flagstone, 9.5, 3);
+
+/// Rows measured by running one relocalization of a test-profile scene
+/// (flagstone, map and images at 9.5 h, stop 3, prior perturbed 10–20 cm and
+/// ≤ 1.5° with `seed`): the engine's work counters, its wall time and the
+/// outcome. Only the engine call is timed (not the scene or map building).
+///
+/// # Errors
+/// The map or inputs refused by the core (a bug of the simulator).
+pub fn measured_rows(seed: u64) -> crate::Result<Vec<Row>> {
+    let (kind, hours, stop) = MEASURED_SCENE;
+    let scene = Scene::new(kind, seed, Profile::Test);
+    let light = scene.lighting(hours);
+    let map: mesh::MeshData = scene.map(&light).into();
+    let bytes = map.encode_map(super::map_build::DEFAULT_TILE_SIZE_M)?;
+    let (rig, truth, pair) = scene.capture(&light, &Capture::from_index(stop, 0, 0.40));
+    let prior = perturbed_prior(&truth, seed);
+    let req = Request {
+        map: &bytes,
+        left: &pair.left,
+        right: &pair.right,
+        rig,
+        prior,
+        params: locate::params_for_width(rig.cam.width),
+        seed,
+    };
+    let report = locate::relocalize(&req)?;
+    let o = &report.outcome;
+    let s = &o.stats;
+    let p = &s.pipeline;
+    let m = |item: &str, v: u64, unit: &'static str| Row {
+        section: "measured",
+        item: format!("test-profile relocalization: {item}"),
+        value: v,
+        unit,
+    };
+    let (t0, _) = prior.error_to(&truth);
+    let (t1, _) = o.pose.error_to(&truth);
+    let mm = |x: f32| (f64::from(x) * 1e6).round() as u64;
+    Ok(vec![
+        m("image width", u64::from(rig.cam.width), "px"),
+        m("image height", u64::from(rig.cam.height), "px"),
+        m("template side ℓ", u64::from(report.template_px), "px"),
+        m("search window cap", u64::from(report.search_px), "px"),
+        m(
+            "workspace allocated",
+            report.workspace_bytes as u64,
+            "bytes",
+        ),
+        m(
+            "failure code (0 = success)",
+            o.failure.map_or(0, |c| u64::from(c.code())),
+            "code",
+        ),
+        m("initial error", mm(t0), "µm"),
+        m("final error", mm(t1), "µm"),
+        m("inliers", u64::from(o.quality.inliers), "count"),
+        m("successful iterations", u64::from(s.successes), "count"),
+        m("attempts", u64::from(s.attempts), "count"),
+        m("correspondences", u64::from(s.correspondences), "count"),
+        m("renders", u64::from(p.renders), "count"),
+        m("render pixels", p.render_pixels, "px"),
+        m(
+            "NCC matches",
+            p.matches.iter().map(|&v| u64::from(v)).sum(),
+            "count",
+        ),
+        m("NCC positions scored", p.ncc_positions, "count"),
+        m("NCC MACs", p.ncc_macs, "count"),
+        m("RANSAC iterations", u64::from(s.ransac_iterations), "count"),
+        m("stalls", u64::from(s.stalls), "count"),
+        m("reseeds", u64::from(s.reseeds), "count"),
+        m(
+            "engine wall time (one thread)",
+            report.elapsed.as_micros() as u64,
+            "µs",
+        ),
+    ])
 }
 
 /// Run the command; returns the exit code.
 pub fn run(args: &Args) -> crate::Result<u8> {
-    let rows = rows();
+    let mut rows = rows();
+    if !args.no_run {
+        rows.extend(measured_rows(args.seed)?);
+    }
     if args.json {
         for r in &rows {
             let v = serde_json::json!({

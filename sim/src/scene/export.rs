@@ -2,9 +2,11 @@
 //! `mask.obj`, `calib.json`, `left.png`, `right.png`, `prior.json`, `truth.json`, and a
 //! `scene.json` describing how the scene was made.
 //!
-//! Small, dependency-light writers (the readers live in `io`). OBJ vertices are written
-//! with 5 decimals (10 µm), texture coordinates with 6; faces reference per-corner `vt`
-//! entries; the mask OBJ repeats the same vertex list and holds only the masked faces.
+//! Small, dependency-light writers (the readers live in `io`). Every float (OBJ vertices
+//! and texture coordinates, calibration, poses) is written in the shortest decimal form
+//! that reads back to the same `f32`, so `vtsm relocalize` on the exported files sees
+//! bit for bit the data of the in-memory scene. Faces reference per-corner `vt` entries;
+//! the mask OBJ repeats the same vertex list and holds only the masked faces.
 
 use crate::error::{Error, Result};
 use crate::mapping::MeshData;
@@ -46,7 +48,7 @@ pub fn obj_text(mesh: &MeshData, mtl: Option<&str>, masked_only: bool) -> String
         let _ = writeln!(s, "mtllib {m}\nusemtl depot");
     }
     for v in &mesh.vertices {
-        let _ = writeln!(s, "v {:.5} {:.5} {:.5}", v[0], v[1], v[2]);
+        let _ = writeln!(s, "v {} {} {}", v[0], v[1], v[2]);
     }
     let mut vt = 0usize;
     for (k, tri) in mesh.triangles.iter().enumerate() {
@@ -56,7 +58,7 @@ pub fn obj_text(mesh: &MeshData, mtl: Option<&str>, masked_only: bool) -> String
         if !masked_only {
             if let Some(uv) = mesh.uvs.get(k) {
                 for c in uv {
-                    let _ = writeln!(s, "vt {:.6} {:.6}", c[0], c[1]);
+                    let _ = writeln!(s, "vt {} {}", c[0], c[1]);
                 }
             }
             let _ = writeln!(
