@@ -902,3 +902,284 @@ pub fn run(args: &Args) -> Result<u8> {
     println!("wrote {}", out.display());
     Ok(0)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn small(suite: Suite) -> SuiteConfig {
+        SuiteConfig {
+            terrains: vec![TerrainKind::Flagstone],
+            hours: vec![0.0],
+            steps: vec![12],
+            seeds_k: 4,
+            ..SuiteConfig::new(suite, Profile::Test, 1, 7)
+        }
+    }
+
+    fn median(mut v: Vec<f64>) -> f64 {
+        v.sort_by(f64::total_cmp);
+        match v.len() {
+            0 => f64::NAN,
+            n if n % 2 == 1 => v[n / 2],
+            n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+        }
+    }
+
+    /// Check a run's outcomes, summaries and written files against each other.
+    fn check_run(
+        run: &SuiteRun,
+        groups: usize,
+        trials: usize,
+        prior_mm: (f64, f64),
+        plots: &[&str],
+    ) {
+        assert_eq!(run.groups.len(), groups);
+        assert_eq!(run.outcomes.len(), groups * trials);
+        for o in &run.outcomes {
+            assert_eq!(o.success, o.failure.is_none(), "{o:?}");
+            assert!(
+                o.init_t_mm >= prior_mm.0 - 1e-3 && o.init_t_mm <= prior_mm.1 + 1e-3,
+                "{o:?}"
+            );
+            assert!(o.init_r_deg <= f64::from(PRIOR_MAX_DEG) + 1e-3, "{o:?}");
+            assert!(o.final_t_mm.is_finite() && o.final_t_mm >= 0.0);
+            let d = o.extra["view_dist_m"];
+            assert!(d.is_finite() && d >= 0.0, "{o:?}");
+            if o.success {
+                assert!(
+                    o.iterations > 0 && o.inliers >= 3 && o.time_s > 0.0,
+                    "{o:?}"
+                );
+            }
+        }
+        for g in &run.groups {
+            let rows: Vec<&TrialOutcome> =
+                run.outcomes.iter().filter(|o| o.group == g.group).collect();
+            let ok: Vec<f64> = rows
+                .iter()
+                .filter(|o| o.success)
+                .map(|o| o.final_t_mm)
+                .collect();
+            assert_eq!(g.trials, trials);
+            assert_eq!(g.successes, ok.len());
+            assert!((g.success_pct - 100.0 * ok.len() as f64 / trials as f64).abs() < 1e-9);
+            let m = median(ok);
+            assert!(m.is_nan() && g.final_t_mm_median.is_nan() || m == g.final_t_mm_median);
+        }
+        let dir = std::env::temp_dir().join(format!(
+            "vtsm-eval-suite-{}-{}",
+            run.meta.suite,
+            std::process::id()
+        ));
+        let _ = std::fs::remove_dir_all(&dir);
+        write_run(&dir, run, false).unwrap();
+        // A second write without --force must refuse.
+        assert!(write_run(&dir, run, false).is_err());
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap())
+                .unwrap();
+        assert_eq!(json["meta"]["suite"], run.meta.suite.as_str());
+        assert_eq!(json["meta"]["profile"], "test");
+        assert_eq!(json["meta"]["seed"], 7);
+        assert!(!json["meta"]["git_revision"].as_str().unwrap().is_empty());
+        assert!(json["meta"]["params"]["relocalization"]
+            .as_str()
+            .unwrap()
+            .contains("template_px"));
+        assert_eq!(json["trials"].as_array().unwrap().len(), run.outcomes.len());
+        let csv = std::fs::read_to_string(dir.join("trials.csv")).unwrap();
+        let mut lines = csv.lines();
+        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+        let col = |n: &str| header.iter().position(|h| *h == n).unwrap();
+        let (cs, cf, ce) = (col("success"), col("failure"), col("final_t_mm"));
+        let rows: Vec<Vec<String>> = lines
+            .map(|l| l.split(',').map(str::to_string).collect())
+            .collect();
+        assert_eq!(rows.len(), run.outcomes.len());
+        for (r, o) in rows.iter().zip(&run.outcomes) {
+            assert_eq!(r.len(), header.len());
+            assert_eq!(r[cs] == "true", o.success);
+            assert_eq!(r[cf].is_empty(), o.success);
+            let e: f64 = r[ce].parse().unwrap();
+            assert!((e - o.final_t_mm).abs() < 1e-3);
+        }
+        let table = std::fs::read_to_string(dir.join("table.md")).unwrap();
+        for g in &run.groups {
+            let row = format!("| {} | {} | {:.0} % |", g.group, g.trials, g.success_pct);
+            assert!(table.contains(&row), "{row} not in\n{table}");
+        }
+        for p in plots {
+            let svg = std::fs::read_to_string(dir.join(p)).unwrap();
+            assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+            let dots = svg.matches("<circle").count();
+            // One dot per trial plus one legend dot per series.
+            assert!(dots >= run.outcomes.len(), "{p}: {dots} dots");
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// Verifies: VTSM-CLI-016
+    #[test]
+    fn paper_and_baseline_suites_run_end_to_end_with_consistent_outputs() {
+        let cfg = small(Suite::Paper);
+        let run = run_suite(&cfg, "test").unwrap();
+        check_run(
+            &run,
+            1,
+            1,
+            (100.0, 200.0),
+            &["final_vs_view_distance.svg", "final_vs_view_angle.svg"],
+        );
+        // At Δ0 h on flagstone the paper's method converges.
+        assert!(run.outcomes[0].success, "{:?}", run.outcomes[0]);
+        assert!(run.outcomes[0].final_t_mm < run.outcomes[0].init_t_mm);
+        let cfg = small(Suite::Baseline);
+        let run = run_suite(&cfg, "test").unwrap();
+        check_run(
+            &run,
+            1,
+            1,
+            (100.0, 200.0),
+            &["final_vs_view_distance.svg", "final_vs_view_angle.svg"],
+        );
+        assert!(run.groups[0].group.contains("b=0.20m"));
+    }
+
+    /// Verifies: VTSM-CLI-016, VTSM-CLI-018
+    #[test]
+    fn uncertainty_suite_pairs_k0_and_k_seeds_with_wide_priors() {
+        let run = run_suite(&small(Suite::Uncertainty50), "test").unwrap();
+        check_run(&run, 2, 1, (250.0, 500.0), &["final_vs_initial.svg"]);
+        // Paired: same capture and prior in both groups, only K differs.
+        let (a, b) = (&run.outcomes[0], &run.outcomes[1]);
+        assert_eq!((a.seed, a.init_t_mm), (b.seed, b.init_t_mm));
+        assert_eq!((a.extra["seeds_k"], b.extra["seeds_k"]), (0.0, 4.0));
+    }
+
+    /// Verifies: VTSM-CLI-016, VTSM-CLI-017
+    #[test]
+    fn stepsize_suite_reports_range_breakdown() {
+        let run = run_suite(&small(Suite::Stepsize), "test").unwrap();
+        check_run(&run, 2, 1, (100.0, 200.0), &["final_vs_range.svg"]);
+        assert!(run.notes.contains("By range"));
+        let binned: usize = run
+            .notes
+            .lines()
+            .filter(|l| l.starts_with("| ") && l.contains('–') || l.starts_with("| ≥"))
+            .map(|l| {
+                l.split('|')
+                    .nth(2)
+                    .unwrap()
+                    .trim()
+                    .parse::<usize>()
+                    .unwrap()
+            })
+            .sum();
+        assert_eq!(binned, run.outcomes.len());
+    }
+
+    /// Verifies: VTSM-CLI-017
+    #[test]
+    fn restricted_map_keeps_exactly_the_triangles_a_view_sees() {
+        let scene_cam = Camera {
+            fx: 100.0,
+            fy: 100.0,
+            cx: 49.5,
+            cy: 49.5,
+            width: 100,
+            height: 100,
+        };
+        // Camera at (0,0,1) looking straight down (cam z = -world z).
+        let down = Pose::new(
+            UnitQuaternion::from_axis_angle(&Vec3::x_axis(), std::f32::consts::PI),
+            Vec3::new(0.0, 0.0, 1.0),
+        );
+        // Flat ground triangles centred at x = 0, 0.3, 0.8 (out of the ±0.5 FOV), 5 (out of range).
+        let mut mesh = MeshData {
+            vertices: Vec::new(),
+            triangles: Vec::new(),
+            uvs: Vec::new(),
+            mask: Vec::new(),
+            texture: crate::io::image::Gray8 {
+                width: 1,
+                height: 1,
+                pixels: vec![0],
+            },
+        };
+        for (i, x) in [0.0f32, 0.3, 0.8, 5.0].iter().enumerate() {
+            let n = mesh.vertices.len() as u32;
+            mesh.vertices.extend([
+                [x - 0.01, -0.01, 0.0],
+                [x + 0.01, -0.01, 0.0],
+                [*x, 0.01, 0.0],
+            ]);
+            mesh.triangles.push([n, n + 1, n + 2]);
+            mesh.uvs.push([[0.0; 2]; 3]);
+            mesh.mask.push(i % 2 == 0);
+        }
+        let kept = restrict_to_views(&mesh, &scene_cam, &[down]);
+        // Reference: pinhole with f = 100 px over a 100 px image sees |x| < 0.5 at 1 m depth.
+        assert_eq!(kept.triangles, vec![[0, 1, 2], [3, 4, 5]]);
+        assert_eq!(kept.mask, vec![true, false]);
+        assert_eq!(kept.vertices, mesh.vertices);
+        // A camera below the ground sees nothing (the ground faces up).
+        let under = Pose::new(UnitQuaternion::identity(), Vec3::new(0.0, 0.0, -1.0));
+        assert!(restrict_to_views(&mesh, &scene_cam, &[under])
+            .triangles
+            .is_empty());
+        // No views, no map.
+        assert!(restrict_to_views(&mesh, &scene_cam, &[])
+            .triangles
+            .is_empty());
+    }
+
+    /// Verifies: VTSM-CLI-018
+    #[test]
+    fn priors_and_captures_follow_the_protocol() {
+        let truth = Pose::new(
+            UnitQuaternion::from_euler_angles(0.1, -0.4, 2.0),
+            Vec3::new(1.0, -2.0, 0.7),
+        );
+        for k in 0..200u64 {
+            for (range, lo, hi) in [(PRIOR_M, 0.10, 0.20), (PRIOR_50_M, 0.25, 0.50)] {
+                let p = prior_in_range(&truth, trial_seed(3, k as usize), range);
+                let dt = (p.translation() - truth.translation()).norm();
+                assert!(dt >= lo - 1e-5 && dt <= hi + 1e-5, "{dt}");
+                let ang = (p.rotation() * truth.rotation().inverse())
+                    .angle()
+                    .to_degrees();
+                assert!(ang <= PRIOR_MAX_DEG + 1e-3, "{ang}");
+            }
+        }
+        // Ten trials visit ten distinct stops, spread over both circles.
+        let stops: Vec<u32> = (0..10)
+            .map(|k| {
+                let c = capture_for_trial(k, 10, 0.4);
+                c.circle * STOPS_PER_CIRCLE + c.stop
+            })
+            .collect();
+        assert_eq!(stops, vec![0, 3, 6, 9, 12, 15, 18, 21, 24, 27]);
+        // Seeds differ per trial and repeat per base seed.
+        assert_ne!(trial_seed(1, 0), trial_seed(1, 1));
+        assert_eq!(trial_seed(1, 5), trial_seed(1, 5));
+        assert_ne!(trial_seed(1, 5), trial_seed(2, 5));
+        let near = nearest_view(
+            &truth,
+            &[
+                Pose::new(
+                    truth.rotation(),
+                    truth.translation() + Vec3::new(3.0, 0.0, 0.0),
+                ),
+                Pose::new(
+                    UnitQuaternion::from_euler_angles(0.0, 0.0, 0.5) * truth.rotation(),
+                    truth.translation() + Vec3::new(0.0, 0.6, 0.8),
+                ),
+            ],
+        )
+        .unwrap();
+        assert!((near.0 - 1.0).abs() < 1e-5);
+        // A rotation of 0.5 rad about world z: the optical axis turns by at most 0.5 rad.
+        assert!(near.1 > 0.0 && near.1 <= 0.5f64.to_degrees() + 1e-3);
+    }
+}
