@@ -814,9 +814,7 @@ pub fn range_table(outcomes: &[TrialOutcome]) -> String {
     let mut s = String::from(
         "\nBy range to the nearest mapping view:\n\n| range (m) | trials | success | final error (mm, median of successes) |\n|---|---:|---:|---:|\n",
     );
-    let n = RANGE_BINS_M.len();
-    for i in 0..n {
-        let lo = RANGE_BINS_M[i];
+    for (i, &lo) in RANGE_BINS_M.iter().enumerate() {
         let hi = RANGE_BINS_M.get(i + 1).copied().unwrap_or(f64::INFINITY);
         let rows: Vec<&TrialOutcome> = outcomes
             .iter()
