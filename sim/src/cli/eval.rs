@@ -1,12 +1,1183 @@
-//! `vtsm eval`.
+//! `vtsm eval`: the evaluation suites of the paper (§V) on the simulated depot.
+//!
+//! Each suite is a list of groups (rows of the table). Every terrain's
+//! [`Scene`], every map product and every lighting are built once and shared
+//! read-only by all trials, which run in parallel through
+//! [`crate::eval::run_parallel`]. A trial is one capture of the paper's grid
+//! (stops spread over the 30), its live lighting, a perturbed prior with a
+//! per-trial seed and one [`locate::relocalize`]. Trial `k` uses the same
+//! capture and the same seed in every group, so groups are paired comparisons,
+//! and everything is a function of `--seed`.
+//!
+//! Suites:
+//! - `paper`: flagstone, cfa6, cfa2 × time difference 0/3/6 h (map at 9.5 h),
+//!   0.40 m baseline, priors 10–20 cm / ≤ 1.5°.
+//! - `baseline`: the same with the 0.20 m baseline.
+//! - `uncertainty50`: priors 25–50 cm / ≤ 1.5°, without and with the
+//!   multi-seed mode (`Params.seeds = K`).
+//! - `stepsize`: maps restricted to what sub-sampled wave and forward mapping
+//!   paths see (see [`restrict_to_views`]); reports range to the nearest view.
+//!
+//! "Mapping views" for the distance/angle columns of `paper`, `baseline` and
+//! `uncertainty50` are the 60 viewpoints of the wave mapping path
+//! ([`mapping_trajectory`] with step 1); for `stepsize` they are the
+//! sub-sampled path the map was restricted to.
+
+use crate::cli::demo::MAP_HOURS;
+use crate::error::{Error, Result};
+use crate::eval::{self, GroupSummary, RunMeta, Series, TrialOutcome};
+use crate::io::mesh::MeshData;
+use crate::locate::{self, Request};
+use crate::render::Lighting;
+use crate::scene::{
+    mapping_trajectory, perturbed_prior, Capture, Profile, Scene, Trajectory, STOPS_PER_CIRCLE,
+};
+use crate::terrain::TerrainKind;
+use nalgebra::UnitQuaternion;
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use vtsm_core::geom::{Camera, Pose, Vec3};
+use vtsm_core::rng::Rng;
+
+/// Stereo baseline of the paper's main results, metres.
+pub const MAIN_BASELINE_M: f32 = 0.40;
+/// Stereo baseline of the `baseline` suite, metres.
+pub const SHORT_BASELINE_M: f32 = 0.20;
+/// Prior translation range of `paper`, `baseline` and `stepsize`, metres.
+pub const PRIOR_M: (f32, f32) = (0.10, 0.20);
+/// Prior translation range of `uncertainty50`, metres.
+pub const PRIOR_50_M: (f32, f32) = (0.25, 0.50);
+/// Largest prior rotation, degrees (all suites).
+pub const PRIOR_MAX_DEG: f32 = 1.5;
+/// A map triangle counts as seen by a mapping view when its centroid is within
+/// this range of the view (and in its field of view, facing it).
+pub const MAP_VIEW_RANGE_M: f32 = 3.0;
+/// Map tile size used for every map product, metres (as `vtsm demo`).
+pub const TILE_M: f32 = 0.5;
 
 /// Arguments of `vtsm eval`.
 #[derive(Debug, Clone, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Suite: paper, baseline, uncertainty50 or stepsize.
+    #[arg(long)]
+    pub suite: String,
+    /// Trials per group.
+    #[arg(long, default_value_t = 2)]
+    pub trials: usize,
+    /// Base seed (scenes, captures, priors and relocalizations derive from it).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Image profile: test (480×320), demo (1368×912) or paper (5472×3648).
+    #[arg(long, default_value = "test")]
+    pub profile: String,
+    /// Output directory (default: the first free `vtsm-eval/<suite>-N`).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Overwrite existing outputs in `--out`.
+    #[arg(long)]
+    pub force: bool,
+    /// Comma-separated terrains (default: flagstone,cfa6,cfa2).
+    #[arg(long)]
+    pub terrains: Option<String>,
+    /// Comma-separated time differences in hours (default: 0,3,6; `uncertainty50`: 0).
+    #[arg(long)]
+    pub hours: Option<String>,
+    /// Comma-separated mapping step sizes for `stepsize` (default: 1,3,6,12).
+    #[arg(long)]
+    pub steps: Option<String>,
+    /// Pose seeds K of the multi-seed mode in `uncertainty50`.
+    #[arg(long, default_value_t = 16)]
+    pub seeds_k: u16,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// The four suites.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Suite {
+    /// Terrains × time differences, 0.40 m baseline.
+    Paper,
+    /// Terrains × time differences, 0.20 m baseline.
+    Baseline,
+    /// Priors 25–50 cm, without and with the multi-seed mode.
+    Uncertainty50,
+    /// Maps restricted to sub-sampled mapping paths.
+    Stepsize,
+}
+
+impl Suite {
+    /// Parse a suite name.
+    pub fn parse(s: &str) -> Option<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "paper" => Some(Self::Paper),
+            "baseline" => Some(Self::Baseline),
+            "uncertainty50" => Some(Self::Uncertainty50),
+            "stepsize" => Some(Self::Stepsize),
+            _ => None,
+        }
+    }
+
+    /// Command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Paper => "paper",
+            Self::Baseline => "baseline",
+            Self::Uncertainty50 => "uncertainty50",
+            Self::Stepsize => "stepsize",
+        }
+    }
+}
+
+/// Everything that defines a suite run.
+#[derive(Clone, Debug)]
+pub struct SuiteConfig {
+    /// Suite.
+    pub suite: Suite,
+    /// Trials per group.
+    pub trials: usize,
+    /// Base seed.
+    pub seed: u64,
+    /// Image profile.
+    pub profile: Profile,
+    /// Terrains.
+    pub terrains: Vec<TerrainKind>,
+    /// Time differences between mapping and capture, hours.
+    pub hours: Vec<f32>,
+    /// Mapping step sizes (`stepsize` only).
+    pub steps: Vec<usize>,
+    /// Pose seeds K of the multi-seed mode (`uncertainty50` only).
+    pub seeds_k: u16,
+    /// Show a progress bar.
+    pub progress: bool,
+}
+
+impl SuiteConfig {
+    /// The suite's defaults: all terrains, Δ 0/3/6 h (0 h for `uncertainty50`),
+    /// steps 1/3/6/12, K = 16.
+    pub fn new(suite: Suite, profile: Profile, trials: usize, seed: u64) -> Self {
+        Self {
+            suite,
+            trials,
+            seed,
+            profile,
+            terrains: TerrainKind::ALL.to_vec(),
+            hours: if suite == Suite::Uncertainty50 {
+                vec![0.0]
+            } else {
+                vec![0.0, 3.0, 6.0]
+            },
+            steps: vec![1, 3, 6, 12],
+            seeds_k: 16,
+            progress: false,
+        }
+    }
+}
+
+/// A finished suite run.
+pub struct SuiteRun {
+    /// Reproducibility record.
+    pub meta: RunMeta,
+    /// One outcome per trial, in group then trial order.
+    pub outcomes: Vec<TrialOutcome>,
+    /// One summary per group.
+    pub groups: Vec<GroupSummary>,
+    /// Extra Markdown (per-suite breakdowns) printed after the table.
+    pub notes: String,
+    /// SVG plots: (file name, SVG text).
+    pub plots: Vec<(String, String)>,
+    /// Wall time of building scenes, lightings and maps, seconds.
+    pub setup_s: f64,
+    /// Wall time of all trials, seconds.
+    pub trials_s: f64,
+}
+
+/// One row of the table.
+struct Group {
+    label: String,
+    terrain: usize,
+    map: usize,
+    light: usize,
+    baseline_m: f32,
+    prior_m: (f32, f32),
+    seeds: u16,
+    extra: Vec<(&'static str, f64)>,
+}
+
+/// One map product and the mapping views its distances are measured to.
+struct MapEntry {
+    bytes: std::result::Result<Vec<u8>, String>,
+    views: Vec<Pose>,
+}
+
+#[derive(Clone, Copy)]
+struct Spec {
+    group: usize,
+    k: usize,
+}
+
+/// Capture `k` of `n`: stops spread evenly over the 30 (then cycling), the
+/// looked-at tube alternating.
+pub fn capture_for_trial(k: usize, n: usize, baseline_m: f32) -> Capture {
+    let stops = (2 * STOPS_PER_CIRCLE) as usize;
+    let stop = if n <= stops {
+        k * stops / n.max(1)
+    } else {
+        k % stops
+    };
+    let look_at = (k + k / stops) % 2;
+    Capture::from_index(stop as u32, look_at as u32, baseline_m)
+}
+
+/// Seed of trial `k` (the same in every group of a run).
+pub fn trial_seed(base: u64, k: usize) -> u64 {
+    Rng::new(base)
+        .fork(0x4556_414C ^ ((k as u64) << 32))
+        .next_u64()
+}
+
+/// A prior: truth displaced by `lo..hi` metres in a random direction and rotated
+/// by up to [`PRIOR_MAX_DEG`] about a random axis. The paper's 10–20 cm range is
+/// exactly [`perturbed_prior`].
+pub fn prior_in_range(truth: &Pose, seed: u64, (lo, hi): (f32, f32)) -> Pose {
+    if (lo, hi) == PRIOR_M {
+        return perturbed_prior(truth, seed);
+    }
+    let mut rng = Rng::new(seed).fork(0x0050_5249_4F52_3530);
+    let dt = rng.unit_vector3() * rng.uniform(lo, hi);
+    let axis = rng.unit_vector3();
+    let angle = rng.uniform(-PRIOR_MAX_DEG, PRIOR_MAX_DEG).to_radians();
+    let dq = UnitQuaternion::from_scaled_axis(axis * angle);
+    Pose::new(dq * truth.rotation(), truth.translation() + dt)
+}
+
+/// Distance (m) to the nearest of `views` (by camera centre) and the angle (°)
+/// between its optical axis and that of `pose`. `None` without views.
+pub fn nearest_view(pose: &Pose, views: &[Pose]) -> Option<(f64, f64)> {
+    let c = pose.translation();
+    let v = views.iter().min_by(|a, b| {
+        (a.translation() - c)
+            .norm()
+            .total_cmp(&(b.translation() - c).norm())
+    })?;
+    let z = Vec3::z();
+    let (a, b) = (pose.rotation() * z, v.rotation() * z);
+    let angle = f64::from(a.dot(&b).clamp(-1.0, 1.0)).acos().to_degrees();
+    Some((f64::from((v.translation() - c).norm()), angle))
+}
+
+/// Whether the triangle `(a, b, c)` is seen by a camera `cam` at `world_from_cam`:
+/// centroid in front, within `range_m`, inside the image, and the triangle's
+/// upward-oriented normal facing the camera. Occlusion is not tested.
+pub fn seen_by(cam: &Camera, world_from_cam: &Pose, tri: [Vec3; 3], range_m: f32) -> bool {
+    let centroid = (tri[0] + tri[1] + tri[2]) / 3.0;
+    let eye = world_from_cam.translation();
+    let to_eye = eye - centroid;
+    if to_eye.norm() > range_m {
+        return false;
+    }
+    let mut n = (tri[1] - tri[0]).cross(&(tri[2] - tri[0]));
+    if n.z < 0.0 {
+        n = -n;
+    }
+    if n.dot(&to_eye) <= 0.0 {
+        return false;
+    }
+    let p = world_from_cam.inverse().transform_point(&centroid);
+    if p.z <= 0.0 {
+        return false;
+    }
+    cam.project(&p)
+        .is_some_and(|[u, v]| cam.contains(u, v, 0.0))
+}
+
+/// The map as the views would have made it: keep only triangles [`seen_by`] at
+/// least one view within [`MAP_VIEW_RANGE_M`]; vertices and texture are kept
+/// whole (unreferenced vertices cost nothing to the core).
+pub fn restrict_to_views(mesh: &MeshData, cam: &Camera, views: &[Pose]) -> MeshData {
+    let mut out = MeshData {
+        vertices: mesh.vertices.clone(),
+        triangles: Vec::new(),
+        uvs: Vec::new(),
+        mask: Vec::new(),
+        texture: mesh.texture.clone(),
+    };
+    let vert = |i: u32| {
+        mesh.vertices
+            .get(i as usize)
+            .map_or(Vec3::zeros(), |p| Vec3::new(p[0], p[1], p[2]))
+    };
+    for ((t, uv), m) in mesh.triangles.iter().zip(&mesh.uvs).zip(&mesh.mask) {
+        let tri = [vert(t[0]), vert(t[1]), vert(t[2])];
+        if views.iter().any(|v| seen_by(cam, v, tri, MAP_VIEW_RANGE_M)) {
+            out.triangles.push(*t);
+            out.uvs.push(*uv);
+            out.mask.push(*m);
+        }
+    }
+    out
+}
+
+fn parse_list<T: std::str::FromStr>(s: &str, what: &str) -> Result<Vec<T>> {
+    s.split(',')
+        .map(|x| {
+            x.trim()
+                .parse::<T>()
+                .map_err(|_| Error::msg(format!("bad {what} `{x}`")))
+        })
+        .collect()
+}
+
+fn hours_label(h: f32) -> String {
+    format!("Δ{}h", h)
+}
+
+/// Build the config from command-line arguments.
+///
+/// # Errors
+/// An unknown suite, profile or terrain, or a malformed list.
+pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
+    let suite = Suite::parse(&args.suite).ok_or_else(|| {
+        Error::msg(format!(
+            "unknown --suite `{}` (paper, baseline, uncertainty50, stepsize)",
+            args.suite
+        ))
+    })?;
+    let profile = Profile::parse(&args.profile).ok_or_else(|| {
+        Error::msg(format!(
+            "unknown --profile `{}` (test, demo, paper)",
+            args.profile
+        ))
+    })?;
+    if args.trials == 0 {
+        return Err(Error::msg("--trials must be at least 1"));
+    }
+    let mut cfg = SuiteConfig::new(suite, profile, args.trials, args.seed);
+    if let Some(t) = &args.terrains {
+        cfg.terrains = t
+            .split(',')
+            .map(|n| {
+                TerrainKind::parse(n.trim()).ok_or_else(|| {
+                    Error::msg(format!("unknown terrain `{n}` (flagstone, cfa6, cfa2)"))
+                })
+            })
+            .collect::<Result<_>>()?;
+    }
+    if let Some(h) = &args.hours {
+        cfg.hours = parse_list(h, "hours")?;
+        if cfg
+            .hours
+            .iter()
+            .any(|h| !(h.is_finite() && (0.0..=8.0).contains(h)))
+        {
+            return Err(Error::msg("--hours must be between 0 and 8"));
+        }
+    }
+    if let Some(s) = &args.steps {
+        cfg.steps = parse_list(s, "step")?;
+        if cfg.steps.iter().any(|&s| s == 0 || s > 60) {
+            return Err(Error::msg("--steps must be 1..=60"));
+        }
+    }
+    if usize::from(args.seeds_k) > vtsm_core::config::MAX_SEEDS {
+        return Err(Error::msg(format!(
+            "--seeds-k must be at most {}",
+            vtsm_core::config::MAX_SEEDS
+        )));
+    }
+    cfg.seeds_k = args.seeds_k;
+    cfg.progress = !args.quiet;
+    Ok(cfg)
+}
+
+/// Run a suite: build the shared scenes, lightings and maps, run every trial,
+/// summarize and draw the plots.
+///
+/// # Errors
+/// Empty terrain/hour/step lists. Per-trial problems (a map that cannot be
+/// encoded, a rejected request) are recorded as failed trials, not errors.
+pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
+    if cfg.terrains.is_empty() || cfg.hours.is_empty() || cfg.trials == 0 {
+        return Err(Error::msg("a suite needs terrains, hours and trials"));
+    }
+    if cfg.suite == Suite::Stepsize && cfg.steps.is_empty() {
+        return Err(Error::msg("the stepsize suite needs step sizes"));
+    }
+    let t_setup = Instant::now();
+    let scenes: Vec<Scene> = cfg
+        .terrains
+        .par_iter()
+        .map(|&k| Scene::new(k, cfg.seed, cfg.profile))
+        .collect();
+    let full_meshes: Vec<MeshData> = scenes
+        .par_iter()
+        .map(|s| s.map(&s.lighting(MAP_HOURS)).into())
+        .collect();
+    let live_hours: Vec<f32> = if cfg.suite == Suite::Stepsize {
+        vec![cfg.hours.first().copied().unwrap_or(0.0)]
+    } else {
+        cfg.hours.clone()
+    };
+    // Lightings: index = terrain * live_hours.len() + hour.
+    let light_keys: Vec<(usize, f32)> = (0..scenes.len())
+        .flat_map(|t| live_hours.iter().map(move |&h| (t, h)))
+        .collect();
+    let lights: Vec<Lighting> = light_keys
+        .par_iter()
+        .map(|&(t, h)| scenes[t].lighting(MAP_HOURS + h))
+        .collect();
+    let light_of = |t: usize, hi: usize| t * live_hours.len() + hi;
+
+    let maps: Vec<MapEntry>;
+    let mut groups: Vec<Group> = Vec::new();
+    let wave_views = |s: &Scene| mapping_trajectory(&s.terrain, Trajectory::Wave, 1);
+    match cfg.suite {
+        Suite::Paper | Suite::Baseline | Suite::Uncertainty50 => {
+            let full: Vec<MapEntry> = scenes
+                .par_iter()
+                .zip(&full_meshes)
+                .map(|(s, m)| MapEntry {
+                    bytes: m.encode_map(TILE_M).map_err(|e| e.to_string()),
+                    views: wave_views(s),
+                })
+                .collect();
+            maps = full;
+            for (t, kind) in cfg.terrains.iter().enumerate() {
+                for (hi, &h) in live_hours.iter().enumerate() {
+                    let base = format!("{} {}", kind.name(), hours_label(h));
+                    let mut push = |label: String, baseline_m, prior_m, seeds: u16| {
+                        groups.push(Group {
+                            label,
+                            terrain: t,
+                            map: t,
+                            light: light_of(t, hi),
+                            baseline_m,
+                            prior_m,
+                            seeds,
+                            extra: vec![("hours", f64::from(h)), ("seeds_k", f64::from(seeds))],
+                        });
+                    };
+                    match cfg.suite {
+                        Suite::Paper => push(base, MAIN_BASELINE_M, PRIOR_M, 0),
+                        Suite::Baseline => push(
+                            format!("{base} b={SHORT_BASELINE_M:.2}m"),
+                            SHORT_BASELINE_M,
+                            PRIOR_M,
+                            0,
+                        ),
+                        _ => {
+                            push(format!("{base} K=0"), MAIN_BASELINE_M, PRIOR_50_M, 0);
+                            push(
+                                format!("{base} K={}", cfg.seeds_k),
+                                MAIN_BASELINE_M,
+                                PRIOR_50_M,
+                                cfg.seeds_k,
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        Suite::Stepsize => {
+            let mut keys = Vec::new();
+            for t in 0..scenes.len() {
+                for traj in [Trajectory::Wave, Trajectory::Forward] {
+                    for &step in &cfg.steps {
+                        keys.push((t, traj, step));
+                    }
+                }
+            }
+            maps = keys
+                .par_iter()
+                .map(|&(t, traj, step)| {
+                    let s = &scenes[t];
+                    let views = mapping_trajectory(&s.terrain, traj, step);
+                    let mesh = restrict_to_views(&full_meshes[t], &s.camera(), &views);
+                    MapEntry {
+                        bytes: mesh.encode_map(TILE_M).map_err(|e| e.to_string()),
+                        views,
+                    }
+                })
+                .collect();
+            for (m, &(t, traj, step)) in keys.iter().enumerate() {
+                let name = match traj {
+                    Trajectory::Wave => "wave",
+                    Trajectory::Forward => "forward",
+                };
+                groups.push(Group {
+                    label: format!(
+                        "{} {} step {} ({} views)",
+                        cfg.terrains[t].name(),
+                        name,
+                        step,
+                        maps[m].views.len()
+                    ),
+                    terrain: t,
+                    map: m,
+                    light: light_of(t, 0),
+                    baseline_m: MAIN_BASELINE_M,
+                    prior_m: PRIOR_M,
+                    seeds: 0,
+                    extra: vec![
+                        ("hours", f64::from(live_hours[0])),
+                        ("step", step as f64),
+                        ("forward", f64::from(u8::from(traj == Trajectory::Forward))),
+                    ],
+                });
+            }
+        }
+    }
+    let setup_s = t_setup.elapsed().as_secs_f64();
+
+    let specs: Vec<Spec> = (0..groups.len())
+        .flat_map(|g| (0..cfg.trials).map(move |k| Spec { group: g, k }))
+        .collect();
+    let t_trials = Instant::now();
+    let outcomes = eval::run_parallel(
+        &specs,
+        |s| run_trial(cfg, &groups[s.group], &scenes, &lights, &maps, s),
+        cfg.progress,
+    );
+    let trials_s = t_trials.elapsed().as_secs_f64();
+    let summary = eval::summarize(&outcomes);
+    let params = locate::params_for_width(scenes[0].camera().width);
+    let meta = RunMeta {
+        suite: cfg.suite.name().to_string(),
+        git_revision: eval::git_revision(),
+        profile: cfg.profile.name().to_string(),
+        seed: cfg.seed,
+        trials: cfg.trials,
+        params: serde_json::json!({
+            "relocalization": format!("{params:?}"),
+            "terrains": cfg.terrains.iter().map(|k| k.name()).collect::<Vec<_>>(),
+            "hours": live_hours,
+            "map_hours": MAP_HOURS,
+            "steps": if cfg.suite == Suite::Stepsize { cfg.steps.clone() } else { Vec::new() },
+            "seeds_k": cfg.seeds_k,
+            "prior_m": if cfg.suite == Suite::Uncertainty50 { PRIOR_50_M } else { PRIOR_M },
+            "prior_max_deg": PRIOR_MAX_DEG,
+            "map_view_range_m": MAP_VIEW_RANGE_M,
+            "tile_m": TILE_M,
+            "mapping_views": if cfg.suite == Suite::Stepsize {
+                "sub-sampled mapping path of the group"
+            } else {
+                "wave mapping path, step 1 (60 views)"
+            },
+        }),
+        command: command.to_string(),
+    };
+    let (notes, plots) = breakdowns(cfg, &outcomes);
+    Ok(SuiteRun {
+        meta,
+        outcomes,
+        groups: summary,
+        notes,
+        plots,
+        setup_s,
+        trials_s,
+    })
+}
+
+fn run_trial(
+    cfg: &SuiteConfig,
+    g: &Group,
+    scenes: &[Scene],
+    lights: &[Lighting],
+    maps: &[MapEntry],
+    s: &Spec,
+) -> TrialOutcome {
+    let seed = trial_seed(cfg.seed, s.k);
+    let capture = capture_for_trial(s.k, cfg.trials, g.baseline_m);
+    let (scene, light, map) = (&scenes[g.terrain], &lights[g.light], &maps[g.map]);
+    let (rig, truth, pair) = scene.capture(light, &capture);
+    let prior = prior_in_range(&truth, seed, g.prior_m);
+    let (t0, r0) = prior.error_to(&truth);
+    let mut extra: BTreeMap<String, f64> = g
+        .extra
+        .iter()
+        .map(|(k, v)| ((*k).to_string(), *v))
+        .collect();
+    extra.insert(
+        "stop".into(),
+        f64::from(capture.circle * STOPS_PER_CIRCLE + capture.stop),
+    );
+    extra.insert("look_at".into(), f64::from(capture.look_at));
+    if let Some((d, a)) = nearest_view(&truth, &map.views) {
+        extra.insert("view_dist_m".into(), d);
+        extra.insert("view_angle_deg".into(), a);
+    }
+    let mut o = TrialOutcome {
+        group: g.label.clone(),
+        trial: s.k,
+        seed,
+        success: false,
+        failure: None,
+        init_t_mm: f64::from(t0) * 1e3,
+        init_r_deg: f64::from(r0).to_degrees(),
+        final_t_mm: f64::from(t0) * 1e3,
+        final_r_deg: f64::from(r0).to_degrees(),
+        inliers: 0,
+        iterations: 0,
+        time_s: 0.0,
+        extra,
+    };
+    let bytes = match &map.bytes {
+        Ok(b) => b,
+        Err(e) => {
+            o.failure = Some(format!("map: {e}"));
+            return o;
+        }
+    };
+    let mut params = locate::params_for_width(rig.cam.width);
+    params.seeds = g.seeds;
+    let req = Request {
+        map: bytes,
+        left: &pair.left,
+        right: &pair.right,
+        rig,
+        prior,
+        params,
+        seed,
+    };
+    match locate::relocalize(&req) {
+        Ok(r) => {
+            let out = &r.outcome;
+            let (t1, r1) = out.pose.error_to(&truth);
+            o.success = out.failure.is_none();
+            o.failure = out.failure.map(|c| c.name().to_string());
+            o.final_t_mm = f64::from(t1) * 1e3;
+            o.final_r_deg = f64::from(r1).to_degrees();
+            o.inliers = u32::from(out.quality.inliers);
+            o.iterations = u32::from(out.stats.successes);
+            o.time_s = r.elapsed.as_secs_f64();
+        }
+        Err(e) => o.failure = Some(format!("error: {e}")),
+    }
+    o
+}
+
+const COLORS: [&str; 6] = [
+    "#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#17becf",
+];
+
+fn extra(o: &TrialOutcome, k: &str) -> f64 {
+    o.extra.get(k).copied().unwrap_or(f64::NAN)
+}
+
+/// Per-suite breakdown table and plots.
+fn breakdowns(cfg: &SuiteConfig, outcomes: &[TrialOutcome]) -> (String, Vec<(String, String)>) {
+    let mut plots = Vec::new();
+    let mut notes = String::new();
+    match cfg.suite {
+        Suite::Paper | Suite::Baseline => {
+            for (file, key, xlabel) in [
+                (
+                    "final_vs_view_distance.svg",
+                    "view_dist_m",
+                    "distance to nearest mapping view (m)",
+                ),
+                (
+                    "final_vs_view_angle.svg",
+                    "view_angle_deg",
+                    "angle to nearest mapping view (°)",
+                ),
+            ] {
+                let mut series: Vec<Series> = cfg
+                    .hours
+                    .iter()
+                    .zip(COLORS)
+                    .map(|(&h, color)| Series {
+                        name: "",
+                        color,
+                        points: outcomes
+                            .iter()
+                            .filter(|o| o.success && extra(o, "hours") == f64::from(h))
+                            .map(|o| (extra(o, key), o.final_t_mm))
+                            .collect(),
+                    })
+                    .collect();
+                let names: Vec<String> = cfg
+                    .hours
+                    .iter()
+                    .map(|&h| format!("{} ok", hours_label(h)))
+                    .collect();
+                for (s, n) in series.iter_mut().zip(&names) {
+                    s.name = n;
+                }
+                let fail_pts: Vec<(f64, f64)> = outcomes
+                    .iter()
+                    .filter(|o| !o.success)
+                    .map(|o| (extra(o, key), o.final_t_mm))
+                    .collect();
+                series.push(Series {
+                    name: "failed",
+                    color: "#d62728",
+                    points: fail_pts,
+                });
+                plots.push((
+                    file.to_string(),
+                    eval::svg_scatter(
+                        &format!("{}: final error vs nearest mapping view", cfg.suite.name()),
+                        xlabel,
+                        "final translation error (mm)",
+                        &series,
+                    ),
+                ));
+            }
+        }
+        Suite::Uncertainty50 => {
+            let ks = [0u16, cfg.seeds_k];
+            let names: Vec<String> = ks.iter().map(|k| format!("K={k} ok")).collect();
+            let mut series: Vec<Series> = ks
+                .iter()
+                .zip(&names)
+                .zip(COLORS)
+                .map(|((&k, n), color)| Series {
+                    name: n,
+                    color,
+                    points: outcomes
+                        .iter()
+                        .filter(|o| o.success && extra(o, "seeds_k") == f64::from(k))
+                        .map(|o| (o.init_t_mm, o.final_t_mm))
+                        .collect(),
+                })
+                .collect();
+            let failed: Vec<(f64, f64)> = outcomes
+                .iter()
+                .filter(|o| !o.success)
+                .map(|o| (o.init_t_mm, o.final_t_mm))
+                .collect();
+            series.push(Series {
+                name: "failed",
+                color: "#d62728",
+                points: failed,
+            });
+            plots.push((
+                "final_vs_initial.svg".into(),
+                eval::svg_scatter(
+                    "uncertainty50: final vs initial error",
+                    "initial translation error (mm)",
+                    "final translation error (mm)",
+                    &series,
+                ),
+            ));
+        }
+        Suite::Stepsize => {
+            let names = ["wave ok", "forward ok"];
+            let mut series: Vec<Series> = [0.0, 1.0]
+                .iter()
+                .zip(names)
+                .zip(COLORS)
+                .map(|((&f, name), color)| Series {
+                    name,
+                    color,
+                    points: outcomes
+                        .iter()
+                        .filter(|o| o.success && extra(o, "forward") == f)
+                        .map(|o| (extra(o, "view_dist_m"), o.final_t_mm))
+                        .collect(),
+                })
+                .collect();
+            let failed: Vec<(f64, f64)> = outcomes
+                .iter()
+                .filter(|o| !o.success)
+                .map(|o| (extra(o, "view_dist_m"), o.final_t_mm))
+                .collect();
+            series.push(Series {
+                name: "failed",
+                color: "#d62728",
+                points: failed,
+            });
+            plots.push((
+                "final_vs_range.svg".into(),
+                eval::svg_scatter(
+                    "stepsize: final error vs range to nearest mapping view",
+                    "range to nearest mapping view (m)",
+                    "final translation error (mm)",
+                    &series,
+                ),
+            ));
+            notes = range_table(outcomes);
+        }
+    }
+    (notes, plots)
+}
+
+/// Range bins (m) of the stepsize breakdown.
+pub const RANGE_BINS_M: [f64; 6] = [0.0, 0.5, 1.0, 1.5, 2.0, 3.0];
+
+/// Success and median final error by range to the nearest mapping view (Fig. 7d).
+pub fn range_table(outcomes: &[TrialOutcome]) -> String {
+    let mut s = String::from(
+        "\nBy range to the nearest mapping view:\n\n| range (m) | trials | success | final error (mm, median of successes) |\n|---|---:|---:|---:|\n",
+    );
+    for (i, &lo) in RANGE_BINS_M.iter().enumerate() {
+        let hi = RANGE_BINS_M.get(i + 1).copied().unwrap_or(f64::INFINITY);
+        let rows: Vec<&TrialOutcome> = outcomes
+            .iter()
+            .filter(|o| {
+                let d = extra(o, "view_dist_m");
+                d >= lo && d < hi
+            })
+            .collect();
+        if rows.is_empty() {
+            continue;
+        }
+        let mut ok: Vec<f64> = rows
+            .iter()
+            .filter(|o| o.success)
+            .map(|o| o.final_t_mm)
+            .collect();
+        ok.sort_by(f64::total_cmp);
+        let med = match ok.len() {
+            0 => "—".to_string(),
+            m if m % 2 == 1 => format!("{:.1}", ok[m / 2]),
+            m => format!("{:.1}", 0.5 * (ok[m / 2 - 1] + ok[m / 2])),
+        };
+        let range = if hi.is_finite() {
+            format!("{lo:.1}–{hi:.1}")
+        } else {
+            format!("≥ {lo:.1}")
+        };
+        let _ = writeln!(
+            s,
+            "| {range} | {} | {:.0} % | {med} |",
+            rows.len(),
+            100.0 * ok.len() as f64 / rows.len() as f64
+        );
+    }
+    s
+}
+
+/// Write `table.md` (with the breakdown appended), `trials.csv`, `summary.json`
+/// and the plots into `dir`.
+///
+/// # Errors
+/// As [`eval::write_outputs`].
+pub fn write_run(dir: &Path, run: &SuiteRun, force: bool) -> Result<()> {
+    eval::write_outputs(dir, &run.meta, &run.groups, &run.outcomes, force)?;
+    if !run.notes.is_empty() {
+        let table = eval::markdown_table(&run.meta, &run.groups) + &run.notes;
+        eval::write_new(&dir.join("table.md"), &table, true)?;
+    }
+    for (name, svg) in &run.plots {
+        eval::write_new(&dir.join(name), svg, force)?;
+    }
+    Ok(())
+}
+
+fn default_out(suite: Suite) -> PathBuf {
+    (1..)
+        .map(|k| PathBuf::from(format!("vtsm-eval/{}-{k}", suite.name())))
+        .find(|p| !p.exists())
+        .unwrap_or_else(|| PathBuf::from("vtsm-eval/run"))
+}
 
 /// Run the command; returns the exit code.
-pub fn run(_args: &Args) -> crate::Result<u8> {
-    Err(crate::Error::msg(
-        "`vtsm eval` is not available in this build",
-    ))
+pub fn run(args: &Args) -> Result<u8> {
+    let cfg = config_from_args(args)?;
+    let out = args.out.clone().unwrap_or_else(|| default_out(cfg.suite));
+    std::fs::create_dir_all(&out)
+        .map_err(|e| Error::file(&out, format!("cannot create directory: {e}")))?;
+    for name in ["table.md", "trials.csv", "summary.json"] {
+        crate::io::check_output(&out.join(name), args.force)?;
+    }
+    let command = std::env::args().collect::<Vec<_>>().join(" ");
+    let run = run_suite(&cfg, &command)?;
+    print!("{}", eval::markdown_table(&run.meta, &run.groups));
+    print!("{}", run.notes);
+    println!(
+        "setup (scenes, lightings, maps) {:.1} s; {} trials in {:.1} s wall on {} threads",
+        run.setup_s,
+        run.outcomes.len(),
+        run.trials_s,
+        rayon::current_num_threads()
+    );
+    write_run(&out, &run, args.force)?;
+    println!("wrote {}", out.display());
+    Ok(0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn small(suite: Suite) -> SuiteConfig {
+        SuiteConfig {
+            terrains: vec![TerrainKind::Flagstone],
+            hours: vec![0.0],
+            steps: vec![12],
+            seeds_k: 4,
+            ..SuiteConfig::new(suite, Profile::Test, 1, 7)
+        }
+    }
+
+    fn median(mut v: Vec<f64>) -> f64 {
+        v.sort_by(f64::total_cmp);
+        match v.len() {
+            0 => f64::NAN,
+            n if n % 2 == 1 => v[n / 2],
+            n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+        }
+    }
+
+    /// Check a run's outcomes, summaries and written files against each other.
+    fn check_run(
+        run: &SuiteRun,
+        groups: usize,
+        trials: usize,
+        prior_mm: (f64, f64),
+        plots: &[&str],
+    ) {
+        assert_eq!(run.groups.len(), groups);
+        assert_eq!(run.outcomes.len(), groups * trials);
+        for o in &run.outcomes {
+            assert_eq!(o.success, o.failure.is_none(), "{o:?}");
+            assert!(
+                o.init_t_mm >= prior_mm.0 - 1e-3 && o.init_t_mm <= prior_mm.1 + 1e-3,
+                "{o:?}"
+            );
+            assert!(o.init_r_deg <= f64::from(PRIOR_MAX_DEG) + 1e-3, "{o:?}");
+            assert!(o.final_t_mm.is_finite() && o.final_t_mm >= 0.0);
+            let d = o.extra["view_dist_m"];
+            assert!(d.is_finite() && d >= 0.0, "{o:?}");
+            if o.success {
+                assert!(
+                    o.iterations > 0 && o.inliers >= 3 && o.time_s > 0.0,
+                    "{o:?}"
+                );
+            }
+        }
+        for g in &run.groups {
+            let rows: Vec<&TrialOutcome> =
+                run.outcomes.iter().filter(|o| o.group == g.group).collect();
+            let ok: Vec<f64> = rows
+                .iter()
+                .filter(|o| o.success)
+                .map(|o| o.final_t_mm)
+                .collect();
+            assert_eq!(g.trials, trials);
+            assert_eq!(g.successes, ok.len());
+            assert!((g.success_pct - 100.0 * ok.len() as f64 / trials as f64).abs() < 1e-9);
+            let m = median(ok);
+            assert!(m.is_nan() && g.final_t_mm_median.is_nan() || m == g.final_t_mm_median);
+        }
+        let dir = std::env::temp_dir().join(format!(
+            "vtsm-eval-suite-{}-{}",
+            run.meta.suite,
+            std::process::id()
+        ));
+        let _ = std::fs::remove_dir_all(&dir);
+        write_run(&dir, run, false).unwrap();
+        // A second write without --force must refuse.
+        assert!(write_run(&dir, run, false).is_err());
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap())
+                .unwrap();
+        assert_eq!(json["meta"]["suite"], run.meta.suite.as_str());
+        assert_eq!(json["meta"]["profile"], "test");
+        assert_eq!(json["meta"]["seed"], 7);
+        assert!(!json["meta"]["git_revision"].as_str().unwrap().is_empty());
+        assert!(json["meta"]["params"]["relocalization"]
+            .as_str()
+            .unwrap()
+            .contains("template_px"));
+        assert_eq!(json["trials"].as_array().unwrap().len(), run.outcomes.len());
+        let csv = std::fs::read_to_string(dir.join("trials.csv")).unwrap();
+        let mut lines = csv.lines();
+        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+        let col = |n: &str| header.iter().position(|h| *h == n).unwrap();
+        let (cs, cf, ce) = (col("success"), col("failure"), col("final_t_mm"));
+        let rows: Vec<Vec<String>> = lines
+            .map(|l| l.split(',').map(str::to_string).collect())
+            .collect();
+        assert_eq!(rows.len(), run.outcomes.len());
+        for (r, o) in rows.iter().zip(&run.outcomes) {
+            assert_eq!(r.len(), header.len());
+            assert_eq!(r[cs] == "true", o.success);
+            assert_eq!(r[cf].is_empty(), o.success);
+            let e: f64 = r[ce].parse().unwrap();
+            assert!((e - o.final_t_mm).abs() < 1e-3);
+        }
+        let table = std::fs::read_to_string(dir.join("table.md")).unwrap();
+        for g in &run.groups {
+            let row = format!("| {} | {} | {:.0} % |", g.group, g.trials, g.success_pct);
+            assert!(table.contains(&row), "{row} not in\n{table}");
+        }
+        for p in plots {
+            let svg = std::fs::read_to_string(dir.join(p)).unwrap();
+            assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+            let dots = svg.matches("<circle").count();
+            // One dot per trial plus one legend dot per series.
+            assert!(dots >= run.outcomes.len(), "{p}: {dots} dots");
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// Verifies: VTSM-CLI-019
+    #[test]
+    fn paper_and_baseline_suites_run_end_to_end_with_consistent_outputs() {
+        let cfg = small(Suite::Paper);
+        let run = run_suite(&cfg, "test").unwrap();
+        check_run(
+            &run,
+            1,
+            1,
+            (100.0, 200.0),
+            &["final_vs_view_distance.svg", "final_vs_view_angle.svg"],
+        );
+        // At Δ0 h on flagstone the paper's method converges.
+        assert!(run.outcomes[0].success, "{:?}", run.outcomes[0]);
+        assert!(run.outcomes[0].final_t_mm < run.outcomes[0].init_t_mm);
+        let cfg = small(Suite::Baseline);
+        let run = run_suite(&cfg, "test").unwrap();
+        check_run(
+            &run,
+            1,
+            1,
+            (100.0, 200.0),
+            &["final_vs_view_distance.svg", "final_vs_view_angle.svg"],
+        );
+        assert!(run.groups[0].group.contains("b=0.20m"));
+    }
+
+    /// Verifies: VTSM-CLI-019, VTSM-CLI-021
+    #[test]
+    fn uncertainty_suite_pairs_k0_and_k_seeds_with_wide_priors() {
+        let run = run_suite(&small(Suite::Uncertainty50), "test").unwrap();
+        check_run(&run, 2, 1, (250.0, 500.0), &["final_vs_initial.svg"]);
+        // Paired: same capture and prior in both groups, only K differs.
+        let (a, b) = (&run.outcomes[0], &run.outcomes[1]);
+        assert_eq!((a.seed, a.init_t_mm), (b.seed, b.init_t_mm));
+        assert_eq!((a.extra["seeds_k"], b.extra["seeds_k"]), (0.0, 4.0));
+    }
+
+    /// Verifies: VTSM-CLI-019, VTSM-CLI-020
+    #[test]
+    fn stepsize_suite_reports_range_breakdown() {
+        let run = run_suite(&small(Suite::Stepsize), "test").unwrap();
+        check_run(&run, 2, 1, (100.0, 200.0), &["final_vs_range.svg"]);
+        assert!(run.notes.contains("By range"));
+        let binned: usize = run
+            .notes
+            .lines()
+            .filter(|l| l.starts_with("| ") && l.contains('–') || l.starts_with("| ≥"))
+            .map(|l| {
+                l.split('|')
+                    .nth(2)
+                    .unwrap()
+                    .trim()
+                    .parse::<usize>()
+                    .unwrap()
+            })
+            .sum();
+        assert_eq!(binned, run.outcomes.len());
+    }
+
+    /// Verifies: VTSM-CLI-020
+    #[test]
+    fn restricted_map_keeps_exactly_the_triangles_a_view_sees() {
+        let scene_cam = Camera {
+            fx: 100.0,
+            fy: 100.0,
+            cx: 49.5,
+            cy: 49.5,
+            width: 100,
+            height: 100,
+        };
+        // Camera at (0,0,1) looking straight down (cam z = -world z).
+        let down = Pose::new(
+            UnitQuaternion::from_axis_angle(&Vec3::x_axis(), std::f32::consts::PI),
+            Vec3::new(0.0, 0.0, 1.0),
+        );
+        // Flat ground triangles centred at x = 0, 0.3, 0.8 (out of the ±0.5 FOV), 5 (out of range).
+        let mut mesh = MeshData {
+            vertices: Vec::new(),
+            triangles: Vec::new(),
+            uvs: Vec::new(),
+            mask: Vec::new(),
+            texture: crate::io::image::Gray8 {
+                width: 1,
+                height: 1,
+                pixels: vec![0],
+            },
+        };
+        for (i, x) in [0.0f32, 0.3, 0.8, 5.0].iter().enumerate() {
+            let n = mesh.vertices.len() as u32;
+            mesh.vertices.extend([
+                [x - 0.01, -0.01, 0.0],
+                [x + 0.01, -0.01, 0.0],
+                [*x, 0.01, 0.0],
+            ]);
+            mesh.triangles.push([n, n + 1, n + 2]);
+            mesh.uvs.push([[0.0; 2]; 3]);
+            mesh.mask.push(i % 2 == 0);
+        }
+        let kept = restrict_to_views(&mesh, &scene_cam, &[down]);
+        // Reference: pinhole with f = 100 px over a 100 px image sees |x| < 0.5 at 1 m depth.
+        assert_eq!(kept.triangles, vec![[0, 1, 2], [3, 4, 5]]);
+        assert_eq!(kept.mask, vec![true, false]);
+        assert_eq!(kept.vertices, mesh.vertices);
+        // A camera below the ground sees nothing (the ground faces up).
+        let under = Pose::new(UnitQuaternion::identity(), Vec3::new(0.0, 0.0, -1.0));
+        assert!(restrict_to_views(&mesh, &scene_cam, &[under])
+            .triangles
+            .is_empty());
+        // No views, no map.
+        assert!(restrict_to_views(&mesh, &scene_cam, &[])
+            .triangles
+            .is_empty());
+    }
+
+    /// Verifies: VTSM-CLI-021
+    #[test]
+    fn priors_and_captures_follow_the_protocol() {
+        let truth = Pose::new(
+            UnitQuaternion::from_euler_angles(0.1, -0.4, 2.0),
+            Vec3::new(1.0, -2.0, 0.7),
+        );
+        for k in 0..200u64 {
+            for (range, lo, hi) in [(PRIOR_M, 0.10, 0.20), (PRIOR_50_M, 0.25, 0.50)] {
+                let p = prior_in_range(&truth, trial_seed(3, k as usize), range);
+                let dt = (p.translation() - truth.translation()).norm();
+                assert!(dt >= lo - 1e-5 && dt <= hi + 1e-5, "{dt}");
+                let ang = (p.rotation() * truth.rotation().inverse())
+                    .angle()
+                    .to_degrees();
+                assert!(ang <= PRIOR_MAX_DEG + 1e-3, "{ang}");
+            }
+        }
+        // Ten trials visit ten distinct stops, spread over both circles.
+        let stops: Vec<u32> = (0..10)
+            .map(|k| {
+                let c = capture_for_trial(k, 10, 0.4);
+                c.circle * STOPS_PER_CIRCLE + c.stop
+            })
+            .collect();
+        assert_eq!(stops, vec![0, 3, 6, 9, 12, 15, 18, 21, 24, 27]);
+        // Seeds differ per trial and repeat per base seed.
+        assert_ne!(trial_seed(1, 0), trial_seed(1, 1));
+        assert_eq!(trial_seed(1, 5), trial_seed(1, 5));
+        assert_ne!(trial_seed(1, 5), trial_seed(2, 5));
+        let near = nearest_view(
+            &truth,
+            &[
+                Pose::new(
+                    truth.rotation(),
+                    truth.translation() + Vec3::new(3.0, 0.0, 0.0),
+                ),
+                Pose::new(
+                    UnitQuaternion::from_euler_angles(0.0, 0.0, 0.5) * truth.rotation(),
+                    truth.translation() + Vec3::new(0.0, 0.6, 0.8),
+                ),
+            ],
+        )
+        .unwrap();
+        assert!((near.0 - 1.0).abs() < 1e-5);
+        // A rotation of 0.5 rad about world z: the optical axis turns by at most 0.5 rad.
+        assert!(near.1 > 0.0 && near.1 <= 0.5f64.to_degrees() + 1e-3);
+    }
 }
