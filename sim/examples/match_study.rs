@@ -29,10 +29,10 @@ use vtsm_core::geom::{Camera, Pose, Vec3};
 use vtsm_core::image::{GrayView, Rect};
 use vtsm_core::map::MapView;
 use vtsm_core::ncc::{self, Filter, Run, Scratch, ScratchSizes, Search};
-use vtsm_core::raster::{self, Target};
+use vtsm_core::raster;
 use vtsm_core::rng::Rng;
 use vtsm_sim::io::mesh;
-use vtsm_sim::locate;
+use vtsm_sim::locate::{self, Template};
 use vtsm_sim::scene::{Capture, Profile, Scene};
 use vtsm_sim::terrain::TerrainKind;
 
@@ -151,27 +151,17 @@ fn one_sample(
     if !cam.contains(uv_vp[0], uv_vp[1], margin) || !cam.contains(uv_true[0], uv_true[1], margin) {
         return None;
     }
-    let h = (l / 2) as i32;
-    let rect = Rect::new(
-        (uv_vp[0] + 0.5).floor() as i32 - h,
-        (uv_vp[1] + 0.5).floor() as i32 - h,
-        l as u32,
-        l as u32,
-    );
-    let (mut inten, mut depth, mut md) = (vec![0u8; l * l], vec![0u32; l * l], vec![0u32; l * l]);
-    let mut t = Target {
-        intensity: &mut inten,
-        depth: &mut depth,
-        mask_depth: &mut md,
-    };
-    raster::render_window(map, cam, vp, rect, &mut t).ok()?;
+    let Template {
+        rect,
+        intensity: inten,
+        depth,
+        mask,
+    } = locate::render_template(map, cam, vp, uv_vp, l)?;
     // The engine's occlusion test at the viewpoint.
     let drawn = raster::depth_to_m(depth[(l / 2) * l + l / 2]);
     if drawn.is_none_or(|z| z < p_vp.z - (0.03 + 0.02 * p_vp.z)) {
         return None;
     }
-    let mut mask = vec![0u8; l * l];
-    raster::template_mask(&depth, &md, l, l, &mut mask);
     let f = cam.fx.max(cam.fy);
     let r_px = (f * (2.0 * t_max / p_vp.z.max(0.1) + 2.0 * r_deg.to_radians())).ceil() as i32 + 4;
     let search = search_rect(uv_vp, l, r_px, cap, cam.width as usize, cam.height as usize);

@@ -7,10 +7,12 @@
 use crate::error::{Error, Result};
 use std::time::{Duration, Instant};
 use vtsm_core::config::Params;
+use vtsm_core::geom::Camera;
 use vtsm_core::geom::{Pose, StereoRig};
-use vtsm_core::image::GrayView;
+use vtsm_core::image::{GrayView, Rect};
 use vtsm_core::map::MapView;
 use vtsm_core::ncc::{Run, Search};
+use vtsm_core::raster::{self, Target};
 use vtsm_core::reloc::workspace::WorkspaceSizes;
 use vtsm_core::reloc::{
     MatchPolicy, Options, Outcome, Pipeline, RansacSolver, Relocalizer, Workspace,
@@ -118,5 +120,52 @@ pub fn relocalize(req: &Request<'_>) -> Result<Report> {
         template_px: p.template_px,
         search_px,
         workspace_bytes: sizes.total_bytes(),
+    })
+}
+
+/// An ℓ×ℓ synthetic template with its depth and §III-C mask, row-major.
+pub struct Template {
+    /// The window of the full virtual image that was rendered.
+    pub rect: Rect,
+    /// Rendered intensity.
+    pub intensity: Vec<u8>,
+    /// Depth, fixed point (`raster::depth_to_m`), `raster::DEPTH_NONE` where empty.
+    pub depth: Vec<u32>,
+    /// Template mask: 255 keep, 0 drop.
+    pub mask: Vec<u8>,
+}
+
+/// Render the ℓ×ℓ template of `map` seen from `world_from_cam`, centred on the
+/// pixel nearest to `centre_px` (the way the engine's Synthesize step does), and
+/// form its mask. `None` when nothing is drawn or ℓ is out of range.
+pub fn render_template(
+    map: &MapView<'_>,
+    cam: &Camera,
+    world_from_cam: &Pose,
+    centre_px: [f32; 2],
+    l: usize,
+) -> Option<Template> {
+    let h = (l / 2) as i32;
+    let rect = Rect::new(
+        (centre_px[0] + 0.5).floor() as i32 - h,
+        (centre_px[1] + 0.5).floor() as i32 - h,
+        l as u32,
+        l as u32,
+    );
+    let (mut intensity, mut depth, mut mask_depth) =
+        (vec![0u8; l * l], vec![0u32; l * l], vec![0u32; l * l]);
+    let mut target = Target {
+        intensity: &mut intensity,
+        depth: &mut depth,
+        mask_depth: &mut mask_depth,
+    };
+    raster::render_window(map, cam, world_from_cam, rect, &mut target).ok()?;
+    let mut mask = vec![0u8; l * l];
+    raster::template_mask(&depth, &mask_depth, l, l, &mut mask);
+    Some(Template {
+        rect,
+        intensity,
+        depth,
+        mask,
     })
 }

@@ -14,9 +14,7 @@ use crate::terrain::TerrainKind;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use vtsm_core::geom::{Camera, Pose};
-use vtsm_core::image::Rect;
 use vtsm_core::map::MapView;
-use vtsm_core::raster::{self, Target};
 use vtsm_core::rng::Rng;
 
 /// Hour of the day at which the simulated depot is mapped (the paper's "am").
@@ -196,8 +194,7 @@ fn show(p: &Path) -> String {
     p.display().to_string()
 }
 
-/// Render an ℓ×ℓ template of the map centred on `p_world` as seen from `pose`.
-/// Returns the template and its §III-C mask, or `None` if it is out of view.
+/// The template of the map around `p_world` as seen from `pose`, if in view.
 fn template(
     map: &MapView,
     cam: &Camera,
@@ -205,23 +202,9 @@ fn template(
     p_world: &vtsm_core::geom::Vec3,
     l: usize,
 ) -> Option<(Vec<u8>, Vec<u8>)> {
-    let [u, v] = cam.project(&pose.inverse().transform_point(p_world))?;
-    let rect = Rect::new(
-        u.round() as i32 - l as i32 / 2,
-        v.round() as i32 - l as i32 / 2,
-        l as u32,
-        l as u32,
-    );
-    let (mut inten, mut depth, mut md) = (vec![0u8; l * l], vec![0u32; l * l], vec![0u32; l * l]);
-    let mut t = Target {
-        intensity: &mut inten,
-        depth: &mut depth,
-        mask_depth: &mut md,
-    };
-    raster::render_window(map, cam, pose, rect, &mut t).ok()?;
-    let mut mask = vec![0u8; l * l];
-    raster::template_mask(&depth, &md, l, l, &mut mask);
-    Some((inten, mask))
+    let uv = cam.project(&pose.inverse().transform_point(p_world))?;
+    let t = locate::render_template(map, cam, pose, uv, l)?;
+    Some((t.intensity, t.mask))
 }
 
 /// The Fig. 6b-like panel: the real left image with the template locations,
