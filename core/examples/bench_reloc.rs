@@ -8,142 +8,19 @@
 //! ```
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
+use nalgebra::UnitQuaternion;
 use std::time::Instant;
-use vtsm_core::config::Params;
-use vtsm_core::geom::{Camera, Pose, StereoRig, Vec3};
-use vtsm_core::image::{GrayView, Rect};
-use vtsm_core::map::{MapSource, MapView};
+use vtsm_core::geom::{Pose, Vec3};
+use vtsm_core::image::GrayView;
+use vtsm_core::map::MapView;
 use vtsm_core::ncc::Run;
-use vtsm_core::raster::{self, Target};
 use vtsm_core::reloc::workspace::TEST_WORKSPACE;
 use vtsm_core::reloc::{MatchPolicy, Options, Pipeline, RansacSolver, Relocalizer, Workspace};
 use vtsm_core::rng::Rng;
 
-const EXTENT_M: f32 = 8.0;
-const GRID: usize = 81;
-const TEX: usize = 1024;
-
-/// Value noise: random lattice values every `cell` texels, bilinear in between.
-fn value_noise(rng: &mut Rng, cell: usize, amp: f32, out: &mut [f32]) {
-    let n = TEX / cell + 2;
-    let lattice: Vec<f32> = (0..n * n).map(|_| rng.uniform(-amp, amp)).collect();
-    for y in 0..TEX {
-        for x in 0..TEX {
-            let (gx, gy) = (x / cell, y / cell);
-            let fx = (x % cell) as f32 / cell as f32;
-            let fy = (y % cell) as f32 / cell as f32;
-            let at = |i: usize, j: usize| lattice[j * n + i];
-            let top = at(gx, gy) * (1.0 - fx) + at(gx + 1, gy) * fx;
-            let bot = at(gx, gy + 1) * (1.0 - fx) + at(gx + 1, gy + 1) * fx;
-            out[y * TEX + x] += top * (1.0 - fy) + bot * fy;
-        }
-    }
-}
-
-/// A textured bumpy heightfield over [0, 8] × [-4, 4] m, every triangle in M̂.
-fn build_map(seed: u64) -> Vec<u8> {
-    let mut rng = Rng::new(seed);
-    let bumps: Vec<(f32, f32, f32)> = (0..25)
-        .map(|_| {
-            (
-                rng.uniform(0.0, EXTENT_M),
-                rng.uniform(-4.0, 4.0),
-                rng.uniform(0.05, 0.3),
-            )
-        })
-        .collect();
-    let height = |x: f32, y: f32| {
-        let mut z = 0.05 * libm::sinf(1.3 * x) * libm::cosf(1.1 * y);
-        for (bx, by, h) in &bumps {
-            let d2 = (x - bx) * (x - bx) + (y - by) * (y - by);
-            z += h * libm::expf(-d2 / (2.0 * 0.3 * 0.3));
-        }
-        z
-    };
-    let step = EXTENT_M / (GRID - 1) as f32;
-    let mut vertices = Vec::new();
-    for j in 0..GRID {
-        for i in 0..GRID {
-            let (x, y) = (i as f32 * step, -4.0 + j as f32 * step);
-            vertices.push([x, y, height(x, y)]);
-        }
-    }
-    let uv_of = |i: usize, j: usize| [i as f32 / (GRID - 1) as f32, j as f32 / (GRID - 1) as f32];
-    let (mut triangles, mut uvs) = (Vec::new(), Vec::new());
-    for j in 0..GRID - 1 {
-        for i in 0..GRID - 1 {
-            let v = |i: usize, j: usize| (j * GRID + i) as u32;
-            triangles.push([v(i, j), v(i + 1, j), v(i + 1, j + 1)]);
-            uvs.push([uv_of(i, j), uv_of(i + 1, j), uv_of(i + 1, j + 1)]);
-            triangles.push([v(i, j), v(i + 1, j + 1), v(i, j + 1)]);
-            uvs.push([uv_of(i, j), uv_of(i + 1, j + 1), uv_of(i, j + 1)]);
-        }
-    }
-    let mask = vec![true; triangles.len()];
-    let mut acc = vec![128.0f32; TEX * TEX];
-    value_noise(&mut rng, 64, 50.0, &mut acc);
-    value_noise(&mut rng, 16, 40.0, &mut acc);
-    value_noise(&mut rng, 4, 20.0, &mut acc);
-    let texture: Vec<u8> = acc.iter().map(|v| v.clamp(0.0, 255.0) as u8).collect();
-    let src = MapSource {
-        vertices: &vertices,
-        triangles: &triangles,
-        uvs: &uvs,
-        mask: &mask,
-        texture: GrayView::new(&texture, TEX, TEX, TEX).unwrap(),
-        tile_size_m: 1.0,
-    };
-    let mut out = vec![0u8; vtsm_core::map::encoded_len(&src).unwrap()];
-    vtsm_core::map::encode(&src, &mut out).unwrap();
-    out
-}
-
-fn rig() -> StereoRig {
-    StereoRig::new(Camera::from_hfov(640, 480, 70.0).unwrap(), 0.3).unwrap()
-}
-
-/// Left camera at (x, y, 1.2 m) looking along world +x, pitched 40° down.
-fn camera_pose(x: f32, y: f32) -> Pose {
-    let p = 40.0f32.to_radians();
-    let zc = Vec3::new(libm::cosf(p), 0.0, -libm::sinf(p));
-    let xc = Vec3::new(0.0, -1.0, 0.0);
-    let yc = zc.cross(&xc);
-    let r = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[xc, yc, zc]));
-    Pose::new(
-        UnitQuaternion::from_rotation_matrix(&r),
-        Vec3::new(x, y, 1.2),
-    )
-}
-
-/// Render the full image in `MAX_RENDER_PX` tiles, then apply gain and offset.
-fn render_full(map: &MapView, cam: &Camera, pose: &Pose, gain: f32, offset: f32) -> Vec<u8> {
-    let (w, h) = (cam.width as usize, cam.height as usize);
-    let mut img = vec![0u8; w * h];
-    let t = vtsm_core::config::MAX_RENDER_PX;
-    let (mut inten, mut depth, mut md) = (vec![0u8; t * t], vec![0u32; t * t], vec![0u32; t * t]);
-    for ty in (0..h).step_by(t) {
-        for tx in (0..w).step_by(t) {
-            let (tw, th) = (t.min(w - tx), t.min(h - ty));
-            let rect = Rect::new(tx as i32, ty as i32, tw as u32, th as u32);
-            let mut target = Target {
-                intensity: &mut inten,
-                depth: &mut depth,
-                mask_depth: &mut md,
-            };
-            if raster::render_window(map, cam, pose, rect, &mut target).is_err() {
-                continue;
-            }
-            for y in 0..th {
-                for x in 0..tw {
-                    let v = f32::from(inten[y * tw + x]) * gain + offset;
-                    img[(ty + y) * w + tx + x] = v.clamp(0.0, 255.0) as u8;
-                }
-            }
-        }
-    }
-    img
-}
+#[path = "../testkit/scene.rs"]
+mod testscene;
+use testscene::{build_map, camera_pose, render_full, rig, test_params};
 
 fn main() {
     let runs: u64 = std::env::args()
@@ -156,15 +33,7 @@ fn main() {
     let truth = camera_pose(0.6, 0.2);
     let left = render_full(&map, &rig.cam, &truth, 0.85, 20.0);
     let right = render_full(&map, &rig.cam, &rig.world_from_right(&truth), 0.85, 20.0);
-    let p = Params {
-        template_px: 64,
-        n_corr: 40,
-        n_iter: 5,
-        attempts_per_iter: 400,
-        ransac_iter: 400,
-        max_reseed: 4,
-        ..Params::paper()
-    };
+    let p = test_params();
     let mut policy = MatchPolicy::for_params(&p);
     policy.search_px = TEST_WORKSPACE.search_px as u16;
     let mut o = Options::for_params(&p);

@@ -35,6 +35,14 @@
 #[macro_use]
 mod fmt;
 
+// Lets the shared test scene (`core/testkit/scene.rs`) name this crate the way
+// the examples do.
+#[cfg(test)]
+extern crate self as vtsm_core;
+#[cfg(test)]
+#[path = "../testkit/scene.rs"]
+pub(crate) mod testscene;
+
 pub mod config;
 pub mod failure;
 pub mod geom;
