@@ -404,14 +404,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             r_rad: self.r_rad,
             update_m,
         });
-        self.quality.inliers = sol.inliers;
-        self.quality.rms_m = sol.rms_m;
-        self.quality.inlier_ratio = if pairs > 0 {
-            f32::from(sol.inliers) / f32::from(pairs)
-        } else {
-            0.0
-        };
-        self.anchor = sol.pose;
+        self.record_fit(&sol, pairs);
         self.center = sol.pose;
         self.stats.successes = self.stats.successes.saturating_add(1);
         self.consecutive_stall = 0;
@@ -495,18 +488,23 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         }
     }
 
+    /// Make `sol` (fitted to `pairs` correspondences) the current estimate.
+    fn record_fit(&mut self, sol: &Solution, pairs: u16) {
+        self.quality.inliers = sol.inliers;
+        self.quality.rms_m = sol.rms_m;
+        self.quality.inlier_ratio = if pairs > 0 {
+            f32::from(sol.inliers) / f32::from(pairs)
+        } else {
+            0.0
+        };
+        self.anchor = sol.pose;
+    }
+
     fn finish_budget(&mut self, now: u64) {
         // Anytime: the best seed so far beats the prior if seeding was cut short.
         if self.seeding {
             if let Some((sol, pairs)) = self.best_seed.take() {
-                self.quality.inliers = sol.inliers;
-                self.quality.rms_m = sol.rms_m;
-                self.quality.inlier_ratio = if pairs > 0 {
-                    f32::from(sol.inliers) / f32::from(pairs)
-                } else {
-                    0.0
-                };
-                self.anchor = sol.pose;
+                self.record_fit(&sol, pairs);
             }
         }
         self.finish(Some(FailureCode::RelocBudgetExhausted), now);
