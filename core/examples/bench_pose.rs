@@ -25,16 +25,9 @@ use vtsm_core::pose::{self, Correspondence, Ransac, RansacConfig};
 use vtsm_core::rng::Rng;
 use vtsm_core::stereo;
 
-fn random_pose(rng: &mut Rng) -> Pose {
-    let axis = rng.unit_vector3();
-    let angle = rng.uniform(-3.1, 3.1);
-    let t = Vec3::new(
-        rng.uniform(-5.0, 5.0),
-        rng.uniform(-5.0, 5.0),
-        rng.uniform(-5.0, 5.0),
-    );
-    Pose::new(nalgebra::UnitQuaternion::from_scaled_axis(axis * angle), t)
-}
+#[path = "../testkit/testkit.rs"]
+mod testkit;
+use testkit::random_pose;
 
 /// `n` stereo correspondences under `truth`, a fraction `outliers` of them gross.
 fn stereo_pairs(

@@ -18,9 +18,9 @@ use vtsm_core::reloc::workspace::TEST_WORKSPACE;
 use vtsm_core::reloc::{MatchPolicy, Options, Pipeline, RansacSolver, Relocalizer, Workspace};
 use vtsm_core::rng::Rng;
 
-#[path = "../testkit/scene.rs"]
-mod testscene;
-use testscene::{build_map, camera_pose, render_full, rig, test_params};
+#[path = "../testkit/testkit.rs"]
+mod testkit;
+use testkit::{build_map, camera_pose, render_full, rig, test_params};
 
 fn main() {
     let runs: u64 = std::env::args()

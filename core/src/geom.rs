@@ -286,16 +286,7 @@ mod tests {
     use super::*;
     use crate::rng::Rng;
 
-    fn random_pose(rng: &mut Rng) -> Pose {
-        let axis = rng.unit_vector3();
-        let angle = rng.uniform(-3.0, 3.0);
-        let t = Vec3::new(
-            rng.uniform(-5.0, 5.0),
-            rng.uniform(-5.0, 5.0),
-            rng.uniform(-5.0, 5.0),
-        );
-        Pose::new(UnitQuaternion::from_scaled_axis(axis * angle), t)
-    }
+    use crate::testkit::random_pose;
 
     /// Verifies: VTSM-GEOM-001
     #[test]

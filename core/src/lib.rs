@@ -35,13 +35,13 @@
 #[macro_use]
 mod fmt;
 
-// Lets the shared test scene (`core/testkit/scene.rs`) name this crate the way
+// Lets the shared test scene (`core/testkit/testkit.rs`) name this crate the way
 // the examples do.
 #[cfg(test)]
 extern crate self as vtsm_core;
 #[cfg(test)]
-#[path = "../testkit/scene.rs"]
-pub(crate) mod testscene;
+#[path = "../testkit/testkit.rs"]
+pub(crate) mod testkit;
 
 pub mod config;
 pub mod failure;

@@ -815,16 +815,7 @@ mod tests {
     use proptest::prelude::*;
     use std::vec::Vec;
 
-    fn random_pose(rng: &mut Rng) -> Pose {
-        let axis = rng.unit_vector3();
-        let angle = rng.uniform(-3.1, 3.1);
-        let t = Vec3::new(
-            rng.uniform(-5.0, 5.0),
-            rng.uniform(-5.0, 5.0),
-            rng.uniform(-5.0, 5.0),
-        );
-        Pose::new(UnitQuaternion::from_scaled_axis(axis * angle), t)
-    }
+    use crate::testkit::random_pose;
 
     /// A rover-like scene: points 2–10 m ahead of the left camera.
     fn random_cam_point(rng: &mut Rng) -> Vec3 {

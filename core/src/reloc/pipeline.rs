@@ -364,7 +364,7 @@ mod tests {
     use std::vec;
     use std::vec::Vec;
 
-    use crate::testscene::{build_map, camera_pose, render_full, rig, test_params};
+    use crate::testkit::{build_map, camera_pose, render_full, rig, test_params};
 
     fn relocalize(map: &MapView, left: &[u8], right: &[u8], prior: &Pose, seed: u64) -> Outcome {
         relocalize_with(map, left, right, prior, seed, &test_params())

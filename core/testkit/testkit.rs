@@ -1,6 +1,7 @@
-//! Synthetic test scene shared by the core's unit tests and examples: a
-//! textured bumpy heightfield over [0, 8] × [-4, 4] m (every triangle in M̂),
-//! a 640×480 stereo rig, and a full-image renderer built on `raster`.
+//! Test fixtures shared by the core's unit tests and examples: random poses,
+//! and a synthetic scene — a textured bumpy heightfield over [0, 8] × [-4, 4] m
+//! (every triangle in M̂), a 640×480 stereo rig, and a full-image renderer
+//! built on `raster`.
 //!
 //! Compiled into the library only under `cfg(test)` and included by the
 //! examples with `#[path]`; it uses `std` and is never part of a flight build.
@@ -28,6 +29,18 @@ pub const TEX: usize = 1024;
 pub const WIDTH: usize = 640;
 /// Image size of [`rig`].
 pub const HEIGHT: usize = 480;
+
+/// A random pose: rotation up to 3.1 rad about a random axis, translation in ±5 m.
+pub fn random_pose(rng: &mut Rng) -> Pose {
+    let axis = rng.unit_vector3();
+    let angle = rng.uniform(-3.1, 3.1);
+    let t = Vec3::new(
+        rng.uniform(-5.0, 5.0),
+        rng.uniform(-5.0, 5.0),
+        rng.uniform(-5.0, 5.0),
+    );
+    Pose::new(UnitQuaternion::from_scaled_axis(axis * angle), t)
+}
 
 /// Value noise: random lattice values every `cell` texels, bilinear in between.
 pub fn value_noise(rng: &mut Rng, cell: usize, amp: f32, out: &mut [f32]) {
