@@ -11,10 +11,11 @@
 //! the camera frame, rejected if all corners lie outside one window plane,
 //! clipped in camera space against the near plane and, only when a corner lies
 //! outside it, against the guard band ([`RASTER_GUARD_PX`] beyond the window);
-//! the clipped polygon is fanned into triangles, snapped to 28.4 fixed point in
-//! absolute image pixels, and filled span by span. Coverage is decided exactly on
+//! the clipped convex polygon is snapped to 28.4 fixed point in absolute image
+//! pixels and filled span by span as one polygon (never fanned, so snapping
+//! cannot make pieces of one triangle overlap). Coverage is decided exactly on
 //! integers with a top-left style tie rule (a pixel centre on an edge belongs to
-//! the triangle that holds the centre moved by (ε, ε²)), so triangles sharing an
+//! the polygon that holds the centre moved by (ε, ε²)), so triangles sharing an
 //! edge cover each pixel exactly once. Back faces are drawn (photogrammetry meshes
 //! have arbitrary winding). Depth and UVs come from the unclipped triangle's plane
 //! (1/Z, u/Z, v/Z linear in the image), evaluated exactly at every 8th absolute
@@ -29,7 +30,7 @@
 //!
 //! Bounds: window ≤ [`MAX_RENDER_PX`]² pixels; tiles ≤ `MAX_MAP_TILES`, triangles
 //! ≤ `MAX_MAP_TRIANGLES` per call (each visited at most once); a clipped polygon has
-//! at most [`MAX_CLIP_VERTS`] corners; each fanned triangle's rows and spans are
+//! at most [`MAX_CLIP_VERTS`] corners; each polygon's rows and spans are
 //! clipped to the window. [`RenderStats`] reports the work.
 
 use crate::config::{
@@ -92,7 +93,7 @@ pub struct RenderStats {
     pub tiles_visible: u32,
     /// Triangles of visible tiles examined.
     pub triangles_tested: u32,
-    /// Fanned triangles (after clipping) whose spans were filled.
+    /// Clipped triangles (one polygon each) whose spans were filled.
     pub triangles_drawn: u32,
     /// Non-empty row spans filled.
     pub spans: u32,
@@ -460,7 +461,7 @@ impl Interp {
     }
 }
 
-/// A fanned triangle corner in absolute 28.4 fixed-point pixel coordinates.
+/// A clipped polygon corner in absolute 28.4 fixed-point pixel coordinates.
 #[derive(Clone, Copy, Debug, Default)]
 struct ScreenVert {
     x: i64,
@@ -482,28 +483,40 @@ fn ceil_div(n: i64, d: i64) -> i64 {
     -floor_div(-n, d)
 }
 
-/// Fill one fanned triangle. Coverage is exact integer arithmetic on 28.4
-/// coordinates (magnitudes < 2^18, edge terms < 2^40 in i64); the sink is called
-/// once per covered pixel inside the window.
-fn fill_triangle<S: PixelSink>(
-    v: [ScreenVert; 3],
+/// Fill one clipped, snapped convex polygon (`v[..n]`, n ≤ [`MAX_CLIP_VERTS`]).
+/// Coverage is exact integer arithmetic on 28.4 coordinates (magnitudes < 2^18,
+/// edge terms < 2^40 in i64): a pixel is covered when it is inside every edge's
+/// half-plane, so one polygon covers a pixel at most once even when snapping
+/// made it slightly non-convex (a reflex corner then only trims a sliver). The
+/// sink is called once per covered pixel inside the window.
+fn fill_polygon<S: PixelSink>(
+    v: &[ScreenVert; MAX_CLIP_VERTS],
+    n: usize,
     it: &Interp,
     mask: bool,
     frame: &Frame,
     stats: &mut RenderStats,
     sink: &mut S,
 ) {
-    let [v0, mut v1, mut v2] = v;
-    let area = (v1.x - v0.x) * (v2.y - v0.y) - (v1.y - v0.y) * (v2.x - v0.x);
+    let n = n.min(MAX_CLIP_VERTS);
+    if n < 3 {
+        return;
+    }
+    // Twice the signed area (shoelace), for the orientation.
+    let mut area = 0i64;
+    let (mut minx, mut maxx, mut miny, mut maxy) = (i64::MAX, i64::MIN, i64::MAX, i64::MIN);
+    for i in 0..n {
+        let (p, q) = (v[i], v[(i + 1) % n]);
+        area += p.x * q.y - q.x * p.y;
+        minx = minx.min(p.x);
+        maxx = maxx.max(p.x);
+        miny = miny.min(p.y);
+        maxy = maxy.max(p.y);
+    }
     if area == 0 {
         return;
     }
-    if area < 0 {
-        core::mem::swap(&mut v1, &mut v2);
-    }
     let s = i64::from(1u32 << SUBPIXEL_BITS);
-    let (minx, maxx) = (v0.x.min(v1.x).min(v2.x), v0.x.max(v1.x).max(v2.x));
-    let (miny, maxy) = (v0.y.min(v1.y).min(v2.y), v0.y.max(v1.y).max(v2.y));
     let x_lo = ceil_div(minx, s).max(frame.wx);
     let x_hi = floor_div(maxx, s).min(frame.wx + frame.w - 1);
     let y_lo = ceil_div(miny, s).max(frame.wy);
@@ -512,22 +525,36 @@ fn fill_triangle<S: PixelSink>(
         return;
     }
     stats.triangles_drawn = stats.triangles_drawn.saturating_add(1);
-    // Edge (p→q): E(px,py) = A·px + B·py + C, positive inside (area > 0 after the swap).
-    let edges = [(v1, v2), (v2, v0), (v0, v1)].map(|(p, q)| {
+    // Edge (p→q), walked counter-clockwise in the image (area > 0):
+    // E(px,py) = A·px + B·py + C, positive inside.
+    let mut edges = [(0i64, 0i64, 0i64, 0i64); MAX_CLIP_VERTS];
+    let mut ne = 0;
+    for i in 0..n {
+        let (mut p, mut q) = (v[i], v[(i + 1) % n]);
+        if area < 0 {
+            core::mem::swap(&mut p, &mut q);
+        }
+        if p.x == q.x && p.y == q.y {
+            continue;
+        }
         let a = -s * (q.y - p.y);
         let b = s * (q.x - p.x);
         let c = -(q.x - p.x) * p.y + (q.y - p.y) * p.x;
         // Owner rule: a pixel centre on the edge is inside iff the centre moved by
         // (ε, ε²) is, i.e. A > 0 or (A == 0 and B > 0). Exactly one of two
-        // triangles sharing the edge (opposite directions) owns it.
+        // polygons sharing the edge (opposite directions) owns it.
         let t = if a > 0 || (a == 0 && b > 0) { 0 } else { 1 };
-        (a, b, c, t)
-    });
+        if let Some(e) = edges.get_mut(ne) {
+            *e = (a, b, c, t);
+            ne += 1;
+        }
+    }
+    let edges = &edges[..ne];
     let (wx, wy, w) = (frame.wx, frame.wy, frame.w);
     for py in y_lo..=y_hi {
         let mut xl = x_lo;
         let mut xr = x_hi;
-        for (a, b, c, t) in edges {
+        for &(a, b, c, t) in edges {
             let k = b * py + c;
             if a > 0 {
                 xl = xl.max(ceil_div(t - k, a));
@@ -624,7 +651,7 @@ fn snap(frame: &Frame, p: &Vec3) -> ScreenVert {
     ScreenVert { x, y }
 }
 
-/// Reject, clip, fan and fill one triangle given in the camera frame.
+/// Reject, clip and fill one triangle given in the camera frame.
 fn draw_triangle<S: PixelSink>(
     frame: &Frame,
     p: [Vec3; 3],
@@ -655,13 +682,11 @@ fn draw_triangle<S: PixelSink>(
             }
         }
     }
-    let s0 = snap(frame, &poly[0]);
-    let mut prev = snap(frame, &poly[1]);
-    for c in poly.iter().take(n).skip(2) {
-        let cur = snap(frame, c);
-        fill_triangle([s0, prev, cur], &it, mask, frame, stats, sink);
-        prev = cur;
+    let mut screen = [ScreenVert::default(); MAX_CLIP_VERTS];
+    for (sv, c) in screen.iter_mut().zip(poly.iter().take(n)) {
+        *sv = snap(frame, c);
     }
+    fill_polygon(&screen, n, &it, mask, frame, stats, sink);
 }
 
 fn check_inputs(cam: &Camera, world_from_cam: &Pose, window: Rect) -> Result<(), FailureCode> {

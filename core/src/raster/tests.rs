@@ -834,3 +834,60 @@ fn depth_format_round_trips_and_saturates() {
         assert!((back - z).abs() <= z * 1e-6 + 1.0 / 131072.0, "{z} {back}");
     }
 }
+
+/// Huge triangles clipped to the guard band: snapping the clipped polygon can make
+/// it slightly non-convex; it must still cover every pixel at most once
+/// (two inputs once found by `any_triangle_writes_only_inside_its_buffers`).
+/// Verifies: VTSM-RAST-002
+#[test]
+fn huge_clipped_triangle_covers_each_pixel_at_most_once() {
+    let cases: [([f32; 9], Rect, f32); 2] = [
+        (
+            [
+                0.0,
+                -39528.03,
+                0.0,
+                0.05,
+                -0.072_075_08,
+                9.159_459,
+                -1.113_300_9,
+                31757.678,
+                0.0,
+            ],
+            Rect::new(59, -41, 62, 28),
+            2.392_923,
+        ),
+        (
+            [
+                0.0,
+                0.0,
+                -16997.273,
+                0.05,
+                -0.168_959_96,
+                0.067_933_105,
+                2.181_255_3,
+                0.0,
+                40057.3,
+            ],
+            Rect::new(129, -27, 2, 1),
+            -0.440_998_73,
+        ),
+    ];
+    for (p, win, yaw) in cases {
+        let mut s = Scene::new();
+        s.tri(
+            [[p[0], p[1], p[2]], [p[3], p[4], p[5]], [p[6], p[7], p[8]]],
+            [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]],
+            true,
+        );
+        let bytes = s.bytes(1.0e6);
+        let map = MapView::new_checked(&bytes).unwrap();
+        let cam = camera(128, 96, 90.0);
+        let pose = Pose::new(
+            UnitQuaternion::from_euler_angles(0.0, 0.0, yaw),
+            Vec3::zeros(),
+        );
+        let cov = coverage(&map, &cam, &pose, win);
+        assert!(cov.iter().all(|c| *c <= 1), "{p:?} {win:?}: {cov:?}");
+    }
+}
