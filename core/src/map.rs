@@ -492,6 +492,26 @@ impl<'a> MapView<'a> {
         })
     }
 
+    /// The three corners of triangle `i` in world metres (one read of its indices
+    /// and vertices, without its UVs and flags).
+    #[inline]
+    pub fn triangle_vertices(&self, i: u32) -> Option<[Vec3; 3]> {
+        if i >= self.triangle_count {
+            return None;
+        }
+        let t = self.layout.off(SEC_TRIANGLES) + i as usize * TRIANGLE_BYTES;
+        let b = self.bytes;
+        let sec = self.layout.off(SEC_VERTICES);
+        let v = |k: usize| -> Option<Vec3> {
+            let j = rd_u32(b, t + 4 * k)?;
+            if j >= self.vertex_count {
+                return None;
+            }
+            rd_vec3(b, sec + j as usize * VERTEX_BYTES)
+        };
+        Some([v(0)?, v(1)?, v(2)?])
+    }
+
     /// Tile `i`.
     #[inline]
     pub fn tile(&self, i: u32) -> Option<Tile> {

@@ -121,26 +121,30 @@ pub(crate) trait PixelSink {
 
     /// A run of `n ≥ 1` covered pixels at consecutive indices from `idx`, with
     /// depth and texture coordinates stepped linearly: pixel `k` has
-    /// `acc + k·step` (depth, u, v) scaled by `2^SEG_SHIFT`. Same effect as
-    /// [`Self::put`] on each pixel in order.
+    /// `(acc + k·step) >> RUN_SHIFT` (depth, u, v). Same effect as [`Self::put`]
+    /// on each pixel in order.
     #[inline]
     fn put_run(&mut self, idx: usize, n: usize, acc: [i64; 3], step: [i64; 3], mask: bool) {
         let mut acc = acc;
         for k in 0..n {
             self.put(run_frag(idx.wrapping_add(k), acc, mask));
-            acc = [acc[0] + step[0], acc[1] + step[1], acc[2] + step[2]];
+            acc = [
+                acc[0].wrapping_add(step[0]),
+                acc[1].wrapping_add(step[1]),
+                acc[2].wrapping_add(step[2]),
+            ];
         }
     }
 }
 
-/// The fragment of a linear run at accumulator `acc` (values scaled by `2^SEG_SHIFT`).
+/// The fragment of a linear run at accumulator `acc` (values scaled by `2^RUN_SHIFT`).
 #[inline(always)]
 fn run_frag(idx: usize, acc: [i64; 3], mask: bool) -> Frag {
     Frag {
         idx,
-        depth: (acc[0] >> SEG_SHIFT).clamp(0, i64::from(DEPTH_MAX)) as u32,
-        u_q16: acc[1] >> SEG_SHIFT,
-        v_q16: acc[2] >> SEG_SHIFT,
+        depth: (acc[0] >> RUN_SHIFT).clamp(0, i64::from(DEPTH_MAX)) as u32,
+        u_q16: acc[1] >> RUN_SHIFT,
+        v_q16: acc[2] >> RUN_SHIFT,
         mask,
     }
 }
@@ -185,44 +189,112 @@ impl PixelSink for ZBuffer<'_, '_> {
     fn put_run(&mut self, idx: usize, n: usize, acc: [i64; 3], step: [i64; 3], mask: bool) {
         let end = idx.wrapping_add(n);
         // One bounds check per run: the three buffers have the same length (w·h).
-        let (Some(ds), Some(ms), Some(is)) = (
+        let (Some(ds), Some(ms), Some(is), true) = (
             self.depth.get_mut(idx..end),
             self.mask_depth.get_mut(idx..end),
             self.intensity.get_mut(idx..end),
+            n >= 1,
         ) else {
             // Not reached for runs inside the window; the per-pixel path skips
             // out-of-range pixels the same way.
             let mut acc = acc;
             for k in 0..n {
                 self.put(run_frag(idx.wrapping_add(k), acc, mask));
-                acc = [acc[0] + step[0], acc[1] + step[1], acc[2] + step[2]];
+                acc = [
+                    acc[0].wrapping_add(step[0]),
+                    acc[1].wrapping_add(step[1]),
+                    acc[2].wrapping_add(step[2]),
+                ];
             }
             return;
         };
         let (tex, tw, th) = (self.tex, self.tw, self.th);
+        // Values are linear along the run, so their extremes are at its ends: when
+        // both ends lie inside the depth range and at least one texel from the
+        // texture's right and bottom edges, every pixel does, and the clamps of
+        // `run_frag` and `sample_bilinear` are the identity (same pixels, less work).
+        // Accumulators stay within ±2^58 (see `fill_polygon`), so no i64 overflow.
+        let last = (n - 1) as i64;
+        let lo_hi = |a: i64, s: i64| {
+            let b = a.wrapping_add(s.wrapping_mul(last));
+            (a.min(b) >> RUN_SHIFT, a.max(b) >> RUN_SHIFT)
+        };
+        let (d0, d1) = lo_hi(acc[0], step[0]);
+        let (u0, u1) = lo_hi(acc[1], step[1]);
+        let (v0, v1) = lo_hi(acc[2], step[2]);
+        let inner = d0 >= 0
+            && d1 <= i64::from(DEPTH_MAX)
+            && u0 >= 0
+            && v0 >= 0
+            && u1 < (tw as i64 - 1) << 16
+            && v1 < (th as i64 - 1) << 16;
+        let not_mask = if mask { 0 } else { DEPTH_NONE };
+        if inner {
+            let written = if mask {
+                run_inner::<true>(ds, ms, is, tex, tw, acc, step)
+            } else {
+                run_inner::<false>(ds, ms, is, tex, tw, acc, step)
+            };
+            self.written = self.written.saturating_add(written);
+            return;
+        }
         let mut acc = acc;
         let mut written = 0u32;
-        for ((slot, m), p) in ds.iter_mut().zip(ms.iter_mut()).zip(is.iter_mut()) {
-            let d = (acc[0] >> SEG_SHIFT).clamp(0, i64::from(DEPTH_MAX)) as u32;
-            if d < *slot {
-                *slot = d;
-                *m = if mask { d } else { DEPTH_NONE };
-                *p = sample_bilinear(tex, tw, th, acc[1] >> SEG_SHIFT, acc[2] >> SEG_SHIFT);
-                // At most n ≤ MAX_RENDER_PX per run.
-                written = written.wrapping_add(1);
+        {
+            for ((slot, m), p) in ds.iter_mut().zip(ms.iter_mut()).zip(is.iter_mut()) {
+                let d = (acc[0] >> RUN_SHIFT).clamp(0, i64::from(DEPTH_MAX)) as u32;
+                if d < *slot {
+                    *slot = d;
+                    *m = d | not_mask;
+                    *p = sample_bilinear(tex, tw, th, acc[1] >> RUN_SHIFT, acc[2] >> RUN_SHIFT);
+                    written = written.wrapping_add(1);
+                }
+                acc = [
+                    acc[0].wrapping_add(step[0]),
+                    acc[1].wrapping_add(step[1]),
+                    acc[2].wrapping_add(step[2]),
+                ];
             }
-            // Accumulators stay within ±2^40 (depth ≤ 2^32, UVs clamped to ±2^36
-            // in 16.16, times SEG) plus one segment's step: no i64 overflow.
-            acc = [
-                acc[0].wrapping_add(step[0]),
-                acc[1].wrapping_add(step[1]),
-                acc[2].wrapping_add(step[2]),
-            ];
         }
         self.written = self.written.saturating_add(written);
     }
 }
 
+/// The depth-test loop of a run whose depths lie in `0..=DEPTH_MAX` and whose
+/// texture coordinates lie inside the texture by one texel (see `put_run`); a
+/// function of its own so its state stays in registers. Returns the pixels written.
+#[inline(never)]
+fn run_inner<const MASK: bool>(
+    ds: &mut [u32],
+    ms: &mut [u32],
+    is: &mut [u8],
+    tex: &[u8],
+    tw: usize,
+    acc: [i64; 3],
+    step: [i64; 3],
+) -> u32 {
+    let [mut z, mut u, mut v] = acc;
+    let [sz, su, sv] = step;
+    let mut written = 0u32;
+    for ((slot, m), p) in ds.iter_mut().zip(ms.iter_mut()).zip(is.iter_mut()) {
+        let d = (z >> RUN_SHIFT) as u32;
+        if d < *slot {
+            *slot = d;
+            *m = if MASK { d } else { DEPTH_NONE };
+            *p = sample_inner(tex, tw, (u >> RUN_SHIFT) as u32, (v >> RUN_SHIFT) as u32);
+            // At most MAX_RENDER_PX per run.
+            written = written.wrapping_add(1);
+        }
+        // The caller bounds the accumulators (|acc| < 2^58): no i64 overflow.
+        z = z.wrapping_add(sz);
+        u = u.wrapping_add(su);
+        v = v.wrapping_add(sv);
+    }
+    written
+}
+
+/// Fractional bits of the run accumulators handed to [`PixelSink::put_run`].
+const RUN_SHIFT: u32 = 16;
 /// Perspective division is exact at every `SEG`-th absolute pixel column and
 /// linear in between (16.16 / depth-format fixed point): one division per 8 pixels.
 const SEG_SHIFT: u32 = 3;
@@ -292,6 +364,9 @@ struct Frame {
     h: i64,
     /// Snapped coordinates are clamped to this box (28.4), a little outside the guard band.
     lim: [i64; 4],
+    /// The image grown by the guard band (x0, y0, x1, y1 in pixels), independent
+    /// of the window: triangles projecting inside it may be interpolated linearly.
+    image_guard: [f32; 4],
 }
 
 /// Side planes through the camera centre keeping pixel columns `u0..=u1` and rows
@@ -366,6 +441,12 @@ impl Frame {
             w,
             h,
             lim: [(gx0 - 8) * s, (gy0 - 8) * s, (gx1 + 8) * s, (gy1 + 8) * s],
+            image_guard: [
+                -(g as f32),
+                -(g as f32),
+                (i64::from(cam.width) - 1 + g) as f32,
+                (i64::from(cam.height) - 1 + g) as f32,
+            ],
         }
     }
 
@@ -492,7 +573,7 @@ fn ceil_div(n: i64, d: i64) -> i64 {
 fn fill_polygon<S: PixelSink>(
     v: &[ScreenVert; MAX_CLIP_VERTS],
     n: usize,
-    it: &Interp,
+    make_attr: impl FnOnce() -> Option<Attr>,
     mask: bool,
     frame: &Frame,
     stats: &mut RenderStats,
@@ -524,6 +605,11 @@ fn fill_polygon<S: PixelSink>(
     if x_lo > x_hi || y_lo > y_hi {
         return;
     }
+    // Attribute setup only for polygons that reach a pixel centre of the window.
+    let Some(attr) = make_attr() else {
+        return;
+    };
+    let attr = &attr;
     stats.triangles_drawn = stats.triangles_drawn.saturating_add(1);
     // Edge (p→q), walked counter-clockwise in the image (area > 0):
     // E(px,py) = A·px + B·py + C, positive inside.
@@ -568,81 +654,128 @@ fn fill_polygon<S: PixelSink>(
             continue;
         }
         stats.spans = stats.spans.saturating_add(1);
-        let yn = (py as f32 - frame.cy) * frame.inv_fy;
-        let row_w = it.inv_z.y * yn + it.inv_z.z;
-        let row_u = it.u_over_z.y * yn + it.u_over_z.z;
-        let row_v = it.v_over_z.y * yn + it.v_over_z.z;
         let row = ((py - wy) * w - wx) as usize;
-        let at = |x: i64| {
-            exact_at(
-                (x as f32 - frame.cx) * frame.inv_fx,
-                row_w,
-                row_u,
-                row_v,
-                it,
-            )
-        };
-        let mut px = xl;
-        // The exact values at the end of one segment are those at the start of the
-        // next (same column, same arithmetic): evaluated once per boundary.
-        let mut next: Option<(i64, Option<[i64; 3]>)> = None;
-        // Bounded: each pass advances px to the next segment boundary (at most
-        // w / SEG + 2 passes per span).
-        while px <= xr {
-            let s0 = px & !(SEG - 1);
-            let s1 = s0 + SEG;
-            let end = xr.min(s1 - 1);
-            let e0 = match next {
-                Some((col, e)) if col == s0 => e,
-                _ => at(s0),
-            };
-            let e1 = at(s1);
-            next = Some((s1, e1));
-            match (e0, e1) {
-                // Linear depth and UVs deviate from perspective-correct values by about
-                // δ²/4 of depth with δ the relative change of depth over the segment;
-                // segments with δ > 1/64 are evaluated exactly at every pixel instead.
-                (Some(a), Some(b)) if (b[0] - a[0]).abs() * LINEAR_MAX_DZ_INV <= a[0] => {
-                    let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-                    let k = px - s0;
-                    // acc / SEG is the linear interpolation between the segment ends.
-                    let acc = [
-                        a[0] * SEG + d[0] * k,
-                        a[1] * SEG + d[1] * k,
-                        a[2] * SEG + d[2] * k,
-                    ];
-                    sink.put_run(
-                        row.wrapping_add(px as usize),
-                        (end - px + 1) as usize,
-                        acc,
-                        d,
-                        mask,
-                    );
-                }
-                _ => {
-                    for x in px..=end {
-                        let e = at(x).unwrap_or([i64::from(DEPTH_MAX), 0, 0]);
-                        sink.put(Frag {
-                            idx: row.wrapping_add(x as usize),
-                            depth: e[0].clamp(0, i64::from(DEPTH_MAX)) as u32,
-                            u_q16: e[1],
-                            v_q16: e[2],
-                            mask,
-                        });
-                    }
-                }
+        match attr {
+            Attr::Affine(af) => {
+                // Exact integer plane: the value at pixel x is the same whichever
+                // pixel the span starts at. Bounds: |base| ≤ 2^53, |gradient| ≤ 2^40,
+                // pixel offsets < 2^15, so every accumulator stays below 2^57.
+                let (dx, dy) = (xl - af.ax, py - af.ay);
+                let at = |k: usize| {
+                    af.base[k]
+                        .wrapping_add(af.gx[k].wrapping_mul(dx))
+                        .wrapping_add(af.gy[k].wrapping_mul(dy))
+                };
+                sink.put_run(
+                    row.wrapping_add(xl as usize),
+                    (xr - xl + 1) as usize,
+                    [at(0), at(1), at(2)],
+                    af.gx,
+                    mask,
+                );
             }
-            px = end + 1;
+            Attr::Perspective(it) => fill_span_perspective(it, frame, py, xl, xr, row, mask, sink),
         }
     }
 }
 
-/// Project a clipped corner to absolute 28.4 fixed point.
+/// Fill pixels `xl..=xr` of row `py` with perspective-correct values: exact at
+/// every `SEG`-th absolute column, linear in between where depth changes little.
+#[allow(clippy::too_many_arguments)]
 #[inline]
-fn snap(frame: &Frame, p: &Vec3) -> ScreenVert {
+fn fill_span_perspective<S: PixelSink>(
+    it: &Interp,
+    frame: &Frame,
+    py: i64,
+    xl: i64,
+    xr: i64,
+    row: usize,
+    mask: bool,
+    sink: &mut S,
+) {
+    let yn = (py as f32 - frame.cy) * frame.inv_fy;
+    let row_w = it.inv_z.y * yn + it.inv_z.z;
+    let row_u = it.u_over_z.y * yn + it.u_over_z.z;
+    let row_v = it.v_over_z.y * yn + it.v_over_z.z;
+    let at = |x: i64| {
+        exact_at(
+            (x as f32 - frame.cx) * frame.inv_fx,
+            row_w,
+            row_u,
+            row_v,
+            it,
+        )
+    };
+    let mut px = xl;
+    // The exact values at the end of one segment are those at the start of the
+    // next (same column, same arithmetic): evaluated once per boundary.
+    let mut next: Option<(i64, Option<[i64; 3]>)> = None;
+    // Bounded: each pass advances px to the next segment boundary (at most
+    // w / SEG + 2 passes per span).
+    while px <= xr {
+        let s0 = px & !(SEG - 1);
+        let s1 = s0 + SEG;
+        let end = xr.min(s1 - 1);
+        let e0 = match next {
+            Some((col, e)) if col == s0 => e,
+            _ => at(s0),
+        };
+        let e1 = at(s1);
+        next = Some((s1, e1));
+        match (e0, e1) {
+            // Linear depth and UVs deviate from perspective-correct values by about
+            // δ²/4 of depth with δ the relative change of depth over the segment;
+            // segments with δ > 1/64 are evaluated exactly at every pixel instead.
+            (Some(a), Some(b)) if (b[0] - a[0]).abs() * LINEAR_MAX_DZ_INV <= a[0] => {
+                let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+                let k = px - s0;
+                // acc / SEG is the linear interpolation between the segment ends,
+                // rescaled to RUN_SHIFT fractional bits (|a| ≤ 2^37, |d| ≤ 2^38:
+                // below 2^54 after the shift).
+                let sh = RUN_SHIFT - SEG_SHIFT;
+                let acc = [
+                    (a[0] * SEG + d[0] * k) << sh,
+                    (a[1] * SEG + d[1] * k) << sh,
+                    (a[2] * SEG + d[2] * k) << sh,
+                ];
+                sink.put_run(
+                    row.wrapping_add(px as usize),
+                    (end - px + 1) as usize,
+                    acc,
+                    [d[0] << sh, d[1] << sh, d[2] << sh],
+                    mask,
+                );
+            }
+            _ => {
+                for x in px..=end {
+                    let e = at(x).unwrap_or([i64::from(DEPTH_MAX), 0, 0]);
+                    sink.put(Frag {
+                        idx: row.wrapping_add(x as usize),
+                        depth: e[0].clamp(0, i64::from(DEPTH_MAX)) as u32,
+                        u_q16: e[1],
+                        v_q16: e[2],
+                        mask,
+                    });
+                }
+            }
+        }
+        px = end + 1;
+    }
+}
+
+/// Project a camera-frame point to absolute image pixels.
+#[inline]
+fn project(frame: &Frame, p: &Vec3) -> (f32, f32) {
     let inv_z = 1.0 / p.z;
-    let u = frame.fx * p.x * inv_z + frame.cx;
-    let v = frame.fy * p.y * inv_z + frame.cy;
+    (
+        frame.fx * p.x * inv_z + frame.cx,
+        frame.fy * p.y * inv_z + frame.cy,
+    )
+}
+
+/// Snap a projected point to absolute 28.4 fixed point.
+#[inline]
+fn snap(frame: &Frame, (u, v): (f32, f32)) -> ScreenVert {
     // Clipping keeps corners within the guard band up to rounding; the clamp bounds
     // the fixed-point range for the overflow budget whatever the rounding did
     // (a NaN casts to 0, inside the range).
@@ -651,7 +784,121 @@ fn snap(frame: &Frame, p: &Vec3) -> ScreenVert {
     ScreenVert { x, y }
 }
 
-/// Reject, clip and fill one triangle given in the camera frame.
+/// How depth and texture coordinates are evaluated over one triangle.
+enum Attr {
+    /// Linear in the image (exact integer plane), for triangles of small depth range.
+    Affine(Affine),
+    /// Perspective-correct (1/Z, u/Z, v/Z linear in the image).
+    Perspective(Interp),
+}
+
+/// A triangle is interpolated linearly in the image when its depth range δ
+/// (relative to its nearest corner) is at most 1/`AFFINE_MAX_DZ_INV`: depth then
+/// deviates from the perspective-correct value by at most δ²/4 ≤ 2.5·10⁻⁴ of depth.
+const AFFINE_MAX_DZ_INV: f32 = 32.0;
+/// ... and δ times its texture extent (texels) is at most 1/`AFFINE_MAX_UV_INV`:
+/// texture coordinates then deviate by at most δ·extent/4 ≤ 1/8 texel.
+const AFFINE_MAX_UV_INV: f32 = 2.0;
+/// Largest gradient (depth units or 2⁻¹⁶ texel per pixel) of a linear triangle,
+/// so the integer plane stays far from i64 overflow.
+const AFFINE_MAX_GRAD: f32 = (1u32 << 24) as f32;
+
+/// Depth (depth format + ½ for rounding) and texture coordinates (16.16) as an
+/// exact integer plane over absolute pixels, with `RUN_SHIFT` fractional bits:
+/// value(x, y) = (base + gx·(x − ax) + gy·(y − ay)) >> RUN_SHIFT.
+#[derive(Clone, Copy, Debug)]
+struct Affine {
+    base: [i64; 3],
+    gx: [i64; 3],
+    gy: [i64; 3],
+    ax: i64,
+    ay: i64,
+}
+
+impl Affine {
+    /// The plane through the three projected corners `s` carrying their depth and
+    /// texture coordinates; `None` when the triangle is not eligible (depth range or
+    /// texture extent too large, corner near or behind the camera or outside the
+    /// image's guard band, degenerate projection, gradient too large). Depends on
+    /// the triangle and the camera only, never on the window.
+    fn new(frame: &Frame, p: &[Vec3; 3], s: &[(f32, f32); 3], uv: &[[f32; 2]; 3]) -> Option<Self> {
+        let zmin = p[0].z.min(p[1].z).min(p[2].z);
+        let zmax = p[0].z.max(p[1].z).max(p[2].z);
+        let dz = zmax - zmin;
+        let umin = uv[0][0].min(uv[1][0]).min(uv[2][0]);
+        let umax = uv[0][0].max(uv[1][0]).max(uv[2][0]);
+        let vmin = uv[0][1].min(uv[1][1]).min(uv[2][1]);
+        let vmax = uv[0][1].max(uv[1][1]).max(uv[2][1]);
+        let extent = (umax - umin).max(vmax - vmin);
+        let [gx0, gy0, gx1, gy1] = frame.image_guard;
+        let inside = s
+            .iter()
+            .all(|&(x, y)| x >= gx0 && x <= gx1 && y >= gy0 && y <= gy1);
+        // NaN fails these comparisons.
+        let ok = zmin >= RASTER_NEAR_M
+            && dz * AFFINE_MAX_DZ_INV <= zmin
+            && dz * extent * AFFINE_MAX_UV_INV <= zmin
+            && inside;
+        if !ok {
+            return None;
+        }
+        let (x1, y1) = (s[1].0 - s[0].0, s[1].1 - s[0].1);
+        let (x2, y2) = (s[2].0 - s[0].0, s[2].1 - s[0].1);
+        let det = x1 * y2 - x2 * y1;
+        if det == 0.0 {
+            return None;
+        }
+        let inv_det = 1.0 / det;
+        let ax = libm::roundf(s[0].0);
+        let ay = libm::roundf(s[0].1);
+        let (ox, oy) = (ax - s[0].0, ay - s[0].1);
+        let val = |c: usize| -> [f32; 3] {
+            let q = &p[c];
+            [
+                q.z * DEPTH_SCALE + 0.5,
+                uv[c][0].clamp(-UV_LIMIT, UV_LIMIT) * 65536.0,
+                uv[c][1].clamp(-UV_LIMIT, UV_LIMIT) * 65536.0,
+            ]
+        };
+        let (a0, a1, a2) = (val(0), val(1), val(2));
+        let scale = (1u32 << RUN_SHIFT) as f32;
+        let lim = (1u64 << 53) as f32;
+        let mut out = Self {
+            base: [0; 3],
+            gx: [0; 3],
+            gy: [0; 3],
+            ax: ax as i64,
+            ay: ay as i64,
+        };
+        for k in 0..3 {
+            let (d1, d2) = (a1[k] - a0[k], a2[k] - a0[k]);
+            let gx = (d1 * y2 - d2 * y1) * inv_det;
+            let gy = (d2 * x1 - d1 * x2) * inv_det;
+            // NaN fails the comparison.
+            if !(gx.abs() <= AFFINE_MAX_GRAD && gy.abs() <= AFFINE_MAX_GRAD) {
+                return None;
+            }
+            let base = a0[k] + gx * ox + gy * oy;
+            out.base[k] = ((base * scale) as i64).clamp(-(lim as i64), lim as i64);
+            out.gx[k] = (gx * scale) as i64;
+            out.gy[k] = (gy * scale) as i64;
+        }
+        Some(out)
+    }
+}
+
+/// Whether all corners lie outside one plane of the window frustum (the triangle
+/// covers no pixel centre of the window).
+#[inline]
+fn outside_window(frame: &Frame, p: &[Vec3; 3]) -> bool {
+    frame
+        .window_planes
+        .iter()
+        .any(|pl| p.iter().all(|c| pl.dist(c) < 0.0))
+}
+
+/// Clip and fill one triangle given in the camera frame (not rejected by
+/// [`outside_window`]).
 fn draw_triangle<S: PixelSink>(
     frame: &Frame,
     p: [Vec3; 3],
@@ -660,33 +907,45 @@ fn draw_triangle<S: PixelSink>(
     stats: &mut RenderStats,
     sink: &mut S,
 ) {
-    // Reject when all corners are outside one window plane.
-    for pl in &frame.window_planes {
-        if p.iter().all(|c| pl.dist(c) < 0.0) {
-            return;
-        }
-    }
-    let Some(it) = Interp::new(&p, uv) else {
-        return;
-    };
-    let mut poly = [Vec3::zeros(); MAX_CLIP_VERTS];
-    let mut tmp = [Vec3::zeros(); MAX_CLIP_VERTS];
-    poly[..3].copy_from_slice(&p);
-    let mut n = 3;
-    for pl in &frame.clip_planes {
-        if poly.iter().take(n).any(|c| pl.dist(c) < 0.0) {
-            n = clip_poly(&poly, n, pl, &mut tmp);
-            poly = tmp;
-            if n < 3 {
-                return;
+    let mut screen = [ScreenVert::default(); MAX_CLIP_VERTS];
+    let clip = frame
+        .clip_planes
+        .iter()
+        .any(|pl| p.iter().any(|c| pl.dist(c) < 0.0));
+    if clip {
+        let mut poly = [Vec3::zeros(); MAX_CLIP_VERTS];
+        let mut tmp = [Vec3::zeros(); MAX_CLIP_VERTS];
+        poly[..3].copy_from_slice(&p);
+        let mut n = 3;
+        for pl in &frame.clip_planes {
+            if poly.iter().take(n).any(|c| pl.dist(c) < 0.0) {
+                n = clip_poly(&poly, n, pl, &mut tmp);
+                poly = tmp;
+                if n < 3 {
+                    return;
+                }
             }
         }
+        for (sv, c) in screen.iter_mut().zip(poly.iter().take(n)) {
+            *sv = snap(frame, project(frame, c));
+        }
+        let make = || Interp::new(&p, uv).map(Attr::Perspective);
+        fill_polygon(&screen, n, make, mask, frame, stats, sink);
+    } else {
+        let s = [
+            project(frame, &p[0]),
+            project(frame, &p[1]),
+            project(frame, &p[2]),
+        ];
+        for (sv, c) in screen.iter_mut().zip(s) {
+            *sv = snap(frame, c);
+        }
+        let make = || match Affine::new(frame, &p, &s, uv) {
+            Some(af) => Some(Attr::Affine(af)),
+            None => Interp::new(&p, uv).map(Attr::Perspective),
+        };
+        fill_polygon(&screen, 3, make, mask, frame, stats, sink);
     }
-    let mut screen = [ScreenVert::default(); MAX_CLIP_VERTS];
-    for (sv, c) in screen.iter_mut().zip(poly.iter().take(n)) {
-        *sv = snap(frame, c);
-    }
-    fill_polygon(&screen, n, &it, mask, frame, stats, sink);
 }
 
 fn check_inputs(cam: &Camera, world_from_cam: &Pose, window: Rect) -> Result<(), FailureCode> {
@@ -735,13 +994,14 @@ pub(crate) fn rasterize<S: PixelSink>(
         let end = tile.first_triangle.saturating_add(tile.triangle_count);
         for i in tile.first_triangle..end.min(map.triangle_count()) {
             stats.triangles_tested = stats.triangles_tested.saturating_add(1);
-            let Some(t) = map.triangle(i) else { break };
-            let (Some(a), Some(b), Some(c)) =
-                (map.vertex(t.v[0]), map.vertex(t.v[1]), map.vertex(t.v[2]))
-            else {
-                continue;
+            let Some(w) = map.triangle_vertices(i) else {
+                break;
             };
-            let p = [to_cam(a), to_cam(b), to_cam(c)];
+            let p = w.map(to_cam);
+            if outside_window(&frame, &p) {
+                continue;
+            }
+            let Some(t) = map.triangle(i) else { break };
             draw_triangle(&frame, p, &t.uv, t.mask, &mut stats, sink);
         }
     }
@@ -767,11 +1027,38 @@ fn sample_bilinear(tex: &[u8], tw: usize, th: usize, u_q16: i64, v_q16: i64) -> 
     let dy = if y0 + 1 < th { tw } else { 0 };
     let i = y0.wrapping_mul(tw).wrapping_add(x0);
     let px = |k: usize| u32::from(tex.get(k).copied().unwrap_or(0));
-    let lerp = |a: u32, b: u32, f: u32| a.wrapping_mul(256 - f).wrapping_add(b.wrapping_mul(f));
-    let top = lerp(px(i), px(i.wrapping_add(dx)), fx);
+    let top = lerp8(px(i), px(i.wrapping_add(dx)), fx);
     let j = i.wrapping_add(dy);
-    let bot = lerp(px(j), px(j.wrapping_add(dx)), fx);
-    (lerp(top, bot, fy).wrapping_add(1 << 15) >> 16) as u8
+    let bot = lerp8(px(j), px(j.wrapping_add(dx)), fx);
+    (lerp8(top, bot, fy).wrapping_add(1 << 15) >> 16) as u8
+}
+
+/// [`sample_bilinear`] for a point at least one texel inside the right and bottom
+/// edges (`u < (tw − 1)·2^16`, `v < (th − 1)·2^16`, both non-negative): same
+/// result, without the clamps and with one bounds check for the four texels.
+#[inline(always)]
+fn sample_inner(tex: &[u8], tw: usize, u: u32, v: u32) -> u8 {
+    let (x0, y0) = ((u >> 16) as usize, (v >> 16) as usize);
+    let fx = (u >> 8) & 0xFF;
+    let fy = (v >> 8) & 0xFF;
+    let i = y0.wrapping_mul(tw).wrapping_add(x0);
+    let Some(q) = tex.get(i..) else {
+        return 0;
+    };
+    let (Some(&[a, b]), Some(&[c, d])) = (q.get(..2), q.get(tw..).and_then(|r| r.get(..2))) else {
+        return 0;
+    };
+    let top = lerp8(u32::from(a), u32::from(b), fx);
+    let bot = lerp8(u32::from(c), u32::from(d), fx);
+    (lerp8(top, bot, fy).wrapping_add(1 << 15) >> 16) as u8
+}
+
+/// a·(256 − f) + b·f for f ≤ 256, computed as 256·a + (b − a)·f with wrapping
+/// 32-bit operations: the exact result is below 2^24, so the wrapped
+/// intermediate (b − a may be negative) gives it exactly.
+#[inline(always)]
+fn lerp8(a: u32, b: u32, f: u32) -> u32 {
+    (a << 8).wrapping_add(b.wrapping_sub(a).wrapping_mul(f))
 }
 
 /// Render `window` (a pixel rectangle of the full virtual image of `cam`) of the
