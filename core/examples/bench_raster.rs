@@ -140,6 +140,7 @@ fn main() {
         let mut checksum = 0u64;
         let (mut tris, mut drawn, mut written, mut spans, mut empty, mut kept) =
             (0u64, 0u64, 0u64, 0u64, 0u64, 0u64);
+        let mut linear = 0u64;
         let mut covered = 0u64;
         // Pass 1: render only.
         let (wall0, cpu0) = (Instant::now(), thread_cpu_ns());
@@ -153,6 +154,7 @@ fn main() {
                 Ok(s) => {
                     tris += u64::from(s.triangles_tested);
                     drawn += u64::from(s.triangles_drawn);
+                    linear += u64::from(s.triangles_linear);
                     written += u64::from(s.pixels_written);
                     spans += u64::from(s.spans);
                 }
@@ -191,7 +193,7 @@ fn main() {
         let px = nv * f64::from(side * side);
         println!(
             "{side}²: {views} windows; render {:.1} µs/template CPU ({:.1} µs wall), {:.1} Mpix/s CPU; \
-             template_mask {:.1} µs CPU; covered {:.1}%; per window: {:.0} triangles tested, {:.0} drawn, \
+             template_mask {:.1} µs CPU; covered {:.1}%; per window: {:.0} triangles tested, {:.0} drawn ({:.0} linear), \
              {:.0} spans, {:.0} pixels written, {:.0} kept by mask; {empty} empty; checksum {checksum:016x}",
             cpu_render / nv * 1e6,
             wall_render / nv * 1e6,
@@ -200,6 +202,7 @@ fn main() {
             100.0 * covered as f64 / px,
             tris as f64 / nv,
             drawn as f64 / nv,
+            linear as f64 / nv,
             spans as f64 / nv,
             written as f64 / nv,
             kept as f64 / nv,

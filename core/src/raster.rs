@@ -95,6 +95,9 @@ pub struct RenderStats {
     pub triangles_tested: u32,
     /// Clipped triangles (one polygon each) whose spans were filled.
     pub triangles_drawn: u32,
+    /// Drawn triangles whose depth and texture coordinates were interpolated
+    /// linearly in the image (small depth range), the others perspective-correct.
+    pub triangles_linear: u32,
     /// Non-empty row spans filled.
     pub spans: u32,
     /// Depth-test passes (pixel writes; a pixel overwritten by a nearer surface counts twice).
@@ -349,6 +352,8 @@ struct Frame {
     window_planes: [Plane; 5],
     /// The same planes in the world frame, for tile culling.
     world_planes: [Plane; 5],
+    /// Per world plane: −`CULL_SLACK_M`·|n|, the tile test's threshold.
+    world_slack: [f32; 5],
     /// Near plane and guard-band side planes, camera frame.
     clip_planes: [Plane; 5],
     fx: f32,
@@ -428,6 +433,7 @@ impl Frame {
         Self {
             cam_from_world,
             window_planes,
+            world_slack: world_planes.map(|pl| -CULL_SLACK_M * libm::sqrtf(pl.n.dot(&pl.n))),
             world_planes,
             clip_planes: [near, ga, gb, gc, gd],
             fx: cam.fx,
@@ -452,16 +458,18 @@ impl Frame {
 
     /// Whether a world box may intersect the window frustum.
     fn box_visible(&self, min: &Vec3, max: &Vec3) -> bool {
-        self.world_planes.iter().all(|pl| {
-            let nw = pl.n;
-            let p = Vec3::new(
-                if nw.x >= 0.0 { max.x } else { min.x },
-                if nw.y >= 0.0 { max.y } else { min.y },
-                if nw.z >= 0.0 { max.z } else { min.z },
-            );
-            let scale = libm::sqrtf(nw.dot(&nw));
-            nw.dot(&p) + pl.d >= -CULL_SLACK_M * scale
-        })
+        self.world_planes
+            .iter()
+            .zip(&self.world_slack)
+            .all(|(pl, slack)| {
+                let nw = pl.n;
+                let p = Vec3::new(
+                    if nw.x >= 0.0 { max.x } else { min.x },
+                    if nw.y >= 0.0 { max.y } else { min.y },
+                    if nw.z >= 0.0 { max.z } else { min.z },
+                );
+                nw.dot(&p) + pl.d >= *slack
+            })
     }
 }
 
@@ -611,6 +619,9 @@ fn fill_polygon<S: PixelSink>(
     };
     let attr = &attr;
     stats.triangles_drawn = stats.triangles_drawn.saturating_add(1);
+    if matches!(attr, Attr::Affine(_)) {
+        stats.triangles_linear = stats.triangles_linear.saturating_add(1);
+    }
     // Edge (p→q), walked counter-clockwise in the image (area > 0):
     // E(px,py) = A·px + B·py + C, positive inside.
     let mut edges = [(0i64, 0i64, 0i64, 0i64); MAX_CLIP_VERTS];
@@ -797,8 +808,8 @@ enum Attr {
 /// deviates from the perspective-correct value by at most δ²/4 ≤ 2.5·10⁻⁴ of depth.
 const AFFINE_MAX_DZ_INV: f32 = 32.0;
 /// ... and δ times its texture extent (texels) is at most 1/`AFFINE_MAX_UV_INV`:
-/// texture coordinates then deviate by at most δ·extent/4 ≤ 1/8 texel.
-const AFFINE_MAX_UV_INV: f32 = 2.0;
+/// texture coordinates then deviate by at most δ·extent/4 ≤ 1/32 texel.
+const AFFINE_MAX_UV_INV: f32 = 8.0;
 /// Largest gradient (depth units or 2⁻¹⁶ texel per pixel) of a linear triangle,
 /// so the integer plane stays far from i64 overflow.
 const AFFINE_MAX_GRAD: f32 = (1u32 << 24) as f32;

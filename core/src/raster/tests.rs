@@ -462,7 +462,15 @@ fn ray_cast(s: &Scene, o: [f64; 3], d: [f64; 3]) -> Option<(f64, usize)> {
 /// Verifies: VTSM-RAST-004
 #[test]
 fn terrain_depth_matches_f64_ray_casting() {
-    let s = Scene::terrain(24, 0.0, 6.0, |x, y| {
+    // A coarse mesh (mostly perspective-correct triangles) and a fine one (mostly
+    // triangles of small depth range, interpolated linearly in the image).
+    for (cells, linear_share) in [(24, 0.0), (72, 0.5)] {
+        check_terrain_depth(cells, linear_share);
+    }
+}
+
+fn check_terrain_depth(cells: usize, linear_share: f64) {
+    let s = Scene::terrain(cells, 0.0, 6.0, |x, y| {
         0.35 * libm::sinf(x * 1.1) * libm::cosf(y * 0.8) + 0.05 * x
     });
     let bytes = s.bytes(1.0);
@@ -470,7 +478,11 @@ fn terrain_depth_matches_f64_ray_casting() {
     let cam = camera(160, 120, 140.0);
     let pose = look_at([3.0, -2.5, 3.0], [3.0, 3.0, 0.0]);
     let r = render(&map, &cam, &pose, Rect::new(0, 0, 160, 120));
-    r.result.unwrap();
+    let stats = r.result.unwrap();
+    assert!(
+        f64::from(stats.triangles_linear) >= linear_share * f64::from(stats.triangles_drawn),
+        "{stats:?}"
+    );
     let rot = pose.rotation();
     let eye = pose.translation().map(f64::from);
     let (mut both, mut only_one, mut worst) = (0, 0, 0.0f64);
@@ -503,7 +515,7 @@ fn terrain_depth_matches_f64_ray_casting() {
     // Coverage differs only at the mesh border (snapping to 1/16 px).
     assert!(only_one * 100 < both, "{only_one} of {both}");
     std::println!(
-        "terrain depth: {both} px, worst relative error {worst:e}, {only_one} border px differ"
+        "terrain depth, {cells} cells: {both} px, worst relative error {worst:e}, {only_one} border px differ; {stats:?}"
     );
 }
 
@@ -549,8 +561,43 @@ fn textured_quad_at_an_angle_matches_analytic_projection() {
         (camera(200, 150, 160.0), Rect::new(0, 0, 200, 150)),
         (camera(2000, 1500, 1600.0), Rect::new(880, 620, 200, 150)),
     ] {
-        check_quad_window(&sc, &map, &cam, win, o, uu, vv);
+        let stats = check_quad_window(&sc, &map, &cam, win, o, uu, vv);
+        assert_eq!(stats.triangles_linear, 0);
     }
+    // A far quad with a depth range of 0.15 % (below 1/8 texel over its 48 texels):
+    // both triangles are interpolated linearly in the image and must still match
+    // the analytic projection.
+    let o = [-1.2f64, -0.9, 20.0];
+    let uu = [2.4f64, 0.0, 0.02];
+    let vv = [0.0f64, 1.8, 0.01];
+    let at = |s: f64, t: f64| {
+        [
+            (o[0] + s * uu[0] + t * vv[0]) as f32,
+            (o[1] + s * uu[1] + t * vv[1]) as f32,
+            (o[2] + s * uu[2] + t * vv[2]) as f32,
+        ]
+    };
+    let mut far = sc.clone();
+    far.vertices.clear();
+    far.triangles.clear();
+    far.uvs.clear();
+    far.mask.clear();
+    far.tri(
+        [at(0.0, 0.0), at(1.0, 0.0), at(1.0, 1.0)],
+        [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]],
+        false,
+    );
+    far.tri(
+        [at(0.0, 0.0), at(1.0, 1.0), at(0.0, 1.0)],
+        [[0.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+        false,
+    );
+    let bytes = far.bytes(1.0);
+    let map = MapView::new_checked(&bytes).unwrap();
+    let cam = camera(2000, 1500, 1600.0);
+    let win = Rect::new(880, 620, 200, 150);
+    let stats = check_quad_window(&far, &map, &cam, win, o, uu, vv);
+    assert_eq!(stats.triangles_linear, 2);
 }
 
 fn check_quad_window(
@@ -561,9 +608,9 @@ fn check_quad_window(
     o: [f64; 3],
     uu: [f64; 3],
     vv: [f64; 3],
-) {
+) -> RenderStats {
     let r = render(map, cam, &Pose::identity(), win);
-    r.result.unwrap();
+    let stats = r.result.unwrap();
     let tex = |x: i64, y: i64| f64::from(sc.tex[(y.clamp(0, 39) * 48 + x.clamp(0, 47)) as usize]);
     let (mut checked, mut worst, mut depth_err) = (0, 0.0f64, 0.0f64);
     // Normal of the quad plane for the ray intersection.
@@ -614,15 +661,23 @@ fn check_quad_window(
     assert!(checked > 5000, "{checked}");
     assert!(depth_err / f64::from(checked) < 1e-4);
     std::println!(
-        "textured quad, f = {}: {checked} px, worst |error| {worst:.2} gray levels",
+        "textured quad, f = {}: {checked} px, worst |error| {worst:.2} gray levels; {stats:?}",
         cam.fx
     );
+    stats
 }
 
 /// Verifies: VTSM-RAST-006
 #[test]
 fn window_render_equals_crop_of_full_render() {
-    let s = Scene::terrain(30, -4.0, 14.0, |x, y| {
+    // Coarse and fine meshes: perspective-correct and linear triangles.
+    for cells in [30, 120] {
+        check_window_crops(cells);
+    }
+}
+
+fn check_window_crops(cells: usize) {
+    let s = Scene::terrain(cells, -4.0, 14.0, |x, y| {
         0.4 * libm::sinf(x * 0.9) * libm::cosf(y * 1.3)
     });
     let bytes = s.bytes(1.5);
@@ -634,7 +689,10 @@ fn window_render_equals_crop_of_full_render() {
         look_at([0.0, 0.0, 0.6], [5.0, 5.0, 0.2]),
     ] {
         let full = render(&map, &cam, &pose, Rect::new(0, 0, 220, 170));
-        full.result.unwrap();
+        let stats = full.result.unwrap();
+        if cells > 100 {
+            assert!(stats.triangles_linear > 100, "{stats:?}");
+        }
         for _ in 0..40 {
             let w = 1 + rng.below(128);
             let h = 1 + rng.below(128);
