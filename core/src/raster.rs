@@ -278,13 +278,15 @@ fn run_inner<const MASK: bool>(
 ) -> u32 {
     let [mut z, mut u, mut v] = acc;
     let [sz, su, sv] = step;
+    // The caller guarantees tw ≤ MAX_TEXTURE_DIM (map validation); the min tells the compiler.
+    let tw = tw.min(crate::config::MAX_TEXTURE_DIM);
     let mut written = 0u32;
     for ((slot, m), p) in ds.iter_mut().zip(ms.iter_mut()).zip(is.iter_mut()) {
         let d = (z >> RUN_SHIFT) as u32;
         if d < *slot {
             *slot = d;
             *m = if MASK { d } else { DEPTH_NONE };
-            *p = sample_inner(tex, tw, (u >> RUN_SHIFT) as u32, (v >> RUN_SHIFT) as u32);
+            *p = sample_inner(tex, tw, u, v);
             // At most MAX_RENDER_PX per run.
             written = written.wrapping_add(1);
         }
@@ -298,6 +300,8 @@ fn run_inner<const MASK: bool>(
 
 /// Fractional bits of the run accumulators handed to [`PixelSink::put_run`].
 const RUN_SHIFT: u32 = 16;
+// `run_inner` hands the 16.16 texture accumulators to `sample_inner` as 32.32.
+const _: () = assert!(RUN_SHIFT == 16);
 /// Perspective division is exact at every `SEG`-th absolute pixel column and
 /// linear in between (16.16 / depth-format fixed point): one division per 8 pixels.
 const SEG_SHIFT: u32 = 3;
@@ -1045,18 +1049,22 @@ fn sample_bilinear(tex: &[u8], tw: usize, th: usize, u_q16: i64, v_q16: i64) -> 
 }
 
 /// [`sample_bilinear`] for a point at least one texel inside the right and bottom
-/// edges (`u < (tw − 1)·2^16`, `v < (th − 1)·2^16`, both non-negative): same
-/// result, without the clamps and with one bounds check for the four texels.
+/// edges, given as 32.32 fixed-point texel coordinates `u`, `v` with
+/// `0 ≤ u < (tw − 1)·2^32`, `0 ≤ v < (th − 1)·2^32` and `tw ≤ MAX_TEXTURE_DIM`:
+/// same result, without the clamps and with one bounds check for the four texels.
 #[inline(always)]
-fn sample_inner(tex: &[u8], tw: usize, u: u32, v: u32) -> u8 {
-    let (x0, y0) = ((u >> 16) as usize, (v >> 16) as usize);
-    let fx = (u >> 8) & 0xFF;
-    let fy = (v >> 8) & 0xFF;
-    let i = y0.wrapping_mul(tw).wrapping_add(x0);
-    let Some(q) = tex.get(i..) else {
+fn sample_inner(tex: &[u8], tw: usize, u: i64, v: i64) -> u8 {
+    // The masks are the identity under the preconditions; they let the compiler
+    // prove that the index arithmetic below cannot overflow.
+    const MAX: usize = crate::config::MAX_TEXTURE_DIM - 1;
+    let (x0, y0) = ((u >> 32) as usize & MAX, (v >> 32) as usize & MAX);
+    let fx = ((u >> 24) & 0xFF) as u32;
+    let fy = ((v >> 24) & 0xFF) as u32;
+    let i = y0 * tw + x0;
+    let Some((top, bottom)) = tex.get(i..i + tw + 2).and_then(|q| q.split_at_checked(tw)) else {
         return 0;
     };
-    let (Some(&[a, b]), Some(&[c, d])) = (q.get(..2), q.get(tw..).and_then(|r| r.get(..2))) else {
+    let (&[a, b, ..], &[c, d]) = (top, bottom) else {
         return 0;
     };
     let top = lerp8(u32::from(a), u32::from(b), fx);
