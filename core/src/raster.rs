@@ -351,10 +351,12 @@ impl Plane {
 /// image pixels and independent of the window, so a window render equals the
 /// same crop of a larger render bit for bit; the window only bounds the spans.
 struct Frame {
-    cam_from_world: Pose,
-    /// Window frustum (near plane and the four pixel-edge side planes), camera frame.
-    window_planes: [Plane; 5],
-    /// The same planes in the world frame, for tile culling.
+    /// Camera-from-world rotation as a matrix and translation (cheaper per
+    /// vertex than the quaternion).
+    rot: nalgebra::Matrix3<f32>,
+    trans: Vec3,
+    /// Window frustum (near plane and the four pixel-edge side planes) in the
+    /// world frame, for tile culling and the per-triangle reject.
     world_planes: [Plane; 5],
     /// Per world plane: −`CULL_SLACK_M`·|n|, the tile test's threshold.
     world_slack: [f32; 5],
@@ -435,8 +437,8 @@ impl Frame {
         });
         let s = i64::from(1u32 << SUBPIXEL_BITS);
         Self {
-            cam_from_world,
-            window_planes,
+            rot: *r.to_rotation_matrix().matrix(),
+            trans: t,
             world_slack: world_planes.map(|pl| -CULL_SLACK_M * libm::sqrtf(pl.n.dot(&pl.n))),
             world_planes,
             clip_planes: [near, ga, gb, gc, gd],
@@ -902,18 +904,8 @@ impl Affine {
     }
 }
 
-/// Whether all corners lie outside one plane of the window frustum (the triangle
-/// covers no pixel centre of the window).
-#[inline]
-fn outside_window(frame: &Frame, p: &[Vec3; 3]) -> bool {
-    frame
-        .window_planes
-        .iter()
-        .any(|pl| p.iter().all(|c| pl.dist(c) < 0.0))
-}
-
-/// Clip and fill one triangle given in the camera frame (not rejected by
-/// [`outside_window`]).
+/// Clip and fill one triangle given in the camera frame (not rejected against
+/// the window frustum by `rasterize`).
 fn draw_triangle<S: PixelSink>(
     frame: &Frame,
     p: [Vec3; 3],
@@ -995,7 +987,7 @@ pub(crate) fn rasterize<S: PixelSink>(
     check_inputs(cam, world_from_cam, window)?;
     let frame = Frame::new(cam, world_from_cam, window);
     let mut stats = RenderStats::default();
-    let to_cam = |p: Vec3| frame.cam_from_world.transform_point(&p);
+    let to_cam = |p: Vec3| frame.rot * p + frame.trans;
     for k in 0..map.tile_count() {
         let Some(tile) = map.tile(k) else { break };
         if tile.triangle_count == 0 {
@@ -1012,8 +1004,20 @@ pub(crate) fn rasterize<S: PixelSink>(
             let Some(w) = map.triangle_vertices(i) else {
                 break;
             };
+            // Reject triangles with all corners beyond one side plane of the window
+            // (tested in the world frame, before the transform) or all in front of
+            // the near plane. The side planes lie half a pixel outside the window's
+            // outer pixel centres, far beyond rounding, so no covered pixel is lost.
+            if frame
+                .world_planes
+                .iter()
+                .skip(1)
+                .any(|pl| w.iter().all(|c| pl.dist(c) < 0.0))
+            {
+                continue;
+            }
             let p = w.map(to_cam);
-            if outside_window(&frame, &p) {
+            if p.iter().all(|c| c.z < RASTER_NEAR_M) {
                 continue;
             }
             let Some(t) = map.triangle(i) else { break };
