@@ -7,8 +7,9 @@
 //! two depth buffers into the template mask.
 //!
 //! Pipeline per call: tiles whose box lies outside the window frustum (four side
-//! planes and the near plane) are skipped; each remaining triangle is moved to
-//! the camera frame, rejected if all corners lie outside one window plane,
+//! planes and the near plane) are skipped; each remaining triangle is rejected
+//! if all corners lie outside one window side plane (world frame), moved to the
+//! camera frame, rejected if all corners lie in front of the near plane,
 //! clipped in camera space against the near plane and, only when a corner lies
 //! outside it, against the guard band ([`RASTER_GUARD_PX`] beyond the window);
 //! the clipped convex polygon is snapped to 28.4 fixed point in absolute image
@@ -17,12 +18,16 @@
 //! integers with a top-left style tie rule (a pixel centre on an edge belongs to
 //! the polygon that holds the centre moved by (ε, ε²)), so triangles sharing an
 //! edge cover each pixel exactly once. Back faces are drawn (photogrammetry meshes
-//! have arbitrary winding). Depth and UVs come from the unclipped triangle's plane
-//! (1/Z, u/Z, v/Z linear in the image), evaluated exactly at every 8th absolute
-//! pixel column and stepped linearly in fixed point in between when depth changes
-//! by at most 1/64 over the 8 pixels (exactly at every pixel otherwise). Nothing
-//! that decides a pixel depends on the window, so a window render equals the same
-//! crop of a full render bit for bit.
+//! have arbitrary winding). A triangle of small depth range (at most 1/32 of its
+//! depth, and small enough that texture coordinates move by at most 1/32 texel;
+//! see `Affine`) that needs no clipping gets depth and UVs linear in the image,
+//! as an exact integer plane stepped once per pixel along each span. Any other
+//! triangle gets them from its unclipped plane (1/Z, u/Z, v/Z linear in the
+//! image), evaluated exactly at every 8th absolute pixel column and stepped
+//! linearly in fixed point in between when depth changes by at most 1/64 over
+//! the 8 pixels (exactly at every pixel otherwise). Nothing that decides a pixel
+//! depends on the window, so a window render equals the same crop of a full
+//! render bit for bit.
 //!
 //! Depth format: `u32` camera-frame Z (along the optical axis) in units of
 //! 2⁻¹⁶ m ([`DEPTH_FRAC_BITS`]), [`DEPTH_NONE`] where nothing was drawn; see
@@ -936,7 +941,20 @@ fn draw_triangle<S: PixelSink>(
         for (sv, c) in screen.iter_mut().zip(poly.iter().take(n)) {
             *sv = snap(frame, project(frame, c));
         }
-        let make = || Interp::new(&p, uv).map(Attr::Perspective);
+        // The choice of interpolation depends on the triangle only (a triangle
+        // inside the image's guard band is clipped only by rounding), so it is the
+        // same whatever window, and hence guard band, the call uses.
+        let make = || {
+            let s = [
+                project(frame, &p[0]),
+                project(frame, &p[1]),
+                project(frame, &p[2]),
+            ];
+            match Affine::new(frame, &p, &s, uv) {
+                Some(af) => Some(Attr::Affine(af)),
+                None => Interp::new(&p, uv).map(Attr::Perspective),
+            }
+        };
         fill_polygon(&screen, n, make, mask, frame, stats, sink);
     } else {
         let s = [
