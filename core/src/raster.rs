@@ -605,8 +605,9 @@ fn fill_polygon<S: PixelSink>(
     // Twice the signed area (shoelace), for the orientation.
     let mut area = 0i64;
     let (mut minx, mut maxx, mut miny, mut maxy) = (i64::MAX, i64::MIN, i64::MAX, i64::MIN);
-    for i in 0..n {
-        let (p, q) = (v[i], v[(i + 1) % n]);
+    // Corner pairs (v0, v1), (v1, v2), …, (v[n−1], v0).
+    let pairs = || v.iter().take(n).zip(v.iter().take(n).cycle().skip(1));
+    for (&p, &q) in pairs() {
         area += p.x * q.y - q.x * p.y;
         minx = minx.min(p.x);
         maxx = maxx.max(p.x);
@@ -637,8 +638,8 @@ fn fill_polygon<S: PixelSink>(
     // E(px,py) = A·px + B·py + C, positive inside.
     let mut edges = [(0i64, 0i64, 0i64, 0i64); MAX_CLIP_VERTS];
     let mut ne = 0;
-    for i in 0..n {
-        let (mut p, mut q) = (v[i], v[(i + 1) % n]);
+    for (&p, &q) in pairs() {
+        let (mut p, mut q) = (p, q);
         if area < 0 {
             core::mem::swap(&mut p, &mut q);
         }
@@ -657,7 +658,7 @@ fn fill_polygon<S: PixelSink>(
             ne += 1;
         }
     }
-    let edges = &edges[..ne];
+    let edges = edges.get(..ne).unwrap_or(&[]);
     let (wx, wy, w) = (frame.wx, frame.wy, frame.w);
     for py in y_lo..=y_hi {
         let mut xl = x_lo;
@@ -683,15 +684,16 @@ fn fill_polygon<S: PixelSink>(
                 // pixel the span starts at. Bounds: |base| ≤ 2^53, |gradient| ≤ 2^40,
                 // pixel offsets < 2^15, so every accumulator stays below 2^57.
                 let (dx, dy) = (xl - af.ax, py - af.ay);
-                let at = |k: usize| {
-                    af.base[k]
-                        .wrapping_add(af.gx[k].wrapping_mul(dx))
-                        .wrapping_add(af.gy[k].wrapping_mul(dy))
-                };
+                let mut acc = af.base;
+                for ((a, gx), gy) in acc.iter_mut().zip(af.gx).zip(af.gy) {
+                    *a = a
+                        .wrapping_add(gx.wrapping_mul(dx))
+                        .wrapping_add(gy.wrapping_mul(dy));
+                }
                 sink.put_run(
                     row.wrapping_add(xl as usize),
                     (xr - xl + 1) as usize,
-                    [at(0), at(1), at(2)],
+                    acc,
                     af.gx,
                     mask,
                 );
@@ -844,14 +846,14 @@ impl Affine {
     /// image's guard band, degenerate projection, gradient too large). Depends on
     /// the triangle and the camera only, never on the window.
     fn new(frame: &Frame, p: &[Vec3; 3], s: &[(f32, f32); 3], uv: &[[f32; 2]; 3]) -> Option<Self> {
-        let zmin = p[0].z.min(p[1].z).min(p[2].z);
-        let zmax = p[0].z.max(p[1].z).max(p[2].z);
+        let [p0, p1, p2] = p;
+        let [s0, s1, s2] = *s;
+        let [[u0, v0], [u1, v1], [u2, v2]] = *uv;
+        let zmin = p0.z.min(p1.z).min(p2.z);
+        let zmax = p0.z.max(p1.z).max(p2.z);
         let dz = zmax - zmin;
-        let umin = uv[0][0].min(uv[1][0]).min(uv[2][0]);
-        let umax = uv[0][0].max(uv[1][0]).max(uv[2][0]);
-        let vmin = uv[0][1].min(uv[1][1]).min(uv[2][1]);
-        let vmax = uv[0][1].max(uv[1][1]).max(uv[2][1]);
-        let extent = (umax - umin).max(vmax - vmin);
+        let extent =
+            (u0.max(u1).max(u2) - u0.min(u1).min(u2)).max(v0.max(v1).max(v2) - v0.min(v1).min(v2));
         let [gx0, gy0, gx1, gy1] = frame.image_guard;
         let inside = s
             .iter()
@@ -864,25 +866,24 @@ impl Affine {
         if !ok {
             return None;
         }
-        let (x1, y1) = (s[1].0 - s[0].0, s[1].1 - s[0].1);
-        let (x2, y2) = (s[2].0 - s[0].0, s[2].1 - s[0].1);
+        let (x1, y1) = (s1.0 - s0.0, s1.1 - s0.1);
+        let (x2, y2) = (s2.0 - s0.0, s2.1 - s0.1);
         let det = x1 * y2 - x2 * y1;
         if det == 0.0 {
             return None;
         }
         let inv_det = 1.0 / det;
-        let ax = libm::roundf(s[0].0);
-        let ay = libm::roundf(s[0].1);
-        let (ox, oy) = (ax - s[0].0, ay - s[0].1);
-        let val = |c: usize| -> [f32; 3] {
-            let q = &p[c];
+        let ax = libm::roundf(s0.0);
+        let ay = libm::roundf(s0.1);
+        let (ox, oy) = (ax - s0.0, ay - s0.1);
+        let val = |q: &Vec3, u: f32, v: f32| -> [f32; 3] {
             [
                 q.z * DEPTH_SCALE + 0.5,
-                uv[c][0].clamp(-UV_LIMIT, UV_LIMIT) * 65536.0,
-                uv[c][1].clamp(-UV_LIMIT, UV_LIMIT) * 65536.0,
+                u.clamp(-UV_LIMIT, UV_LIMIT) * 65536.0,
+                v.clamp(-UV_LIMIT, UV_LIMIT) * 65536.0,
             ]
         };
-        let (a0, a1, a2) = (val(0), val(1), val(2));
+        let (a0, a1, a2) = (val(p0, u0, v0), val(p1, u1, v1), val(p2, u2, v2));
         let scale = (1u32 << RUN_SHIFT) as f32;
         let lim = (1u64 << 53) as f32;
         let mut out = Self {
@@ -892,18 +893,19 @@ impl Affine {
             ax: ax as i64,
             ay: ay as i64,
         };
-        for k in 0..3 {
-            let (d1, d2) = (a1[k] - a0[k], a2[k] - a0[k]);
+        let outs = out.base.iter_mut().zip(&mut out.gx).zip(&mut out.gy);
+        for ((((base_q, gx_q), gy_q), c0), (c1, c2)) in outs.zip(a0).zip(a1.into_iter().zip(a2)) {
+            let (d1, d2) = (c1 - c0, c2 - c0);
             let gx = (d1 * y2 - d2 * y1) * inv_det;
             let gy = (d2 * x1 - d1 * x2) * inv_det;
             // NaN fails the comparison.
             if !(gx.abs() <= AFFINE_MAX_GRAD && gy.abs() <= AFFINE_MAX_GRAD) {
                 return None;
             }
-            let base = a0[k] + gx * ox + gy * oy;
-            out.base[k] = ((base * scale) as i64).clamp(-(lim as i64), lim as i64);
-            out.gx[k] = (gx * scale) as i64;
-            out.gy[k] = (gy * scale) as i64;
+            let base = c0 + gx * ox + gy * oy;
+            *base_q = ((base * scale) as i64).clamp(-(lim as i64), lim as i64);
+            *gx_q = (gx * scale) as i64;
+            *gy_q = (gy * scale) as i64;
         }
         Some(out)
     }
