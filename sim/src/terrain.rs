@@ -201,12 +201,86 @@ pub struct Terrain {
     albedo: Vec<f32>,
     label: Vec<u8>,
     sky: Vec<f32>,
-    /// Chebyshev max filters of the height at radii [`ACCEL_RADII`].
-    accel: [Vec<f32>; 3],
+    /// Maximum quadtree of the heights, for ray traversal.
+    mip: MaxMip,
 }
 
-/// Radii (cells) of the max-filtered heights used to skip empty space when marching rays.
-pub const ACCEL_RADII: [usize; 3] = [4, 16, 64];
+/// Maximum mip-map (min/max quadtree, max half) of the bilinear heightfield, used to skip
+/// empty space when tracing rays.
+///
+/// Level 0 has one node per bilinear patch, the square between four neighbouring cell
+/// centres: `(nx − 1) × (ny − 1)` nodes, each the highest of its four corner heights,
+/// which bounds the patch since a bilinear patch attains its extremes at the corners.
+/// Node `(i, j)` of level `l` covers patches `[i·2^l, (i+1)·2^l) × [j·2^l, (j+1)·2^l)`
+/// (clipped to the grid) and holds the maximum of its up to four children; the last
+/// level is a single node.
+#[derive(Clone, Debug)]
+pub struct MaxMip {
+    levels: Vec<MipLevel>,
+}
+
+#[derive(Clone, Debug)]
+struct MipLevel {
+    w: usize,
+    h: usize,
+    max: Vec<f32>,
+}
+
+impl MaxMip {
+    fn build(height: &[f32], nx: usize, ny: usize) -> Self {
+        let (w, h) = (nx.saturating_sub(1).max(1), ny.saturating_sub(1).max(1));
+        let at = |i: usize, j: usize| height[j.min(ny - 1) * nx + i.min(nx - 1)];
+        let mut max = vec![0.0f32; w * h];
+        max.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
+            for (i, m) in row.iter_mut().enumerate() {
+                *m = at(i, j)
+                    .max(at(i + 1, j))
+                    .max(at(i, j + 1))
+                    .max(at(i + 1, j + 1));
+            }
+        });
+        let mut levels = vec![MipLevel { w, h, max }];
+        // Each level halves both sides (rounding up): at most ~64 levels for any size.
+        while let Some(prev) = levels.last().filter(|l| l.w > 1 || l.h > 1) {
+            let (pw, ph) = (prev.w, prev.h);
+            let (w, h) = (pw.div_ceil(2), ph.div_ceil(2));
+            let src = &prev.max;
+            let mut max = vec![0.0f32; w * h];
+            max.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
+                let (j0, j1) = (2 * j, (2 * j + 1).min(ph - 1));
+                for (i, m) in row.iter_mut().enumerate() {
+                    let (i0, i1) = (2 * i, (2 * i + 1).min(pw - 1));
+                    *m = src[j0 * pw + i0]
+                        .max(src[j0 * pw + i1])
+                        .max(src[j1 * pw + i0])
+                        .max(src[j1 * pw + i1]);
+                }
+            });
+            levels.push(MipLevel { w, h, max });
+        }
+        Self { levels }
+    }
+
+    /// Number of levels (the last is a single node).
+    pub fn num_levels(&self) -> usize {
+        self.levels.len()
+    }
+
+    /// Nodes along x and y at `level` (`(0, 0)` past the last level).
+    pub fn dims(&self, level: usize) -> (usize, usize) {
+        self.levels.get(level).map_or((0, 0), |l| (l.w, l.h))
+    }
+
+    /// Upper bound of the surface height over node `(i, j)` of `level` (`+∞` for a node
+    /// that does not exist, so a caller can never skip terrain by mistake).
+    #[inline]
+    pub fn node_max(&self, level: usize, i: usize, j: usize) -> f32 {
+        match self.levels.get(level) {
+            Some(l) if i < l.w && j < l.h => l.max[j * l.w + i],
+            _ => f32::INFINITY,
+        }
+    }
+}
 
 // ---------------------------------------------------------------- noise
 
@@ -573,7 +647,7 @@ impl Terrain {
         }
         let max_height_m = height.iter().copied().fold(f32::MIN, f32::max);
         let sky = sky_visibility(&height, nx, ny, cell_m);
-        let accel = build_accel(&height, nx, ny);
+        let mip = MaxMip::build(&height, nx, ny);
         Self {
             kind,
             seed,
@@ -588,7 +662,7 @@ impl Terrain {
             albedo,
             label,
             sky,
-            accel,
+            mip,
         }
     }
 
@@ -613,7 +687,7 @@ impl Terrain {
         let height: Vec<f32> = cells.iter().map(|c| c.0).collect();
         let max_height_m = height.iter().copied().fold(f32::MIN, f32::max);
         let sky = sky_visibility(&height, nx, ny, cell_m);
-        let accel = build_accel(&height, nx, ny);
+        let mip = MaxMip::build(&height, nx, ny);
         Self {
             kind,
             seed,
@@ -628,7 +702,7 @@ impl Terrain {
             label: cells.iter().map(|c| c.2).collect(),
             height,
             sky,
-            accel,
+            mip,
         }
     }
 
@@ -674,7 +748,7 @@ impl Terrain {
             });
         out.max_height_m = out.height.iter().copied().fold(f32::MIN, f32::max);
         out.sky = sky_visibility(&out.height, nx, self.ny, c);
-        out.accel = build_accel(&out.height, nx, self.ny);
+        out.mip = MaxMip::build(&out.height, nx, self.ny);
         out
     }
 
@@ -695,7 +769,8 @@ impl Terrain {
         let (gx, gy) = self.grid_coords(x, y);
         let gx = gx.clamp(0.0, (self.nx - 1) as f32);
         let gy = gy.clamp(0.0, (self.ny - 1) as f32);
-        let (i, j) = (gx.floor() as usize, gy.floor() as usize);
+        // Non-negative after the clamp, so truncation is the floor (and avoids a libm call).
+        let (i, j) = (gx as usize, gy as usize);
         let i1 = (i + 1).min(self.nx - 1);
         let j1 = (j + 1).min(self.ny - 1);
         let (tx, ty) = (gx - i as f32, gy - j as f32);
@@ -727,14 +802,20 @@ impl Terrain {
         (base * (1.0 + fine * 4.0)).clamp(0.02, 0.98)
     }
 
-    /// Unit surface normal at `(x, y)` from central differences over one cell.
+    /// Unit surface normal at `(x, y)` from central differences over one cell (one-sided
+    /// at the last cell centre; straight up beyond the cell centres, where the ground is
+    /// flat).
     pub fn normal(&self, x: f32, y: f32) -> [f32; 3] {
-        if !self.inside(x, y) {
+        let e = self.cell_m;
+        let (x1, y1) = (
+            self.x0 + (self.nx - 1) as f32 * e,
+            self.y0 + (self.ny - 1) as f32 * e,
+        );
+        if !self.inside(x, y) || x < self.x0 || x > x1 || y < self.y0 || y > y1 {
             return [0.0, 0.0, 1.0];
         }
-        let e = self.cell_m;
-        let dx = (self.height(x + e, y) - self.height(x - e, y)) / (2.0 * e);
-        let dy = (self.height(x, y + e) - self.height(x, y - e)) / (2.0 * e);
+        let dx = central_difference(x, e, self.x0, x1, |u| self.height(u, y));
+        let dy = central_difference(y, e, self.y0, y1, |v| self.height(x, v));
         let n = (dx * dx + dy * dy + 1.0).sqrt();
         [-dx / n, -dy / n, 1.0 / n]
     }
@@ -766,16 +847,30 @@ impl Terrain {
         }
     }
 
-    /// Upper bound of the height within `ACCEL_RADII[level]` cells of the cell nearest `(x, y)`.
+    /// Cell-centre heights, row-major (`nx` per row), metres.
+    pub fn height_grid(&self) -> &[f32] {
+        &self.height
+    }
+
+    /// The maximum quadtree of the heights (for ray traversal).
+    pub fn max_mip(&self) -> &MaxMip {
+        &self.mip
+    }
+
+    /// Heights of the four corners of bilinear patch `(i, j)` (between cell centres
+    /// `i..=i+1` along x and `j..=j+1` along y): `[h(i,j), h(i+1,j), h(i,j+1), h(i+1,j+1)]`.
+    /// Indices are clamped to the grid.
     #[inline]
-    pub fn max_height_near(&self, level: usize, x: f32, y: f32) -> f32 {
-        let (gx, gy) = self.grid_coords(x, y);
-        let i = (gx.round().max(0.0) as usize).min(self.nx - 1);
-        let j = (gy.round().max(0.0) as usize).min(self.ny - 1);
-        match self.accel.get(level) {
-            Some(a) => a[j * self.nx + i],
-            None => self.max_height_m,
-        }
+    pub fn patch(&self, i: usize, j: usize) -> [f32; 4] {
+        let (i0, j0) = (i.min(self.nx - 1), j.min(self.ny - 1));
+        let (i1, j1) = ((i0 + 1).min(self.nx - 1), (j0 + 1).min(self.ny - 1));
+        let h = &self.height;
+        [
+            h[j0 * self.nx + i0],
+            h[j0 * self.nx + i1],
+            h[j1 * self.nx + i0],
+            h[j1 * self.nx + i1],
+        ]
     }
 
     /// Centre of tube `t` (0 or 1) on the surface, metres.
@@ -787,6 +882,18 @@ impl Terrain {
     /// Fraction of grid cells labelled rock.
     pub fn rock_fraction(&self) -> f32 {
         self.label.iter().filter(|&&l| l == LABEL_ROCK).count() as f32 / self.label.len() as f32
+    }
+}
+
+/// Derivative of `f` at `a` by central differences over `±e`, one-sided where `a ± e`
+/// would leave `[lo, hi]`.
+#[inline]
+fn central_difference(a: f32, e: f32, lo: f32, hi: f32, f: impl Fn(f32) -> f32) -> f32 {
+    if a - e >= lo && a + e <= hi {
+        (f(a + e) - f(a - e)) / (2.0 * e)
+    } else {
+        let (p, m) = ((a + e).min(hi), (a - e).max(lo));
+        (f(p) - f(m)) / (p - m).max(1e-9)
     }
 }
 
@@ -823,41 +930,6 @@ fn box_blur(data: &[f32], nx: usize, ny: usize, r: usize) -> Vec<f32> {
         row.iter_mut().for_each(|o| *o *= inv);
     });
     out
-}
-
-/// Separable Chebyshev max filter: each output is the max of `src` at the given offsets
-/// (which, applied to an input already max-filtered at radius r0, widen the radius).
-fn max_filter(src: &[f32], nx: usize, ny: usize, offsets: &[isize]) -> Vec<f32> {
-    let mut tmp = vec![0.0f32; src.len()];
-    tmp.par_chunks_mut(nx).enumerate().for_each(|(j, row)| {
-        let s = &src[j * nx..(j + 1) * nx];
-        for (i, o) in row.iter_mut().enumerate() {
-            *o = offsets
-                .iter()
-                .map(|&d| s[(i as isize + d).clamp(0, nx as isize - 1) as usize])
-                .fold(f32::MIN, f32::max);
-        }
-    });
-    let mut out = vec![0.0f32; src.len()];
-    out.par_chunks_mut(nx).enumerate().for_each(|(j, row)| {
-        for (i, o) in row.iter_mut().enumerate() {
-            *o = offsets
-                .iter()
-                .map(|&d| tmp[(j as isize + d).clamp(0, ny as isize - 1) as usize * nx + i])
-                .fold(f32::MIN, f32::max);
-        }
-    });
-    out
-}
-
-fn build_accel(height: &[f32], nx: usize, ny: usize) -> [Vec<f32>; 3] {
-    let r4: Vec<isize> = (-4..=4).collect();
-    let a4 = max_filter(height, nx, ny, &r4);
-    // Windows of radius 4 at offsets ±4, ±12 cover radius 16; radius-16 windows at
-    // ±16, ±48 cover radius 64.
-    let a16 = max_filter(&a4, nx, ny, &[-12, -4, 4, 12]);
-    let a64 = max_filter(&a16, nx, ny, &[-48, -16, 16, 48]);
-    [a4, a16, a64]
 }
 
 #[cfg(test)]
@@ -947,23 +1019,45 @@ mod tests {
         }
     }
 
-    /// Verifies: VTSM-SIM-001
+    /// The max-mip node over `(x, y)` at every level bounds the surface height there.
+    fn assert_mip_bounds(t: &Terrain, x: f32, y: f32) {
+        let (gx, gy) = t.grid_coords(x, y);
+        let i = (gx.max(0.0) as usize).min(t.nx - 2);
+        let j = (gy.max(0.0) as usize).min(t.ny - 2);
+        let h = t.height(x, y);
+        let mip = t.max_mip();
+        for lvl in 0..mip.num_levels() {
+            let bound = mip.node_max(lvl, i >> lvl, j >> lvl);
+            assert!(h <= bound + 1e-6, "level {lvl}: {h} > {bound}");
+        }
+        assert_eq!(mip.dims(mip.num_levels() - 1), (1, 1));
+        assert!((mip.node_max(mip.num_levels() - 1, 0, 0) - t.max_height_m).abs() < 1e-6);
+    }
+
+    /// Verifies: VTSM-SIM-005
     #[test]
-    fn acceleration_bounds_hold_everywhere() {
+    fn max_mip_bounds_hold_everywhere() {
         let t = Terrain::generate(TerrainKind::Cfa6, 3, 0.02);
+        let mip = t.max_mip();
+        assert_eq!(mip.dims(0), (t.nx - 1, t.ny - 1));
+        assert_eq!(mip.node_max(0, t.nx, 0), f32::INFINITY);
         let mut rng = Rng::new(9);
-        for _ in 0..2000 {
-            let x = rng.uniform(-3.9, 3.9);
-            let y = rng.uniform(-6.9, 6.9);
-            for (lvl, r) in ACCEL_RADII.iter().enumerate() {
-                let bound = t.max_height_near(lvl, x, y);
-                let reach = (*r as f32 - 1.0) * t.cell_m;
-                for k in 0..16 {
-                    let a = k as f32 * std::f32::consts::TAU / 16.0;
-                    let (px, py) = (x + reach * a.cos(), y + reach * a.sin());
-                    if t.inside(px, py) {
-                        assert!(t.height(px, py) <= bound + 1e-6);
+        for _ in 0..4000 {
+            assert_mip_bounds(&t, rng.uniform(-3.99, 3.99), rng.uniform(-6.99, 6.99));
+        }
+        // Each node is exactly the maximum of its children.
+        for lvl in 1..mip.num_levels() {
+            let (w, h) = mip.dims(lvl);
+            let (cw, ch) = mip.dims(lvl - 1);
+            for j in 0..h {
+                for i in 0..w {
+                    let mut m = f32::MIN;
+                    for (a, b) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                        if 2 * i + a < cw && 2 * j + b < ch {
+                            m = m.max(mip.node_max(lvl - 1, 2 * i + a, 2 * j + b));
+                        }
                     }
+                    assert_eq!(mip.node_max(lvl, i, j), m);
                 }
             }
         }
@@ -993,11 +1087,10 @@ mod tests {
         );
         let mean_da = sand_da / n_sand as f32;
         assert!(mean_da > 0.005 && mean_da <= 0.05, "dust {mean_da}");
-        // The acceleration bounds still hold after the change.
+        // The max-mip bounds still hold after the change.
         let mut rng = Rng::new(2);
         for _ in 0..500 {
-            let (x, y) = (rng.uniform(-3.5, 3.5), rng.uniform(-6.5, 6.5));
-            assert!(w.height(x, y) <= w.max_height_near(0, x, y) + 1e-6);
+            assert_mip_bounds(&w, rng.uniform(-3.5, 3.5), rng.uniform(-6.5, 6.5));
         }
     }
 
