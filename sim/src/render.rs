@@ -7,10 +7,12 @@
 //! [`RenderOptions`]. Output: an 8-bit gray image, row-major, stride = width.
 //!
 //! Shading: Lambertian sun term × cast shadow (soft-edged by the sun's angular radius)
-//! plus sky ambient × sky visibility; camera exposure keyed to sunlit flat ground, gamma
-//! 2.2, optional vignetting, seeded Gaussian read and shot noise, `s × s` supersampling.
-//! Rays march the heightfield with space skipping from max-filtered heights
-//! ([`Terrain::max_height_near`]), then bisect to the surface. Rows render in parallel
+//! plus sky ambient × sky visibility, computed once per cell centre with the shadow map
+//! and interpolated bilinearly, times the albedo with its sub-cell grain; camera exposure
+//! keyed to sunlit flat ground, gamma 2.2, optional vignetting, seeded Gaussian read and
+//! shot noise, `s × s` supersampling. Camera and shadow rays walk the terrain's maximum
+//! quadtree ([`Terrain::max_mip`]) front to back and meet each bilinear patch exactly,
+//! so the first hit is exact up to rounding. Rows render in parallel
 //! with rayon; every pixel depends only on its coordinates and the seed, so output is
 //! byte-identical for any thread count. Work per pixel is bounded by [`MAX_RAY_STEPS`].
 
@@ -87,6 +89,9 @@ pub struct Lighting {
     pub exposure: f32,
     /// Lit fraction per terrain cell (1 = full sun), same layout as the terrain grid.
     lit: Vec<f32>,
+    /// Irradiance per terrain cell relative to the direct sun on a surface facing it:
+    /// sun term × lit fraction plus sky ambient × sky visibility.
+    irr: Vec<f32>,
     nx: usize,
     ny: usize,
     x0: f32,
@@ -116,12 +121,23 @@ impl Lighting {
                 }
             });
         }
+        // Irradiance at every cell centre, so shading a hit is one bilinear lookup.
+        let mut irr = vec![0.0f32; nx * ny];
+        irr.par_chunks_mut(nx).enumerate().for_each(|(j, row)| {
+            let y = terrain.y0 + j as f32 * c;
+            for (i, e) in row.iter_mut().enumerate() {
+                let x = terrain.x0 + i as f32 * c;
+                let n = terrain.normal(x, y);
+                *e = irradiance(&sun, n, lit[j * nx + i], terrain.sky_visibility(x, y));
+            }
+        });
         // Auto-exposure: sunlit flat ground of albedo 0.25 maps to linear 0.30.
         let flat = 0.25 * (sun.dir[2].max(0.05) + SKY_AMBIENT);
         Self {
             sun,
             exposure: 0.30 / flat,
             lit,
+            irr,
             nx,
             ny,
             x0: terrain.x0,
@@ -142,6 +158,25 @@ impl Lighting {
         let (i1, j1) = ((i + 1).min(self.nx - 1), (j + 1).min(self.ny - 1));
         let (tx, ty) = (gx - i as f32, gy - j as f32);
         let g = |a: usize, b: usize| self.lit[b * self.nx + a];
+        let top = g(i, j) + (g(i1, j) - g(i, j)) * tx;
+        let bot = g(i, j1) + (g(i1, j1) - g(i, j1)) * tx;
+        top + (bot - top) * ty
+    }
+
+    /// Irradiance at `(x, y)` relative to the direct sun on a surface facing it (bilinear
+    /// between cell centres; open flat ground beyond them).
+    pub fn irradiance(&self, x: f32, y: f32) -> f32 {
+        let gx = (x - self.x0) / self.cell_m;
+        let gy = (y - self.y0) / self.cell_m;
+        if gx < 0.0 || gy < 0.0 || gx > (self.nx - 1) as f32 || gy > (self.ny - 1) as f32 {
+            let lit = if self.sun.dir[2] > 0.0 { 1.0 } else { 0.0 };
+            return irradiance(&self.sun, [0.0, 0.0, 1.0], lit, 1.0);
+        }
+        // Non-negative here, so truncation is the floor.
+        let (i, j) = (gx as usize, gy as usize);
+        let (i1, j1) = ((i + 1).min(self.nx - 1), (j + 1).min(self.ny - 1));
+        let (tx, ty) = (gx - i as f32, gy - j as f32);
+        let g = |a: usize, b: usize| self.irr[b * self.nx + a];
         let top = g(i, j) + (g(i1, j) - g(i, j)) * tx;
         let bot = g(i, j1) + (g(i1, j1) - g(i, j1)) * tx;
         top + (bot - top) * ty
@@ -456,14 +491,20 @@ pub fn cast_ray(t: &Terrain, o: [f32; 3], d: [f32; 3]) -> Option<Hit> {
     }
 }
 
-/// Linear radiance of the terrain surface at `(x, y)` under `light` (before exposure).
-pub fn radiance(t: &Terrain, light: &Lighting, x: f32, y: f32) -> f32 {
-    let n = t.normal(x, y);
-    let s = light.sun.dir;
+/// Irradiance of a surface with unit normal `n`, lit fraction `lit` and sky visibility
+/// `sky`: Lambertian sun term plus sky ambient, relative to the direct sun.
+#[inline]
+fn irradiance(sun: &Sun, n: [f32; 3], lit: f32, sky: f32) -> f32 {
+    let s = sun.dir;
     let cos_i = (n[0] * s[0] + n[1] * s[1] + n[2] * s[2]).max(0.0);
-    let sun = cos_i * light.lit(x, y);
-    let sky = SKY_AMBIENT * (0.5 + 0.5 * n[2]) * t.sky_visibility(x, y);
-    t.albedo(x, y) * (sun + sky)
+    cos_i * lit + SKY_AMBIENT * (0.5 + 0.5 * n[2]) * sky
+}
+
+/// Linear radiance of the terrain surface at `(x, y)` under `light` (before exposure):
+/// albedo × irradiance, the irradiance interpolated between cell centres
+/// ([`Lighting::irradiance`]).
+pub fn radiance(t: &Terrain, light: &Lighting, x: f32, y: f32) -> f32 {
+    t.albedo(x, y) * light.irradiance(x, y)
 }
 
 /// Linear radiance of the sky (dusty, slightly brighter than sunlit ground).

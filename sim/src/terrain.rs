@@ -518,6 +518,77 @@ impl Rock {
     }
 }
 
+/// Inclusive cell-index box `[i0, i1] × [j0, j1]`.
+type CellBox = [usize; 4];
+
+impl Rock {
+    /// Cells that the rock's bounding square touches (clamped to the grid).
+    fn cell_box(&self, x0: f32, y0: f32, cell_m: f32, nx: usize, ny: usize) -> CellBox {
+        let b = self.bound_m();
+        let lo = |c: f32, o: f32| ((c - b - o) / cell_m).floor().max(0.0) as usize;
+        let hi = |c: f32, o: f32, n: usize| {
+            (((c + b - o) / cell_m).ceil().max(0.0) as usize).min(n.saturating_sub(1))
+        };
+        [
+            lo(self.x, x0),
+            hi(self.x, x0, nx),
+            lo(self.y, y0),
+            hi(self.y, y0, ny),
+        ]
+    }
+}
+
+/// Mutable view of the per-cell layers, for stamping rocks.
+struct Cells<'a> {
+    nx: usize,
+    ny: usize,
+    x0: f32,
+    y0: f32,
+    cell_m: f32,
+    height: &'a mut [f32],
+    albedo: &'a mut [f32],
+    label: &'a mut [u8],
+}
+
+impl Cells<'_> {
+    /// Stamp rock `idx` (max-combined with what is there) over the cells of `bx`.
+    fn stamp_rock(&mut self, tseed: u64, idx: usize, rock: &Rock, bx: CellBox) {
+        let ground = base_height(tseed, rock.x, rock.y);
+        let [i0, i1, j0, j1] = bx;
+        for j in j0..=j1.min(self.ny.saturating_sub(1)) {
+            for i in i0..=i1.min(self.nx.saturating_sub(1)) {
+                let (x, y) = (
+                    self.x0 + i as f32 * self.cell_m,
+                    self.y0 + j as f32 * self.cell_m,
+                );
+                if let Some((dh, a)) = rock.sample(tseed, idx, x, y) {
+                    let k = j * self.nx + i;
+                    let top = ground + dh;
+                    if top > self.height[k] {
+                        self.height[k] = top;
+                        self.albedo[k] = a;
+                        self.label[k] = if top - base_height(tseed, x, y) > 0.002 {
+                            LABEL_ROCK
+                        } else {
+                            LABEL_SAND
+                        };
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Seed of the generator for a terrain kind and user seed.
+fn terrain_seed(kind: TerrainKind, seed: u64) -> u64 {
+    seed ^ (kind as u64 + 1).wrapping_mul(0x1234_5678_9ABC_DEF1)
+}
+
+/// Pebbles that wind may move: rocks of at most this diameter, metres.
+pub const PEBBLE_MAX_DIAMETER_M: f32 = 0.05;
+/// Fraction of the pebbles that wind of strength 1 displaces.
+pub const WIND_PEBBLE_FRACTION: f32 = 0.25;
+
 // ---------------------------------------------------------------- terrain
 
 impl Terrain {
@@ -533,7 +604,7 @@ impl Terrain {
         let mut height = vec![0.0f32; n];
         let mut albedo = vec![0.0f32; n];
         let mut label = vec![LABEL_SAND; n];
-        let tseed = seed ^ (kind as u64 + 1).wrapping_mul(0x1234_5678_9ABC_DEF1);
+        let tseed = terrain_seed(kind, seed);
 
         // Base relief, ground albedo with per-cell grains, and Flagstone slabs.
         height
@@ -570,33 +641,18 @@ impl Terrain {
             .cfa()
             .map(|m| place_rocks(&m, tseed, GRID_HALF_X_M, GRID_HALF_Y_M))
             .unwrap_or_default();
+        let mut cells = Cells {
+            nx,
+            ny,
+            x0,
+            y0,
+            cell_m,
+            height: &mut height,
+            albedo: &mut albedo,
+            label: &mut label,
+        };
         for (idx, rock) in rocks.iter().enumerate() {
-            let b = rock.bound_m();
-            let i0 = (((rock.x - b - x0) / cell_m).floor().max(0.0)) as usize;
-            let i1 =
-                (((rock.x + b - x0) / cell_m).ceil().max(0.0) as usize).min(nx.saturating_sub(1));
-            let j0 = (((rock.y - b - y0) / cell_m).floor().max(0.0)) as usize;
-            let j1 =
-                (((rock.y + b - y0) / cell_m).ceil().max(0.0) as usize).min(ny.saturating_sub(1));
-            let ground = base_height(tseed, rock.x, rock.y);
-            for j in j0..=j1 {
-                for i in i0..=i1 {
-                    let (x, y) = (x0 + i as f32 * cell_m, y0 + j as f32 * cell_m);
-                    if let Some((dh, a)) = rock.sample(tseed, idx, x, y) {
-                        let k = j * nx + i;
-                        let top = ground + dh;
-                        if top > height[k] {
-                            height[k] = top;
-                            albedo[k] = a;
-                            label[k] = if top - base_height(tseed, x, y) > 0.002 {
-                                LABEL_ROCK
-                            } else {
-                                LABEL_SAND
-                            };
-                        }
-                    }
-                }
-            }
+            cells.stamp_rock(tseed, idx, rock, rock.cell_box(x0, y0, cell_m, nx, ny));
         }
 
         // Sample tubes: horizontal cylinders lying on the ground, bright.
@@ -706,17 +762,105 @@ impl Terrain {
         }
     }
 
+    /// The same depot with a seeded fraction `frac` (clamped to [0, 1]) of its pebbles
+    /// (rocks of diameter ≤ [`PEBBLE_MAX_DIAMETER_M`]) rolled by 1–4 cm in a random
+    /// direction (a pebble that would leave the grid stays put). Only the cells under the old and new footprints of the moved pebbles
+    /// change: they are regenerated (ground, then every rock touching them in placement
+    /// order). Pebbles near a sample tube stay put. Meant for a freshly generated terrain
+    /// (regenerated cells lose earlier edits); Flagstone has no pebbles and is returned
+    /// unchanged, as is any terrain for `frac` = 0.
+    pub fn with_pebbles_displaced(&self, seed: u64, frac: f32) -> Terrain {
+        let frac = if frac.is_finite() {
+            frac.clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let mut out = self.clone();
+        if frac == 0.0 || self.rocks.is_empty() {
+            return out;
+        }
+        let (nx, ny, x0, y0, c) = (self.nx, self.ny, self.x0, self.y0, self.cell_m);
+        let tseed = terrain_seed(self.kind, self.seed);
+        let mut rng = Rng::new(seed).fork(0x0050_4542_424C);
+        let mut boxes: Vec<CellBox> = Vec::new();
+        for rock in out.rocks.iter_mut() {
+            // One draw per rock whatever happens, so choices do not depend on each other.
+            let (pick, dist, ang) = (
+                rng.next_f32(),
+                rng.uniform(0.01, 0.04),
+                rng.uniform(0.0, 2.0 * PI),
+            );
+            let near_tube = TUBE_XY_M.iter().any(|t| {
+                (rock.x - t[0]).hypot(rock.y - t[1]) < TUBE_LENGTH_M + rock.bound_m() + 0.05
+            });
+            let (x, y) = (rock.x + dist * ang.cos(), rock.y + dist * ang.sin());
+            let off_grid = x.abs() >= GRID_HALF_X_M || y.abs() >= GRID_HALF_Y_M;
+            if rock.diameter_m > PEBBLE_MAX_DIAMETER_M || pick >= frac || near_tube || off_grid {
+                continue;
+            }
+            boxes.push(rock.cell_box(x0, y0, c, nx, ny));
+            (rock.x, rock.y) = (x, y);
+            boxes.push(rock.cell_box(x0, y0, c, nx, ny));
+        }
+        if boxes.is_empty() {
+            return out;
+        }
+        let rocks = out.rocks.clone();
+        let mut cells = Cells {
+            nx,
+            ny,
+            x0,
+            y0,
+            cell_m: c,
+            height: &mut out.height,
+            albedo: &mut out.albedo,
+            label: &mut out.label,
+        };
+        for &bx in &boxes {
+            let [i0, i1, j0, j1] = bx;
+            // Bare ground as generated, ...
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    let (x, y) = (x0 + i as f32 * c, y0 + j as f32 * c);
+                    let grain = 0.05 * (lattice(tseed ^ 0x6A, i as i64, j as i64) - 0.5);
+                    let k = j * nx + i;
+                    cells.height[k] = base_height(tseed, x, y);
+                    cells.albedo[k] = ground_albedo(self.kind, tseed, x, y) + grain;
+                    cells.label[k] = LABEL_SAND;
+                }
+            }
+            // ... then every rock that reaches the box, in placement order.
+            for (idx, rock) in rocks.iter().enumerate() {
+                let rb = rock.cell_box(x0, y0, c, nx, ny);
+                let clip = [rb[0].max(i0), rb[1].min(i1), rb[2].max(j0), rb[3].min(j1)];
+                if clip[0] <= clip[1] && clip[2] <= clip[3] {
+                    cells.stamp_rock(tseed, idx, rock, clip);
+                }
+            }
+            for j in j0..=j1 {
+                for a in cells.albedo[j * nx + i0..=j * nx + i1].iter_mut() {
+                    *a = a.clamp(0.03, 0.95);
+                }
+            }
+        }
+        out.max_height_m = out.height.iter().copied().fold(f32::MIN, f32::max);
+        out.sky = sky_visibility(&out.height, nx, ny, c);
+        out.mip = MaxMip::build(&out.height, nx, ny);
+        out
+    }
+
     /// The same depot after "wind" between mapping and relocalization: sand ripples
     /// moved (up to ±4 mm of height on sand cells, scaled by `strength`), dust deposited
     /// in streaks (sand brightened by up to 0.05, rocks blended toward dust by up to
-    /// 15 %). Rock heights and labels are unchanged; pebbles are not displaced.
+    /// 15 %), and [`WIND_PEBBLE_FRACTION`] × `strength` of the pebbles rolled by 1–4 cm
+    /// ([`Terrain::with_pebbles_displaced`]). Other rocks keep their heights and labels.
     /// `strength` is clamped to [0, 1]; 0 returns an identical terrain.
     pub fn with_wind(&self, seed: u64, strength: f32) -> Terrain {
         let k = strength.clamp(0.0, 1.0);
-        let mut out = self.clone();
         if k == 0.0 {
-            return out;
+            return self.clone();
         }
+        let mut out = self.with_pebbles_displaced(seed, WIND_PEBBLE_FRACTION * k);
         let (nx, x0, y0, c) = (self.nx, self.x0, self.y0, self.cell_m);
         let wseed = seed ^ 0x5749_4E44;
         out.height
@@ -1069,6 +1213,9 @@ mod tests {
         let t = Terrain::generate(TerrainKind::Cfa6, 8, 0.04);
         assert_eq!(t.with_wind(3, 0.0).height, t.height);
         let w = t.with_wind(3, 1.0);
+        // Wind rolls some pebbles first; sand and dust are compared against that.
+        let t = t.with_pebbles_displaced(3, WIND_PEBBLE_FRACTION);
+        assert_eq!(w.rocks, t.rocks);
         let (mut sand_dh, mut sand_da, mut n_sand) = (0.0f32, 0.0f32, 0usize);
         for k in 0..t.height.len() {
             match t.label[k] {
@@ -1092,6 +1239,87 @@ mod tests {
         for _ in 0..500 {
             assert_mip_bounds(&w, rng.uniform(-3.5, 3.5), rng.uniform(-6.5, 6.5));
         }
+    }
+
+    /// Verifies: VTSM-SIM-012
+    #[test]
+    fn wind_displaces_some_pebbles_and_nothing_far_from_them() {
+        let t = Terrain::generate(TerrainKind::Cfa2, 8, 0.01);
+        assert_eq!(t.with_pebbles_displaced(4, 0.0).height, t.height);
+        let d = t.with_pebbles_displaced(4, 0.3);
+        assert_eq!(d.rocks.len(), t.rocks.len());
+        let moved: Vec<(Rock, Rock)> = t
+            .rocks
+            .iter()
+            .zip(d.rocks.iter())
+            .filter(|(a, b)| a != b)
+            .map(|(a, b)| (*a, *b))
+            .collect();
+        let pebbles = t
+            .rocks
+            .iter()
+            .filter(|r| r.diameter_m <= PEBBLE_MAX_DIAMETER_M)
+            .count();
+        let share = moved.len() as f32 / pebbles as f32;
+        assert!(
+            pebbles > 100 && share > 0.2 && share < 0.4,
+            "{} of {pebbles} moved",
+            moved.len()
+        );
+        for (a, b) in &moved {
+            let dist = (a.x - b.x).hypot(a.y - b.y);
+            assert!(a.diameter_m <= PEBBLE_MAX_DIAMETER_M);
+            assert!((0.0099..=0.0401).contains(&dist), "moved {dist}");
+            assert_eq!((a.diameter_m, a.height_m), (b.diameter_m, b.height_m));
+        }
+        // Cells change only within reach of a moved pebble's old or new footprint.
+        let near = |x: f32, y: f32| {
+            moved.iter().any(|(a, b)| {
+                let r = a.bound_m() + 2.0 * t.cell_m;
+                (x - a.x).abs() <= r && (y - a.y).abs() <= r
+                    || (x - b.x).abs() <= r && (y - b.y).abs() <= r
+            })
+        };
+        let mut changed = vec![false; moved.len()];
+        let mut n_changed = 0usize;
+        for j in 0..t.ny {
+            for i in 0..t.nx {
+                let k = j * t.nx + i;
+                let (x, y) = (t.x0 + i as f32 * t.cell_m, t.y0 + j as f32 * t.cell_m);
+                let same = d.height[k] == t.height[k]
+                    && d.albedo[k] == t.albedo[k]
+                    && d.label[k] == t.label[k];
+                if same {
+                    continue;
+                }
+                n_changed += 1;
+                assert!(near(x, y), "cell ({x}, {y}) changed far from moved pebbles");
+                for (m, (a, b)) in moved.iter().enumerate() {
+                    let r = a.bound_m();
+                    if (x - a.x).hypot(y - a.y) <= r || (x - b.x).hypot(y - b.y) <= r {
+                        changed[m] = true;
+                    }
+                }
+            }
+        }
+        // Where pebbles moved, the heightfield did change (a pebble hidden under a
+        // larger rock may leave it as it was).
+        let seen = changed.iter().filter(|&&c| c).count();
+        assert!(
+            seen as f32 >= 0.8 * moved.len() as f32,
+            "{seen} of {} moved pebbles changed the heightfield",
+            moved.len()
+        );
+        assert!(n_changed > 0);
+        // Deterministic, and the mip still bounds the new surface.
+        assert_eq!(t.with_pebbles_displaced(4, 0.3).height, d.height);
+        let mut rng = Rng::new(5);
+        for _ in 0..500 {
+            assert_mip_bounds(&d, rng.uniform(-3.9, 3.9), rng.uniform(-6.9, 6.9));
+        }
+        // Flagstone has no pebbles.
+        let f = Terrain::generate(TerrainKind::Flagstone, 8, 0.04);
+        assert_eq!(f.with_pebbles_displaced(4, 1.0).height, f.height);
     }
 
     #[test]
