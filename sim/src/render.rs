@@ -403,9 +403,7 @@ fn trace_to_sun(t: &Terrain, g: [f32; 2], z0: f32, ux: f32, uy: f32, slope: f32)
     let r = SUN_RADIUS_RAD;
     let mut min_margin = f32::MAX;
     // Clearance above `m` by at least r·s at both ends ⇒ everywhere (it is linear in s).
-    let skip = |m: f32, sa: f32, sb: f32| {
-        (z0 + (slope - r) * sa).min(z0 + (slope - r) * sb) > m
-    };
+    let skip = |m: f32, sa: f32, sb: f32| (z0 + (slope - r) * sa).min(z0 + (slope - r) * sb) > m;
     let found = walk(t, &ray, s_in, s_end, skip, |i, j, sa, sb| {
         let corners = t.patch(i, j);
         for s in [sa, 0.5 * (sa + sb), sb] {
@@ -476,7 +474,15 @@ pub fn cast_ray(t: &Terrain, o: [f32; 3], d: [f32; 3]) -> Option<Hit> {
         let g = ray.at(ta);
         let z = ray.z0 + ray.dz * ta;
         let (u, v) = (g[0] - i as f32, g[1] - j as f32);
-        patch_hit(t.patch(i, j), u, v, z, [ray.gd[0], ray.gd[1], ray.dz], tb - ta).map(|s| ta + s)
+        patch_hit(
+            t.patch(i, j),
+            u,
+            v,
+            z,
+            [ray.gd[0], ray.gd[1], ray.dz],
+            tb - ta,
+        )
+        .map(|s| ta + s)
     };
     match walk(t, &ray, t_in, t_end, skip, leaf) {
         Walk::Found(th) => {
