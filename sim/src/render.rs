@@ -7,14 +7,16 @@
 //! [`RenderOptions`]. Output: an 8-bit gray image, row-major, stride = width.
 //!
 //! Shading: Lambertian sun term × cast shadow (soft-edged by the sun's angular radius)
-//! plus sky ambient × sky visibility; camera exposure keyed to sunlit flat ground, gamma
-//! 2.2, optional vignetting, seeded Gaussian read and shot noise, `s × s` supersampling.
-//! Rays march the heightfield with space skipping from max-filtered heights
-//! ([`Terrain::max_height_near`]), then bisect to the surface. Rows render in parallel
+//! plus sky ambient × sky visibility, computed once per cell centre with the shadow map
+//! and interpolated bilinearly, times the albedo with its sub-cell grain; camera exposure
+//! keyed to sunlit flat ground, gamma 2.2, optional vignetting, seeded Gaussian read and
+//! shot noise, `s × s` supersampling. Camera and shadow rays walk the terrain's maximum
+//! quadtree ([`Terrain::max_mip`]) front to back and meet each bilinear patch exactly,
+//! so the first hit is exact up to rounding. Rows render in parallel
 //! with rayon; every pixel depends only on its coordinates and the seed, so output is
 //! byte-identical for any thread count. Work per pixel is bounded by [`MAX_RAY_STEPS`].
 
-use crate::terrain::{Terrain, ACCEL_RADII};
+use crate::terrain::Terrain;
 use rayon::prelude::*;
 use vtsm_core::geom::{Camera, Pose, Vec3};
 use vtsm_core::rng::Rng;
@@ -25,7 +27,7 @@ pub const DEFAULT_LATITUDE_DEG: f32 = 34.2;
 pub const DEFAULT_DECLINATION_DEG: f32 = -20.0;
 /// Sky irradiance relative to the direct sun on a surface facing it.
 pub const SKY_AMBIENT: f32 = 0.22;
-/// Cap on marching steps per ray (fine steps plus skips).
+/// Cap on max-mip node visits per ray.
 pub const MAX_RAY_STEPS: usize = 20_000;
 /// Sun angular radius, radians (soft shadow edge).
 const SUN_RADIUS_RAD: f32 = 0.0046;
@@ -87,6 +89,9 @@ pub struct Lighting {
     pub exposure: f32,
     /// Lit fraction per terrain cell (1 = full sun), same layout as the terrain grid.
     lit: Vec<f32>,
+    /// Irradiance per terrain cell relative to the direct sun on a surface facing it:
+    /// sun term × lit fraction plus sky ambient × sky visibility.
+    irr: Vec<f32>,
     nx: usize,
     ny: usize,
     x0: f32,
@@ -95,8 +100,8 @@ pub struct Lighting {
 }
 
 impl Lighting {
-    /// Compute the shadow map of `terrain` for `sun` by marching from every cell toward
-    /// the sun (with space skipping). Cost ∝ cells; done once per sun position.
+    /// Compute the shadow map of `terrain` for `sun` by tracing from every cell toward
+    /// the sun through the terrain's max-mip. Cost ∝ cells; done once per sun position.
     pub fn new(terrain: &Terrain, sun: Sun) -> Self {
         let (nx, ny, c) = (terrain.nx, terrain.ny, terrain.cell_m);
         let horiz = (sun.dir[0] * sun.dir[0] + sun.dir[1] * sun.dir[1])
@@ -108,21 +113,31 @@ impl Lighting {
         if sun.dir[2] <= 0.0 {
             lit.iter_mut().for_each(|l| *l = 0.0);
         } else {
+            let flat = terrain.height_grid();
             lit.par_chunks_mut(nx).enumerate().for_each(|(j, row)| {
-                let y = terrain.y0 + j as f32 * c;
                 for (i, l) in row.iter_mut().enumerate() {
-                    let x = terrain.x0 + i as f32 * c;
-                    let z0 = terrain.height(x, y) + 0.25 * c;
-                    *l = march_to_sun(terrain, x, y, z0, ux, uy, slope);
+                    let z0 = flat[j * nx + i] + 0.25 * c;
+                    *l = trace_to_sun(terrain, [i as f32, j as f32], z0, ux, uy, slope);
                 }
             });
         }
+        // Irradiance at every cell centre, so shading a hit is one bilinear lookup.
+        let mut irr = vec![0.0f32; nx * ny];
+        irr.par_chunks_mut(nx).enumerate().for_each(|(j, row)| {
+            let y = terrain.y0 + j as f32 * c;
+            for (i, e) in row.iter_mut().enumerate() {
+                let x = terrain.x0 + i as f32 * c;
+                let n = terrain.normal(x, y);
+                *e = irradiance(&sun, n, lit[j * nx + i], terrain.sky_visibility(x, y));
+            }
+        });
         // Auto-exposure: sunlit flat ground of albedo 0.25 maps to linear 0.30.
         let flat = 0.25 * (sun.dir[2].max(0.05) + SKY_AMBIENT);
         Self {
             sun,
             exposure: 0.30 / flat,
             lit,
+            irr,
             nx,
             ny,
             x0: terrain.x0,
@@ -138,10 +153,30 @@ impl Lighting {
         if gx < 0.0 || gy < 0.0 || gx > (self.nx - 1) as f32 || gy > (self.ny - 1) as f32 {
             return if self.sun.dir[2] > 0.0 { 1.0 } else { 0.0 };
         }
-        let (i, j) = (gx.floor() as usize, gy.floor() as usize);
+        // Non-negative here, so truncation is the floor.
+        let (i, j) = (gx as usize, gy as usize);
         let (i1, j1) = ((i + 1).min(self.nx - 1), (j + 1).min(self.ny - 1));
         let (tx, ty) = (gx - i as f32, gy - j as f32);
         let g = |a: usize, b: usize| self.lit[b * self.nx + a];
+        let top = g(i, j) + (g(i1, j) - g(i, j)) * tx;
+        let bot = g(i, j1) + (g(i1, j1) - g(i, j1)) * tx;
+        top + (bot - top) * ty
+    }
+
+    /// Irradiance at `(x, y)` relative to the direct sun on a surface facing it (bilinear
+    /// between cell centres; open flat ground beyond them).
+    pub fn irradiance(&self, x: f32, y: f32) -> f32 {
+        let gx = (x - self.x0) / self.cell_m;
+        let gy = (y - self.y0) / self.cell_m;
+        if gx < 0.0 || gy < 0.0 || gx > (self.nx - 1) as f32 || gy > (self.ny - 1) as f32 {
+            let lit = if self.sun.dir[2] > 0.0 { 1.0 } else { 0.0 };
+            return irradiance(&self.sun, [0.0, 0.0, 1.0], lit, 1.0);
+        }
+        // Non-negative here, so truncation is the floor.
+        let (i, j) = (gx as usize, gy as usize);
+        let (i1, j1) = ((i + 1).min(self.nx - 1), (j + 1).min(self.ny - 1));
+        let (tx, ty) = (gx - i as f32, gy - j as f32);
+        let g = |a: usize, b: usize| self.irr[b * self.nx + a];
         let top = g(i, j) + (g(i1, j) - g(i, j)) * tx;
         let bot = g(i, j1) + (g(i1, j1) - g(i, j1)) * tx;
         top + (bot - top) * ty
@@ -153,38 +188,236 @@ impl Lighting {
     }
 }
 
-/// Lit fraction of a point: march toward the sun, track the smallest clearance angle.
-fn march_to_sun(t: &Terrain, x: f32, y: f32, z0: f32, ux: f32, uy: f32, slope: f32) -> f32 {
-    let c = t.cell_m;
-    let mut s = 0.5 * c;
-    let mut min_margin = f32::MAX;
-    for _ in 0..MAX_RAY_STEPS {
-        let (px, py) = (x + ux * s, y + uy * s);
-        let zr = z0 + slope * s;
-        if !t.inside(px, py) || zr > t.max_height_m {
-            break;
-        }
-        let mut skipped = false;
-        for lvl in (0..ACCEL_RADII.len()).rev() {
-            if zr > t.max_height_near(lvl, px, py) {
-                s += (ACCEL_RADII[lvl] as f32 - 1.0) * c;
-                skipped = true;
-                break;
+/// A ray over the heightfield in grid coordinates: `g(t) = g0 + gd·t` (cells, with cell
+/// centre `(i, j)` at integer coordinates) and `z(t) = z0 + dz·t` (metres).
+#[derive(Clone, Copy, Debug)]
+struct GridRay {
+    g0: [f32; 2],
+    gd: [f32; 2],
+    z0: f32,
+    dz: f32,
+}
+
+impl GridRay {
+    #[inline]
+    fn at(&self, t: f32) -> [f32; 2] {
+        [self.g0[0] + self.gd[0] * t, self.g0[1] + self.gd[1] * t]
+    }
+
+    /// Parameter interval over which the ray lies above the patch domain
+    /// `[0, w] × [0, h]`, intersected with `[t0, t1]`; `None` if empty.
+    fn clip(&self, w: f32, h: f32, t0: f32, t1: f32) -> Option<(f32, f32)> {
+        let (mut lo, mut hi) = (t0, t1);
+        for (a, (o, d)) in [w, h].into_iter().zip(self.g0.into_iter().zip(self.gd)) {
+            if d == 0.0 {
+                if o < 0.0 || o > a {
+                    return None;
+                }
+            } else {
+                let (ta, tb) = ((0.0 - o) / d, (a - o) / d);
+                lo = lo.max(ta.min(tb));
+                hi = hi.min(ta.max(tb));
             }
         }
-        if skipped {
-            continue;
-        }
-        let h = t.height(px, py);
-        // Angular clearance of the ray over the terrain at this distance.
-        let margin = (zr - h) / s;
-        min_margin = min_margin.min(margin);
-        if min_margin < -SUN_RADIUS_RAD {
-            return 0.0;
-        }
-        s += 0.5 * c;
+        (lo <= hi).then_some((lo, hi))
     }
-    (0.5 + min_margin / (2.0 * SUN_RADIUS_RAD)).clamp(0.0, 1.0)
+}
+
+/// How a max-mip traversal ended.
+enum Walk<R> {
+    /// The leaf test reported a result.
+    Found(R),
+    /// The ray left the grid (or reached the end of its interval) at this parameter.
+    Left(f32),
+}
+
+/// Walk the max-mip of `t` along `ray` over `[t_in, t_end]` (already clipped to the
+/// grid), front to back. A node whose bound `m` satisfies `skip(m, ta, tb)` for the
+/// ray's interval `[ta, tb]` over it is stepped over; otherwise its children are
+/// visited, and at level 0 `leaf(i, j, ta, tb)` tests patch `(i, j)`. Node indices only
+/// move in the ray's direction, and the walk stops after [`MAX_RAY_STEPS`] node visits.
+fn walk<R>(
+    t: &Terrain,
+    ray: &GridRay,
+    t_in: f32,
+    t_end: f32,
+    skip: impl Fn(f32, f32, f32) -> bool,
+    mut leaf: impl FnMut(usize, usize, f32, f32) -> Option<R>,
+) -> Walk<R> {
+    let mip = t.max_mip();
+    let top = mip.num_levels() - 1;
+    let (pw, ph) = mip.dims(0);
+    let p = ray.at(t_in);
+    let lx = (p[0].max(0.0) as usize).min(pw - 1);
+    let ly = (p[1].max(0.0) as usize).min(ph - 1);
+    let (mut lvl, mut ix, mut iy) = (top, lx >> top, ly >> top);
+    let inv = [1.0 / ray.gd[0], 1.0 / ray.gd[1]];
+    let (sx, sy) = (ray.gd[0] > 0.0, ray.gd[1] > 0.0);
+    let mut tc = t_in;
+    for _ in 0..MAX_RAY_STEPS {
+        // Parameter where the ray leaves node (ix, iy) of level lvl, and through which side.
+        let bound = |i: usize, n: usize, pos: bool| {
+            let k = if pos { i + 1 } else { i };
+            ((k << lvl).min(n)) as f32
+        };
+        let tx = if ray.gd[0] == 0.0 {
+            f32::INFINITY
+        } else {
+            (bound(ix, pw, sx) - ray.g0[0]) * inv[0]
+        };
+        let ty = if ray.gd[1] == 0.0 {
+            f32::INFINITY
+        } else {
+            (bound(iy, ph, sy) - ray.g0[1]) * inv[1]
+        };
+        let step_x = tx <= ty;
+        let t_out = tx.min(ty).min(t_end).max(tc);
+        if !skip(mip.node_max(lvl, ix, iy), tc, t_out) {
+            if lvl == 0 {
+                if let Some(r) = leaf(ix, iy, tc, t_out) {
+                    return Walk::Found(r);
+                }
+            } else {
+                // Descend into the child that contains the ray at tc.
+                lvl -= 1;
+                let (cw, ch) = mip.dims(lvl);
+                let q = ray.at(tc);
+                let child = |i: usize, qc: f32, pos: bool, n: usize| {
+                    let mid = ((2 * i + 1) << lvl) as f32;
+                    let hi = qc > mid || (qc == mid && pos);
+                    (2 * i + usize::from(hi)).min(n - 1)
+                };
+                ix = child(ix, q[0], sx, cw);
+                iy = child(iy, q[1], sy, ch);
+                continue;
+            }
+        }
+        // Step to the neighbour across the exit side, climbing one level when the
+        // neighbour has a different parent.
+        tc = t_out;
+        if tc >= t_end {
+            return Walk::Left(t_end);
+        }
+        let (w, h) = mip.dims(lvl);
+        let (old, new) = if step_x {
+            let n = if sx { ix + 1 } else { ix.wrapping_sub(1) };
+            if n >= w {
+                return Walk::Left(tc);
+            }
+            (ix, n)
+        } else {
+            let n = if sy { iy + 1 } else { iy.wrapping_sub(1) };
+            if n >= h {
+                return Walk::Left(tc);
+            }
+            (iy, n)
+        };
+        if step_x {
+            ix = new;
+        } else {
+            iy = new;
+        }
+        if lvl < top && (old >> 1) != (new >> 1) {
+            lvl += 1;
+            ix >>= 1;
+            iy >>= 1;
+        }
+    }
+    Walk::Left(tc)
+}
+
+/// Smallest `s` in `[0, len]` where the ray `(u0 + du·s, v0 + dv·s, z0 + dz·s)` meets or
+/// goes below the bilinear patch with corner heights `c` over `[0, 1]²` (exact: the
+/// height difference along the ray is a quadratic in `s`).
+#[inline]
+fn patch_hit(c: [f32; 4], u0: f32, v0: f32, z0: f32, d: [f32; 3], len: f32) -> Option<f32> {
+    let (a, b, cc) = (
+        f64::from(c[0]),
+        f64::from(c[1] - c[0]),
+        f64::from(c[2] - c[0]),
+    );
+    let e = f64::from(c[0]) - f64::from(c[1]) - f64::from(c[2]) + f64::from(c[3]);
+    let (u0, v0, z0) = (f64::from(u0), f64::from(v0), f64::from(z0));
+    let (du, dv, dz) = (f64::from(d[0]), f64::from(d[1]), f64::from(d[2]));
+    let qa = e * du * dv;
+    let qb = b * du + cc * dv + e * (u0 * dv + v0 * du) - dz;
+    let qc = a + b * u0 + cc * v0 + e * u0 * v0 - z0;
+    if qc >= 0.0 {
+        return Some(0.0);
+    }
+    let len = f64::from(len);
+    let root = if qa.abs() < 1e-12 {
+        (qb > 0.0).then(|| -qc / qb)
+    } else {
+        let disc = qb * qb - 4.0 * qa * qc;
+        if disc < 0.0 {
+            None
+        } else {
+            let q = -0.5 * (qb + qb.signum() * disc.sqrt());
+            let (r1, r2) = (q / qa, if q != 0.0 { qc / q } else { f64::INFINITY });
+            let (lo, hi) = (r1.min(r2), r1.max(r2));
+            if lo >= 0.0 {
+                Some(lo)
+            } else if hi >= 0.0 {
+                Some(hi)
+            } else {
+                None
+            }
+        }
+    };
+    root.filter(|&s| s <= len).map(|s| s as f32)
+}
+
+/// Height of a bilinear patch with corner heights `c` at local `(u, v)` in `[0, 1]²`.
+#[inline]
+fn patch_height(c: [f32; 4], u: f32, v: f32) -> f32 {
+    let (u, v) = (u.clamp(0.0, 1.0), v.clamp(0.0, 1.0));
+    let top = c[0] + (c[1] - c[0]) * u;
+    let bot = c[2] + (c[3] - c[2]) * u;
+    top + (bot - top) * v
+}
+
+/// Lit fraction of grid point `g` at height `z0`: trace toward the sun (horizontal unit
+/// direction `(ux, uy)`, rise `slope` per metre) through the max-mip, tracking the
+/// smallest angular clearance over the terrain; nodes that clear the ray by more than
+/// the sun's radius cannot change the result and are skipped.
+fn trace_to_sun(t: &Terrain, g: [f32; 2], z0: f32, ux: f32, uy: f32, slope: f32) -> f32 {
+    let c = t.cell_m;
+    let (pw, ph) = t.max_mip().dims(0);
+    // Parameter: horizontal distance, metres.
+    let ray = GridRay {
+        g0: g,
+        gd: [ux / c, uy / c],
+        z0,
+        dz: slope,
+    };
+    let s0 = 0.5 * c;
+    let s_top = if slope > 0.0 {
+        (t.max_height_m - z0).max(0.0) / slope
+    } else {
+        f32::INFINITY
+    };
+    let Some((s_in, s_end)) = ray.clip(pw as f32, ph as f32, s0, s_top) else {
+        return 1.0;
+    };
+    let r = SUN_RADIUS_RAD;
+    let mut min_margin = f32::MAX;
+    // Clearance above `m` by at least r·s at both ends ⇒ everywhere (it is linear in s).
+    let skip = |m: f32, sa: f32, sb: f32| (z0 + (slope - r) * sa).min(z0 + (slope - r) * sb) > m;
+    let found = walk(t, &ray, s_in, s_end, skip, |i, j, sa, sb| {
+        let corners = t.patch(i, j);
+        for s in [sa, 0.5 * (sa + sb), sb] {
+            let q = ray.at(s);
+            let h = patch_height(corners, q[0] - i as f32, q[1] - j as f32);
+            let margin = (z0 + slope * s - h) / s;
+            min_margin = min_margin.min(margin);
+        }
+        (min_margin < -r).then_some(())
+    });
+    if matches!(found, Walk::Found(())) {
+        return 0.0;
+    }
+    (0.5 + min_margin / (2.0 * r)).clamp(0.0, 1.0)
 }
 
 /// Where a camera ray meets the ground.
@@ -197,84 +430,87 @@ pub struct Hit {
 }
 
 /// Cast a ray from `o` along unit `d` (world frame) to the terrain; `None` = sky.
+///
+/// The ray walks the terrain's max-mip ([`Terrain::max_mip`]) front to back and meets
+/// each bilinear patch it may touch exactly (a quadratic along the ray). Beyond the grid
+/// the ground is the plane `z = 0`.
 pub fn cast_ray(t: &Terrain, o: [f32; 3], d: [f32; 3]) -> Option<Hit> {
     let c = t.cell_m;
     let top = t.max_height_m + 1e-3;
-    let mut tt = 0.0f32;
-    if o[2] > top {
-        if d[2] >= 0.0 {
-            return None;
-        }
-        tt = (o[2] - top) / -d[2];
-    }
-    let hd = (d[0] * d[0] + d[1] * d[1]).sqrt();
     let at = |tt: f32| [o[0] + d[0] * tt, o[1] + d[1] * tt, o[2] + d[2] * tt];
-    // Ray parameter per cell of horizontal travel (steep rays: per cell of descent).
-    let per_cell = c / hd.max(1e-3);
-    let mut prev = tt;
-    for _ in 0..MAX_RAY_STEPS {
+    let beyond = |tt: f32| {
         let p = at(tt);
-        if !t.inside(p[0], p[1]) {
-            // Beyond the grid the ground is the plane z = 0; rays never come back.
-            if d[2] < 0.0 && p[2] > 0.0 {
-                let tz = tt + p[2] / -d[2];
-                return Some(Hit { p: at(tz), t: tz });
-            }
-            return if p[2] <= 0.0 {
-                Some(Hit { p, t: tt })
-            } else {
-                None
-            };
+        if d[2] < 0.0 && p[2] > 0.0 {
+            let tz = tt + p[2] / -d[2];
+            Some(Hit { p: at(tz), t: tz })
+        } else if p[2] <= 0.0 {
+            Some(Hit { p, t: tt })
+        } else {
+            None
         }
-        if p[2] > top && d[2] >= 0.0 {
-            return None;
-        }
-        let mut skipped = false;
-        for lvl in (0..ACCEL_RADII.len()).rev() {
-            let step = (ACCEL_RADII[lvl] as f32 - 1.0) * per_cell;
-            let z_end = p[2] + d[2].min(0.0) * step;
-            if z_end > t.max_height_near(lvl, p[0], p[1]) {
-                prev = tt;
-                tt += step;
-                skipped = true;
-                break;
-            }
-        }
-        if skipped {
-            continue;
-        }
-        if t.height(p[0], p[1]) >= p[2] {
-            // Bisect between the last point above and this one.
-            let (mut a, mut b) = (prev, tt);
-            for _ in 0..12 {
-                let m = 0.5 * (a + b);
-                let q = at(m);
-                if t.height(q[0], q[1]) >= q[2] {
-                    b = m;
-                } else {
-                    a = m;
-                }
-            }
-            let q = at(b);
-            return Some(Hit {
+    };
+    // The stretch of the ray at or below the highest terrain point.
+    let (t0, t1) = if d[2] < 0.0 {
+        ((o[2] - top).max(0.0) / -d[2], f32::INFINITY)
+    } else if o[2] > top {
+        return None;
+    } else if d[2] > 0.0 {
+        (0.0, (top - o[2]) / d[2])
+    } else {
+        (0.0, f32::INFINITY)
+    };
+    let ray = GridRay {
+        g0: [(o[0] - t.x0) / c, (o[1] - t.y0) / c],
+        gd: [d[0] / c, d[1] / c],
+        z0: o[2],
+        dz: d[2],
+    };
+    let (pw, ph) = t.max_mip().dims(0);
+    let Some((t_in, t_end)) = ray.clip(pw as f32, ph as f32, t0, t1) else {
+        return beyond(t0);
+    };
+    let skip = |m: f32, ta: f32, tb: f32| (ray.z0 + ray.dz * ta).min(ray.z0 + ray.dz * tb) > m;
+    let leaf = |i: usize, j: usize, ta: f32, tb: f32| {
+        let g = ray.at(ta);
+        let z = ray.z0 + ray.dz * ta;
+        let (u, v) = (g[0] - i as f32, g[1] - j as f32);
+        patch_hit(
+            t.patch(i, j),
+            u,
+            v,
+            z,
+            [ray.gd[0], ray.gd[1], ray.dz],
+            tb - ta,
+        )
+        .map(|s| ta + s)
+    };
+    match walk(t, &ray, t_in, t_end, skip, leaf) {
+        Walk::Found(th) => {
+            let q = at(th);
+            Some(Hit {
                 p: [q[0], q[1], t.height(q[0], q[1])],
-                t: b,
-            });
+                t: th,
+            })
         }
-        prev = tt;
-        tt += 0.5 * per_cell;
+        Walk::Left(tl) if tl >= t1 => None,
+        Walk::Left(tl) => beyond(tl),
     }
-    None
 }
 
-/// Linear radiance of the terrain surface at `(x, y)` under `light` (before exposure).
-pub fn radiance(t: &Terrain, light: &Lighting, x: f32, y: f32) -> f32 {
-    let n = t.normal(x, y);
-    let s = light.sun.dir;
+/// Irradiance of a surface with unit normal `n`, lit fraction `lit` and sky visibility
+/// `sky`: Lambertian sun term plus sky ambient, relative to the direct sun.
+#[inline]
+fn irradiance(sun: &Sun, n: [f32; 3], lit: f32, sky: f32) -> f32 {
+    let s = sun.dir;
     let cos_i = (n[0] * s[0] + n[1] * s[1] + n[2] * s[2]).max(0.0);
-    let sun = cos_i * light.lit(x, y);
-    let sky = SKY_AMBIENT * (0.5 + 0.5 * n[2]) * t.sky_visibility(x, y);
-    t.albedo(x, y) * (sun + sky)
+    cos_i * lit + SKY_AMBIENT * (0.5 + 0.5 * n[2]) * sky
+}
+
+/// Linear radiance of the terrain surface at `(x, y)` under `light` (before exposure):
+/// albedo × irradiance, the irradiance interpolated between cell centres
+/// ([`Lighting::irradiance`]).
+pub fn radiance(t: &Terrain, light: &Lighting, x: f32, y: f32) -> f32 {
+    t.albedo(x, y) * light.irradiance(x, y)
 }
 
 /// Linear radiance of the sky (dusty, slightly brighter than sunlit ground).

@@ -20,7 +20,8 @@
 //! plus a procedural sub-cell grain term in [`Terrain::albedo`] so close-up renders are
 //! not smooth. Generation is deterministic for a seed and does not depend on the thread
 //! count (rows are computed independently); rock placement does not depend on the cell
-//! size. Memory: about 24 bytes per cell (≈ 108 MB at 5 mm cells, 27 MB at 10 mm).
+//! size. Memory: about 19 bytes per cell including the max-mip used for ray traversal
+//! (≈ 82 MB at 5 mm cells, 21 MB at 10 mm).
 
 use rayon::prelude::*;
 use std::f32::consts::PI;
@@ -201,12 +202,86 @@ pub struct Terrain {
     albedo: Vec<f32>,
     label: Vec<u8>,
     sky: Vec<f32>,
-    /// Chebyshev max filters of the height at radii [`ACCEL_RADII`].
-    accel: [Vec<f32>; 3],
+    /// Maximum quadtree of the heights, for ray traversal.
+    mip: MaxMip,
 }
 
-/// Radii (cells) of the max-filtered heights used to skip empty space when marching rays.
-pub const ACCEL_RADII: [usize; 3] = [4, 16, 64];
+/// Maximum mip-map (min/max quadtree, max half) of the bilinear heightfield, used to skip
+/// empty space when tracing rays.
+///
+/// Level 0 has one node per bilinear patch, the square between four neighbouring cell
+/// centres: `(nx − 1) × (ny − 1)` nodes, each the highest of its four corner heights,
+/// which bounds the patch since a bilinear patch attains its extremes at the corners.
+/// Node `(i, j)` of level `l` covers patches `[i·2^l, (i+1)·2^l) × [j·2^l, (j+1)·2^l)`
+/// (clipped to the grid) and holds the maximum of its up to four children; the last
+/// level is a single node.
+#[derive(Clone, Debug)]
+pub struct MaxMip {
+    levels: Vec<MipLevel>,
+}
+
+#[derive(Clone, Debug)]
+struct MipLevel {
+    w: usize,
+    h: usize,
+    max: Vec<f32>,
+}
+
+impl MaxMip {
+    fn build(height: &[f32], nx: usize, ny: usize) -> Self {
+        let (w, h) = (nx.saturating_sub(1).max(1), ny.saturating_sub(1).max(1));
+        let at = |i: usize, j: usize| height[j.min(ny - 1) * nx + i.min(nx - 1)];
+        let mut max = vec![0.0f32; w * h];
+        max.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
+            for (i, m) in row.iter_mut().enumerate() {
+                *m = at(i, j)
+                    .max(at(i + 1, j))
+                    .max(at(i, j + 1))
+                    .max(at(i + 1, j + 1));
+            }
+        });
+        let mut levels = vec![MipLevel { w, h, max }];
+        // Each level halves both sides (rounding up): at most ~64 levels for any size.
+        while let Some(prev) = levels.last().filter(|l| l.w > 1 || l.h > 1) {
+            let (pw, ph) = (prev.w, prev.h);
+            let (w, h) = (pw.div_ceil(2), ph.div_ceil(2));
+            let src = &prev.max;
+            let mut max = vec![0.0f32; w * h];
+            max.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
+                let (j0, j1) = (2 * j, (2 * j + 1).min(ph - 1));
+                for (i, m) in row.iter_mut().enumerate() {
+                    let (i0, i1) = (2 * i, (2 * i + 1).min(pw - 1));
+                    *m = src[j0 * pw + i0]
+                        .max(src[j0 * pw + i1])
+                        .max(src[j1 * pw + i0])
+                        .max(src[j1 * pw + i1]);
+                }
+            });
+            levels.push(MipLevel { w, h, max });
+        }
+        Self { levels }
+    }
+
+    /// Number of levels (the last is a single node).
+    pub fn num_levels(&self) -> usize {
+        self.levels.len()
+    }
+
+    /// Nodes along x and y at `level` (`(0, 0)` past the last level).
+    pub fn dims(&self, level: usize) -> (usize, usize) {
+        self.levels.get(level).map_or((0, 0), |l| (l.w, l.h))
+    }
+
+    /// Upper bound of the surface height over node `(i, j)` of `level` (`+∞` for a node
+    /// that does not exist, so a caller can never skip terrain by mistake).
+    #[inline]
+    pub fn node_max(&self, level: usize, i: usize, j: usize) -> f32 {
+        match self.levels.get(level) {
+            Some(l) if i < l.w && j < l.h => l.max[j * l.w + i],
+            _ => f32::INFINITY,
+        }
+    }
+}
 
 // ---------------------------------------------------------------- noise
 
@@ -444,6 +519,77 @@ impl Rock {
     }
 }
 
+/// Inclusive cell-index box `[i0, i1] × [j0, j1]`.
+type CellBox = [usize; 4];
+
+impl Rock {
+    /// Cells that the rock's bounding square touches (clamped to the grid).
+    fn cell_box(&self, x0: f32, y0: f32, cell_m: f32, nx: usize, ny: usize) -> CellBox {
+        let b = self.bound_m();
+        let lo = |c: f32, o: f32| ((c - b - o) / cell_m).floor().max(0.0) as usize;
+        let hi = |c: f32, o: f32, n: usize| {
+            (((c + b - o) / cell_m).ceil().max(0.0) as usize).min(n.saturating_sub(1))
+        };
+        [
+            lo(self.x, x0),
+            hi(self.x, x0, nx),
+            lo(self.y, y0),
+            hi(self.y, y0, ny),
+        ]
+    }
+}
+
+/// Mutable view of the per-cell layers, for stamping rocks.
+struct Cells<'a> {
+    nx: usize,
+    ny: usize,
+    x0: f32,
+    y0: f32,
+    cell_m: f32,
+    height: &'a mut [f32],
+    albedo: &'a mut [f32],
+    label: &'a mut [u8],
+}
+
+impl Cells<'_> {
+    /// Stamp rock `idx` (max-combined with what is there) over the cells of `bx`.
+    fn stamp_rock(&mut self, tseed: u64, idx: usize, rock: &Rock, bx: CellBox) {
+        let ground = base_height(tseed, rock.x, rock.y);
+        let [i0, i1, j0, j1] = bx;
+        for j in j0..=j1.min(self.ny.saturating_sub(1)) {
+            for i in i0..=i1.min(self.nx.saturating_sub(1)) {
+                let (x, y) = (
+                    self.x0 + i as f32 * self.cell_m,
+                    self.y0 + j as f32 * self.cell_m,
+                );
+                if let Some((dh, a)) = rock.sample(tseed, idx, x, y) {
+                    let k = j * self.nx + i;
+                    let top = ground + dh;
+                    if top > self.height[k] {
+                        self.height[k] = top;
+                        self.albedo[k] = a;
+                        self.label[k] = if top - base_height(tseed, x, y) > 0.002 {
+                            LABEL_ROCK
+                        } else {
+                            LABEL_SAND
+                        };
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Seed of the generator for a terrain kind and user seed.
+fn terrain_seed(kind: TerrainKind, seed: u64) -> u64 {
+    seed ^ (kind as u64 + 1).wrapping_mul(0x1234_5678_9ABC_DEF1)
+}
+
+/// Pebbles that wind may move: rocks of at most this diameter, metres.
+pub const PEBBLE_MAX_DIAMETER_M: f32 = 0.05;
+/// Fraction of the pebbles that wind of strength 1 displaces.
+pub const WIND_PEBBLE_FRACTION: f32 = 0.25;
+
 // ---------------------------------------------------------------- terrain
 
 impl Terrain {
@@ -459,7 +605,7 @@ impl Terrain {
         let mut height = vec![0.0f32; n];
         let mut albedo = vec![0.0f32; n];
         let mut label = vec![LABEL_SAND; n];
-        let tseed = seed ^ (kind as u64 + 1).wrapping_mul(0x1234_5678_9ABC_DEF1);
+        let tseed = terrain_seed(kind, seed);
 
         // Base relief, ground albedo with per-cell grains, and Flagstone slabs.
         height
@@ -496,33 +642,18 @@ impl Terrain {
             .cfa()
             .map(|m| place_rocks(&m, tseed, GRID_HALF_X_M, GRID_HALF_Y_M))
             .unwrap_or_default();
+        let mut cells = Cells {
+            nx,
+            ny,
+            x0,
+            y0,
+            cell_m,
+            height: &mut height,
+            albedo: &mut albedo,
+            label: &mut label,
+        };
         for (idx, rock) in rocks.iter().enumerate() {
-            let b = rock.bound_m();
-            let i0 = (((rock.x - b - x0) / cell_m).floor().max(0.0)) as usize;
-            let i1 =
-                (((rock.x + b - x0) / cell_m).ceil().max(0.0) as usize).min(nx.saturating_sub(1));
-            let j0 = (((rock.y - b - y0) / cell_m).floor().max(0.0)) as usize;
-            let j1 =
-                (((rock.y + b - y0) / cell_m).ceil().max(0.0) as usize).min(ny.saturating_sub(1));
-            let ground = base_height(tseed, rock.x, rock.y);
-            for j in j0..=j1 {
-                for i in i0..=i1 {
-                    let (x, y) = (x0 + i as f32 * cell_m, y0 + j as f32 * cell_m);
-                    if let Some((dh, a)) = rock.sample(tseed, idx, x, y) {
-                        let k = j * nx + i;
-                        let top = ground + dh;
-                        if top > height[k] {
-                            height[k] = top;
-                            albedo[k] = a;
-                            label[k] = if top - base_height(tseed, x, y) > 0.002 {
-                                LABEL_ROCK
-                            } else {
-                                LABEL_SAND
-                            };
-                        }
-                    }
-                }
-            }
+            cells.stamp_rock(tseed, idx, rock, rock.cell_box(x0, y0, cell_m, nx, ny));
         }
 
         // Sample tubes: horizontal cylinders lying on the ground, bright.
@@ -573,7 +704,7 @@ impl Terrain {
         }
         let max_height_m = height.iter().copied().fold(f32::MIN, f32::max);
         let sky = sky_visibility(&height, nx, ny, cell_m);
-        let accel = build_accel(&height, nx, ny);
+        let mip = MaxMip::build(&height, nx, ny);
         Self {
             kind,
             seed,
@@ -588,7 +719,7 @@ impl Terrain {
             albedo,
             label,
             sky,
-            accel,
+            mip,
         }
     }
 
@@ -613,7 +744,7 @@ impl Terrain {
         let height: Vec<f32> = cells.iter().map(|c| c.0).collect();
         let max_height_m = height.iter().copied().fold(f32::MIN, f32::max);
         let sky = sky_visibility(&height, nx, ny, cell_m);
-        let accel = build_accel(&height, nx, ny);
+        let mip = MaxMip::build(&height, nx, ny);
         Self {
             kind,
             seed,
@@ -628,21 +759,109 @@ impl Terrain {
             label: cells.iter().map(|c| c.2).collect(),
             height,
             sky,
-            accel,
+            mip,
         }
+    }
+
+    /// The same depot with a seeded fraction `frac` (clamped to [0, 1]) of its pebbles
+    /// (rocks of diameter ≤ [`PEBBLE_MAX_DIAMETER_M`]) rolled by 1–4 cm in a random
+    /// direction (a pebble that would leave the grid stays put). Only the cells under the old and new footprints of the moved pebbles
+    /// change: they are regenerated (ground, then every rock touching them in placement
+    /// order). Pebbles near a sample tube stay put. Meant for a freshly generated terrain
+    /// (regenerated cells lose earlier edits); Flagstone has no pebbles and is returned
+    /// unchanged, as is any terrain for `frac` = 0.
+    pub fn with_pebbles_displaced(&self, seed: u64, frac: f32) -> Terrain {
+        let frac = if frac.is_finite() {
+            frac.clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let mut out = self.clone();
+        if frac == 0.0 || self.rocks.is_empty() {
+            return out;
+        }
+        let (nx, ny, x0, y0, c) = (self.nx, self.ny, self.x0, self.y0, self.cell_m);
+        let tseed = terrain_seed(self.kind, self.seed);
+        let mut rng = Rng::new(seed).fork(0x0050_4542_424C);
+        let mut boxes: Vec<CellBox> = Vec::new();
+        for rock in out.rocks.iter_mut() {
+            // One draw per rock whatever happens, so choices do not depend on each other.
+            let (pick, dist, ang) = (
+                rng.next_f32(),
+                rng.uniform(0.01, 0.04),
+                rng.uniform(0.0, 2.0 * PI),
+            );
+            let near_tube = TUBE_XY_M.iter().any(|t| {
+                (rock.x - t[0]).hypot(rock.y - t[1]) < TUBE_LENGTH_M + rock.bound_m() + 0.05
+            });
+            let (x, y) = (rock.x + dist * ang.cos(), rock.y + dist * ang.sin());
+            let off_grid = x.abs() >= GRID_HALF_X_M || y.abs() >= GRID_HALF_Y_M;
+            if rock.diameter_m > PEBBLE_MAX_DIAMETER_M || pick >= frac || near_tube || off_grid {
+                continue;
+            }
+            boxes.push(rock.cell_box(x0, y0, c, nx, ny));
+            (rock.x, rock.y) = (x, y);
+            boxes.push(rock.cell_box(x0, y0, c, nx, ny));
+        }
+        if boxes.is_empty() {
+            return out;
+        }
+        let rocks = out.rocks.clone();
+        let mut cells = Cells {
+            nx,
+            ny,
+            x0,
+            y0,
+            cell_m: c,
+            height: &mut out.height,
+            albedo: &mut out.albedo,
+            label: &mut out.label,
+        };
+        for &bx in &boxes {
+            let [i0, i1, j0, j1] = bx;
+            // Bare ground as generated, ...
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    let (x, y) = (x0 + i as f32 * c, y0 + j as f32 * c);
+                    let grain = 0.05 * (lattice(tseed ^ 0x6A, i as i64, j as i64) - 0.5);
+                    let k = j * nx + i;
+                    cells.height[k] = base_height(tseed, x, y);
+                    cells.albedo[k] = ground_albedo(self.kind, tseed, x, y) + grain;
+                    cells.label[k] = LABEL_SAND;
+                }
+            }
+            // ... then every rock that reaches the box, in placement order.
+            for (idx, rock) in rocks.iter().enumerate() {
+                let rb = rock.cell_box(x0, y0, c, nx, ny);
+                let clip = [rb[0].max(i0), rb[1].min(i1), rb[2].max(j0), rb[3].min(j1)];
+                if clip[0] <= clip[1] && clip[2] <= clip[3] {
+                    cells.stamp_rock(tseed, idx, rock, clip);
+                }
+            }
+            for j in j0..=j1 {
+                for a in cells.albedo[j * nx + i0..=j * nx + i1].iter_mut() {
+                    *a = a.clamp(0.03, 0.95);
+                }
+            }
+        }
+        out.max_height_m = out.height.iter().copied().fold(f32::MIN, f32::max);
+        out.sky = sky_visibility(&out.height, nx, ny, c);
+        out.mip = MaxMip::build(&out.height, nx, ny);
+        out
     }
 
     /// The same depot after "wind" between mapping and relocalization: sand ripples
     /// moved (up to ±4 mm of height on sand cells, scaled by `strength`), dust deposited
     /// in streaks (sand brightened by up to 0.05, rocks blended toward dust by up to
-    /// 15 %). Rock heights and labels are unchanged; pebbles are not displaced.
+    /// 15 %), and [`WIND_PEBBLE_FRACTION`] × `strength` of the pebbles rolled by 1–4 cm
+    /// ([`Terrain::with_pebbles_displaced`]). Other rocks keep their heights and labels.
     /// `strength` is clamped to [0, 1]; 0 returns an identical terrain.
     pub fn with_wind(&self, seed: u64, strength: f32) -> Terrain {
         let k = strength.clamp(0.0, 1.0);
-        let mut out = self.clone();
         if k == 0.0 {
-            return out;
+            return self.clone();
         }
+        let mut out = self.with_pebbles_displaced(seed, WIND_PEBBLE_FRACTION * k);
         let (nx, x0, y0, c) = (self.nx, self.x0, self.y0, self.cell_m);
         let wseed = seed ^ 0x5749_4E44;
         out.height
@@ -674,7 +893,7 @@ impl Terrain {
             });
         out.max_height_m = out.height.iter().copied().fold(f32::MIN, f32::max);
         out.sky = sky_visibility(&out.height, nx, self.ny, c);
-        out.accel = build_accel(&out.height, nx, self.ny);
+        out.mip = MaxMip::build(&out.height, nx, self.ny);
         out
     }
 
@@ -695,7 +914,8 @@ impl Terrain {
         let (gx, gy) = self.grid_coords(x, y);
         let gx = gx.clamp(0.0, (self.nx - 1) as f32);
         let gy = gy.clamp(0.0, (self.ny - 1) as f32);
-        let (i, j) = (gx.floor() as usize, gy.floor() as usize);
+        // Non-negative after the clamp, so truncation is the floor (and avoids a libm call).
+        let (i, j) = (gx as usize, gy as usize);
         let i1 = (i + 1).min(self.nx - 1);
         let j1 = (j + 1).min(self.ny - 1);
         let (tx, ty) = (gx - i as f32, gy - j as f32);
@@ -727,14 +947,20 @@ impl Terrain {
         (base * (1.0 + fine * 4.0)).clamp(0.02, 0.98)
     }
 
-    /// Unit surface normal at `(x, y)` from central differences over one cell.
+    /// Unit surface normal at `(x, y)` from central differences over one cell (one-sided
+    /// at the last cell centre; straight up beyond the cell centres, where the ground is
+    /// flat).
     pub fn normal(&self, x: f32, y: f32) -> [f32; 3] {
-        if !self.inside(x, y) {
+        let e = self.cell_m;
+        let (x1, y1) = (
+            self.x0 + (self.nx - 1) as f32 * e,
+            self.y0 + (self.ny - 1) as f32 * e,
+        );
+        if !self.inside(x, y) || x < self.x0 || x > x1 || y < self.y0 || y > y1 {
             return [0.0, 0.0, 1.0];
         }
-        let e = self.cell_m;
-        let dx = (self.height(x + e, y) - self.height(x - e, y)) / (2.0 * e);
-        let dy = (self.height(x, y + e) - self.height(x, y - e)) / (2.0 * e);
+        let dx = central_difference(x, e, self.x0, x1, |u| self.height(u, y));
+        let dy = central_difference(y, e, self.y0, y1, |v| self.height(x, v));
         let n = (dx * dx + dy * dy + 1.0).sqrt();
         [-dx / n, -dy / n, 1.0 / n]
     }
@@ -766,16 +992,30 @@ impl Terrain {
         }
     }
 
-    /// Upper bound of the height within `ACCEL_RADII[level]` cells of the cell nearest `(x, y)`.
+    /// Cell-centre heights, row-major (`nx` per row), metres.
+    pub fn height_grid(&self) -> &[f32] {
+        &self.height
+    }
+
+    /// The maximum quadtree of the heights (for ray traversal).
+    pub fn max_mip(&self) -> &MaxMip {
+        &self.mip
+    }
+
+    /// Heights of the four corners of bilinear patch `(i, j)` (between cell centres
+    /// `i..=i+1` along x and `j..=j+1` along y): `[h(i,j), h(i+1,j), h(i,j+1), h(i+1,j+1)]`.
+    /// Indices are clamped to the grid.
     #[inline]
-    pub fn max_height_near(&self, level: usize, x: f32, y: f32) -> f32 {
-        let (gx, gy) = self.grid_coords(x, y);
-        let i = (gx.round().max(0.0) as usize).min(self.nx - 1);
-        let j = (gy.round().max(0.0) as usize).min(self.ny - 1);
-        match self.accel.get(level) {
-            Some(a) => a[j * self.nx + i],
-            None => self.max_height_m,
-        }
+    pub fn patch(&self, i: usize, j: usize) -> [f32; 4] {
+        let (i0, j0) = (i.min(self.nx - 1), j.min(self.ny - 1));
+        let (i1, j1) = ((i0 + 1).min(self.nx - 1), (j0 + 1).min(self.ny - 1));
+        let h = &self.height;
+        [
+            h[j0 * self.nx + i0],
+            h[j0 * self.nx + i1],
+            h[j1 * self.nx + i0],
+            h[j1 * self.nx + i1],
+        ]
     }
 
     /// Centre of tube `t` (0 or 1) on the surface, metres.
@@ -787,6 +1027,18 @@ impl Terrain {
     /// Fraction of grid cells labelled rock.
     pub fn rock_fraction(&self) -> f32 {
         self.label.iter().filter(|&&l| l == LABEL_ROCK).count() as f32 / self.label.len() as f32
+    }
+}
+
+/// Derivative of `f` at `a` by central differences over `±e`, one-sided where `a ± e`
+/// would leave `[lo, hi]`.
+#[inline]
+fn central_difference(a: f32, e: f32, lo: f32, hi: f32, f: impl Fn(f32) -> f32) -> f32 {
+    if a - e >= lo && a + e <= hi {
+        (f(a + e) - f(a - e)) / (2.0 * e)
+    } else {
+        let (p, m) = ((a + e).min(hi), (a - e).max(lo));
+        (f(p) - f(m)) / (p - m).max(1e-9)
     }
 }
 
@@ -823,41 +1075,6 @@ fn box_blur(data: &[f32], nx: usize, ny: usize, r: usize) -> Vec<f32> {
         row.iter_mut().for_each(|o| *o *= inv);
     });
     out
-}
-
-/// Separable Chebyshev max filter: each output is the max of `src` at the given offsets
-/// (which, applied to an input already max-filtered at radius r0, widen the radius).
-fn max_filter(src: &[f32], nx: usize, ny: usize, offsets: &[isize]) -> Vec<f32> {
-    let mut tmp = vec![0.0f32; src.len()];
-    tmp.par_chunks_mut(nx).enumerate().for_each(|(j, row)| {
-        let s = &src[j * nx..(j + 1) * nx];
-        for (i, o) in row.iter_mut().enumerate() {
-            *o = offsets
-                .iter()
-                .map(|&d| s[(i as isize + d).clamp(0, nx as isize - 1) as usize])
-                .fold(f32::MIN, f32::max);
-        }
-    });
-    let mut out = vec![0.0f32; src.len()];
-    out.par_chunks_mut(nx).enumerate().for_each(|(j, row)| {
-        for (i, o) in row.iter_mut().enumerate() {
-            *o = offsets
-                .iter()
-                .map(|&d| tmp[(j as isize + d).clamp(0, ny as isize - 1) as usize * nx + i])
-                .fold(f32::MIN, f32::max);
-        }
-    });
-    out
-}
-
-fn build_accel(height: &[f32], nx: usize, ny: usize) -> [Vec<f32>; 3] {
-    let r4: Vec<isize> = (-4..=4).collect();
-    let a4 = max_filter(height, nx, ny, &r4);
-    // Windows of radius 4 at offsets ±4, ±12 cover radius 16; radius-16 windows at
-    // ±16, ±48 cover radius 64.
-    let a16 = max_filter(&a4, nx, ny, &[-12, -4, 4, 12]);
-    let a64 = max_filter(&a16, nx, ny, &[-48, -16, 16, 48]);
-    [a4, a16, a64]
 }
 
 #[cfg(test)]
@@ -947,23 +1164,45 @@ mod tests {
         }
     }
 
-    /// Verifies: VTSM-SIM-001
+    /// The max-mip node over `(x, y)` at every level bounds the surface height there.
+    fn assert_mip_bounds(t: &Terrain, x: f32, y: f32) {
+        let (gx, gy) = t.grid_coords(x, y);
+        let i = (gx.max(0.0) as usize).min(t.nx - 2);
+        let j = (gy.max(0.0) as usize).min(t.ny - 2);
+        let h = t.height(x, y);
+        let mip = t.max_mip();
+        for lvl in 0..mip.num_levels() {
+            let bound = mip.node_max(lvl, i >> lvl, j >> lvl);
+            assert!(h <= bound + 1e-6, "level {lvl}: {h} > {bound}");
+        }
+        assert_eq!(mip.dims(mip.num_levels() - 1), (1, 1));
+        assert!((mip.node_max(mip.num_levels() - 1, 0, 0) - t.max_height_m).abs() < 1e-6);
+    }
+
+    /// Verifies: VTSM-SIM-005
     #[test]
-    fn acceleration_bounds_hold_everywhere() {
+    fn max_mip_bounds_hold_everywhere() {
         let t = Terrain::generate(TerrainKind::Cfa6, 3, 0.02);
+        let mip = t.max_mip();
+        assert_eq!(mip.dims(0), (t.nx - 1, t.ny - 1));
+        assert_eq!(mip.node_max(0, t.nx, 0), f32::INFINITY);
         let mut rng = Rng::new(9);
-        for _ in 0..2000 {
-            let x = rng.uniform(-3.9, 3.9);
-            let y = rng.uniform(-6.9, 6.9);
-            for (lvl, r) in ACCEL_RADII.iter().enumerate() {
-                let bound = t.max_height_near(lvl, x, y);
-                let reach = (*r as f32 - 1.0) * t.cell_m;
-                for k in 0..16 {
-                    let a = k as f32 * std::f32::consts::TAU / 16.0;
-                    let (px, py) = (x + reach * a.cos(), y + reach * a.sin());
-                    if t.inside(px, py) {
-                        assert!(t.height(px, py) <= bound + 1e-6);
+        for _ in 0..4000 {
+            assert_mip_bounds(&t, rng.uniform(-3.99, 3.99), rng.uniform(-6.99, 6.99));
+        }
+        // Each node is exactly the maximum of its children.
+        for lvl in 1..mip.num_levels() {
+            let (w, h) = mip.dims(lvl);
+            let (cw, ch) = mip.dims(lvl - 1);
+            for j in 0..h {
+                for i in 0..w {
+                    let mut m = f32::MIN;
+                    for (a, b) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                        if 2 * i + a < cw && 2 * j + b < ch {
+                            m = m.max(mip.node_max(lvl - 1, 2 * i + a, 2 * j + b));
+                        }
                     }
+                    assert_eq!(mip.node_max(lvl, i, j), m);
                 }
             }
         }
@@ -975,6 +1214,9 @@ mod tests {
         let t = Terrain::generate(TerrainKind::Cfa6, 8, 0.04);
         assert_eq!(t.with_wind(3, 0.0).height, t.height);
         let w = t.with_wind(3, 1.0);
+        // Wind rolls some pebbles first; sand and dust are compared against that.
+        let t = t.with_pebbles_displaced(3, WIND_PEBBLE_FRACTION);
+        assert_eq!(w.rocks, t.rocks);
         let (mut sand_dh, mut sand_da, mut n_sand) = (0.0f32, 0.0f32, 0usize);
         for k in 0..t.height.len() {
             match t.label[k] {
@@ -993,12 +1235,92 @@ mod tests {
         );
         let mean_da = sand_da / n_sand as f32;
         assert!(mean_da > 0.005 && mean_da <= 0.05, "dust {mean_da}");
-        // The acceleration bounds still hold after the change.
+        // The max-mip bounds still hold after the change.
         let mut rng = Rng::new(2);
         for _ in 0..500 {
-            let (x, y) = (rng.uniform(-3.5, 3.5), rng.uniform(-6.5, 6.5));
-            assert!(w.height(x, y) <= w.max_height_near(0, x, y) + 1e-6);
+            assert_mip_bounds(&w, rng.uniform(-3.5, 3.5), rng.uniform(-6.5, 6.5));
         }
+    }
+
+    /// Verifies: VTSM-SIM-012
+    #[test]
+    fn wind_displaces_some_pebbles_and_nothing_far_from_them() {
+        let t = Terrain::generate(TerrainKind::Cfa2, 8, 0.01);
+        assert_eq!(t.with_pebbles_displaced(4, 0.0).height, t.height);
+        let d = t.with_pebbles_displaced(4, 0.3);
+        assert_eq!(d.rocks.len(), t.rocks.len());
+        let moved: Vec<(Rock, Rock)> = t
+            .rocks
+            .iter()
+            .zip(d.rocks.iter())
+            .filter(|(a, b)| a != b)
+            .map(|(a, b)| (*a, *b))
+            .collect();
+        let pebbles = t
+            .rocks
+            .iter()
+            .filter(|r| r.diameter_m <= PEBBLE_MAX_DIAMETER_M)
+            .count();
+        let share = moved.len() as f32 / pebbles as f32;
+        assert!(
+            pebbles > 100 && share > 0.2 && share < 0.4,
+            "{} of {pebbles} moved",
+            moved.len()
+        );
+        for (a, b) in &moved {
+            let dist = (a.x - b.x).hypot(a.y - b.y);
+            assert!(a.diameter_m <= PEBBLE_MAX_DIAMETER_M);
+            assert!((0.0099..=0.0401).contains(&dist), "moved {dist}");
+            assert_eq!((a.diameter_m, a.height_m), (b.diameter_m, b.height_m));
+        }
+        // Cells change only within reach of a moved pebble's old or new footprint.
+        let near = |x: f32, y: f32| {
+            moved.iter().any(|(a, b)| {
+                let r = a.bound_m() + 2.0 * t.cell_m;
+                (x - a.x).abs() <= r && (y - a.y).abs() <= r
+                    || (x - b.x).abs() <= r && (y - b.y).abs() <= r
+            })
+        };
+        let mut changed = vec![false; moved.len()];
+        let mut n_changed = 0usize;
+        for j in 0..t.ny {
+            for i in 0..t.nx {
+                let k = j * t.nx + i;
+                let (x, y) = (t.x0 + i as f32 * t.cell_m, t.y0 + j as f32 * t.cell_m);
+                let same = d.height[k] == t.height[k]
+                    && d.albedo[k] == t.albedo[k]
+                    && d.label[k] == t.label[k];
+                if same {
+                    continue;
+                }
+                n_changed += 1;
+                assert!(near(x, y), "cell ({x}, {y}) changed far from moved pebbles");
+                for (m, (a, b)) in moved.iter().enumerate() {
+                    let r = a.bound_m();
+                    if (x - a.x).hypot(y - a.y) <= r || (x - b.x).hypot(y - b.y) <= r {
+                        changed[m] = true;
+                    }
+                }
+            }
+        }
+        // Where pebbles moved, the heightfield did change (a pebble hidden under a
+        // larger rock may leave it as it was).
+        let seen = changed.iter().filter(|&&c| c).count();
+        assert!(
+            seen as f32 >= 0.8 * moved.len() as f32,
+            "{seen} of {} moved pebbles changed the heightfield",
+            moved.len()
+        );
+        assert!(n_changed > 0);
+        // Deterministic, and the mip still bounds the new surface.
+        assert_eq!(t.with_pebbles_displaced(4, 0.3).height, d.height);
+        let mut rng = Rng::new(5);
+        for _ in 0..500 {
+            assert_mip_bounds(&d, rng.uniform(-3.9, 3.9), rng.uniform(-6.9, 6.9));
+        }
+        // Flagstone has no pebbles.
+        let f = Terrain::generate(TerrainKind::Flagstone, 8, 0.04);
+        assert_eq!(f.with_pebbles_displaced(4, 1.0).height, f.height);
     }
 
     #[test]

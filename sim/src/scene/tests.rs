@@ -14,7 +14,7 @@ fn cfa6_test_scene() -> &'static Scene {
 
 /// SHA-256 of the left and right images of capture 0 (look at tube 0, 0.40 m) of the
 /// CFA6 depot, seed 1, noon, `test` profile.
-const GOLDEN_PAIR_SHA256: &str = "2d6445b7ccef01bf9d7bac268fa9d58774f9284618714f161f18b4f6c64dc69b";
+const GOLDEN_PAIR_SHA256: &str = "f3ffd3446f9cd427f7f31e1b46a6df1a44ca455532166439d978fa3e3f4e6d86";
 
 /// Verifies: VTSM-SIM-007
 #[test]
