@@ -20,8 +20,11 @@
 //!
 //! Search: [`Search::Exhaustive`] scores every position (the oracle);
 //! [`Search::CoarseToFine`] scores every position of a 2×-box pyramid's coarsest
-//! level, keeps [`MAX_CANDIDATES`] separated peaks, refines each by ±
-//! [`REFINE_RADIUS_PX`] at each finer level and picks the winner at full resolution.
+//! level, keeps several separated peaks, refines each at each finer level and
+//! picks the winner at full resolution; [`SearchConfig`] holds the numbers
+//! (candidates, radii, coarsest size, and whether a filtered domain's coarse
+//! levels are the filter of the down-sampled gray image), with a default per
+//! [`Filter`] ([`SearchConfig::for_filter`]).
 //!
 //! Bounds: template sides in `MIN_TEMPLATE_PX..=MAX_TEMPLATE_PX`, window sides up
 //! to `MAX_SEARCH_PX`, at most [`MAX_LEVELS`] pyramid levels; all memory is the
@@ -35,22 +38,15 @@ use crate::image::{GrayView, Rect};
 
 /// Largest number of pyramid levels (level 0 = full resolution).
 pub const MAX_LEVELS: usize = 4;
-/// A coarser level is added only while the template's shorter side stays at least this.
+/// A coarser level is added only while the template's shorter side stays at least
+/// this (the smallest [`SearchConfig::min_coarse_px`] allowed; scratch is sized for it).
 pub const MIN_COARSE_PX: usize = 16;
-/// Coarse candidates kept and refined by the coarse-to-fine search.
-pub const MAX_CANDIDATES: usize = 8;
-/// Refinement radius (pixels of the finer level) around each up-scaled candidate
-/// at the intermediate levels.
-pub const REFINE_RADIUS_PX: usize = 2;
-/// Refinement radius at full resolution (the half-resolution peak is already
-/// within a pixel or so of the true one; hill climbing covers the rest).
-pub const FINAL_REFINE_RADIUS_PX: usize = 1;
+/// Largest number of coarse candidates any [`SearchConfig`] may keep.
+pub const MAX_CANDIDATES: usize = 16;
+/// Largest refinement radius any [`SearchConfig`] may use (scratch is sized for it).
+pub const MAX_REFINE_RADIUS_PX: usize = 2;
 /// Re-centring steps allowed when a refined peak lies on its region's border.
 pub const MAX_CLIMB_STEPS: usize = 4;
-/// Candidates carried into the full-resolution verification.
-pub const MAX_FINAL_CANDIDATES: usize = 4;
-/// Non-maximum-suppression radius between coarse candidates (coarse pixels).
-pub const COARSE_NMS_RADIUS_PX: usize = 2;
 /// Fewest kept template pixels a (masked) template may have at any level.
 pub const MIN_MASK_PX: u32 = 16;
 /// Lanes of the correlation kernel's accumulator (a multiple of every SIMD width in use).
@@ -77,6 +73,72 @@ pub enum Search {
     /// Pyramid search with several coarse candidates, verified at full resolution.
     #[default]
     CoarseToFine,
+}
+
+/// Tuning of the coarse-to-fine search (ignored by [`Search::Exhaustive`]).
+///
+/// Out-of-range fields are clamped: `candidates` and `final_candidates` to
+/// `1..=MAX_CANDIDATES`, the radii to `0..=MAX_REFINE_RADIUS_PX`, `min_coarse_px`
+/// to at least [`MIN_COARSE_PX`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SearchConfig {
+    /// Separated peaks kept at the coarsest level and refined at each finer level.
+    pub candidates: usize,
+    /// Candidates carried into the full-resolution verification (best first).
+    pub final_candidates: usize,
+    /// Refinement radius (pixels of the finer level) around each up-scaled
+    /// candidate at the intermediate levels.
+    pub refine_radius_px: usize,
+    /// Refinement radius at full resolution.
+    pub final_refine_radius_px: usize,
+    /// Non-maximum-suppression radius between coarse candidates (coarse pixels, Chebyshev).
+    pub nms_radius_px: usize,
+    /// Coarsest template side: a level is added only while the template's shorter
+    /// side stays at least this.
+    pub min_coarse_px: usize,
+    /// Coarse levels of a filtered domain are the filter applied to the
+    /// down-sampled gray image (`true`) rather than the down-sampled filtered image.
+    pub filter_per_level: bool,
+}
+
+impl SearchConfig {
+    /// The default search for `filter`, chosen by the simulated-depot study
+    /// (`fsw-docs/eval/matching.md`).
+    pub const fn for_filter(filter: Filter) -> Self {
+        let _ = filter;
+        Self {
+            candidates: 8,
+            final_candidates: 4,
+            refine_radius_px: 2,
+            final_refine_radius_px: 1,
+            nms_radius_px: 2,
+            min_coarse_px: MIN_COARSE_PX,
+            filter_per_level: false,
+        }
+    }
+
+    /// The configuration with every field clamped to its allowed range.
+    pub const fn clamped(self) -> Self {
+        const fn clamp(v: usize, lo: usize, hi: usize) -> usize {
+            if v < lo {
+                lo
+            } else if v > hi {
+                hi
+            } else {
+                v
+            }
+        }
+        Self {
+            candidates: clamp(self.candidates, 1, MAX_CANDIDATES),
+            final_candidates: clamp(self.final_candidates, 1, MAX_CANDIDATES),
+            refine_radius_px: clamp(self.refine_radius_px, 0, MAX_REFINE_RADIUS_PX),
+            final_refine_radius_px: clamp(self.final_refine_radius_px, 0, MAX_REFINE_RADIUS_PX),
+            nms_radius_px: self.nms_radius_px,
+            min_coarse_px: clamp(self.min_coarse_px, MIN_COARSE_PX, usize::MAX),
+            filter_per_level: self.filter_per_level,
+        }
+    }
 }
 
 /// Exact integer terms of one zero-mean NCC score.
@@ -226,9 +288,20 @@ pub struct ScratchSizes {
 /// Pyramid levels the coarse-to-fine search uses for a `tw × th` template:
 /// halve while the shorter side stays at least [`MIN_COARSE_PX`], at most [`MAX_LEVELS`].
 pub const fn pyramid_levels(tw: usize, th: usize) -> usize {
+    pyramid_levels_min(tw, th, MIN_COARSE_PX)
+}
+
+/// Pyramid levels for a `tw × th` template when the coarsest template side must
+/// stay at least `min_coarse_px` (never more than [`pyramid_levels`]).
+pub const fn pyramid_levels_min(tw: usize, th: usize, min_coarse_px: usize) -> usize {
     let m = if tw < th { tw } else { th };
+    let min = if min_coarse_px > MIN_COARSE_PX {
+        min_coarse_px
+    } else {
+        MIN_COARSE_PX
+    };
     let mut levels = 1;
-    while levels < MAX_LEVELS && (m >> levels) >= MIN_COARSE_PX {
+    while levels < MAX_LEVELS && (m >> levels) >= min {
         levels += 1;
     }
     levels
@@ -263,14 +336,16 @@ impl ScratchSizes {
         let (mut window, mut template, mut runs) = (0, 0, 0);
         let mut k = 0;
         while k < levels {
-            window += (ww >> k) * (wh >> k);
-            template += 2 * (tw >> k) * (th >> k);
+            // Filtered level, plus (k >= 1) the gray level it is computed from.
+            let copies = if k == 0 { 1 } else { 2 };
+            window += copies * (ww >> k) * (wh >> k);
+            template += (1 + copies) * (tw >> k) * (th >> k);
             runs += (th >> k) * (tw >> k).div_ceil(2);
             k += 1;
         }
         let lc = levels - 1;
         let coarse = ((ww >> lc) + 1) * ((wh >> lc) + 1);
-        let refine = (tw + 2 * REFINE_RADIUS_PX + 1) * (th + 2 * REFINE_RADIUS_PX + 1);
+        let refine = (tw + 2 * MAX_REFINE_RADIUS_PX + 1) * (th + 2 * MAX_REFINE_RADIUS_PX + 1);
         Self {
             window,
             template,
@@ -388,15 +463,16 @@ pub fn filter_region(
     Ok(())
 }
 
-/// 2× box downsample (rounded mean of each 2×2 block) of `sw × sh` `src` into `dst`.
-fn downsample(src: &[u8], sw: usize, sh: usize, dst: &mut [u8]) {
-    let (dw, dh) = (sw / 2, sh / 2);
+/// 2× box downsample (rounded mean of each 2×2 block) of `src` into `dst`
+/// (`src.width()/2 × src.height()/2`, row-major).
+fn downsample(src: &GrayView, dst: &mut [u8]) {
+    let (dw, dh) = (src.width() / 2, src.height() / 2);
     if dw == 0 || dh == 0 {
         return;
     }
     for (y, drow) in dst.chunks_exact_mut(dw).take(dh).enumerate() {
-        let r0 = src.get(2 * y * sw..2 * y * sw + 2 * dw);
-        let r1 = src.get((2 * y + 1) * sw..(2 * y + 1) * sw + 2 * dw);
+        let r0 = src.row(2 * y).and_then(|r| r.get(..2 * dw));
+        let r1 = src.row(2 * y + 1).and_then(|r| r.get(..2 * dw));
         if let (Some(r0), Some(r1)) = (r0, r1) {
             for ((d, a), b) in drow
                 .iter_mut()
@@ -695,12 +771,15 @@ fn build_template_levels<'s>(
     mask: Option<&GrayView>,
     filter: Filter,
     want: usize,
+    per_level: bool,
     mut tbuf: &'s mut [u8],
     mut rbuf: &'s mut [Run],
     levels: &mut [Option<Tpl<'s>>; MAX_LEVELS],
 ) -> Result<usize, FailureCode> {
     let (tw, th) = (template.width(), template.height());
     let mut prev: Option<(&'s [u8], &'s [u8])> = None;
+    // Gray level k - 1 (k >= 2) for the per-level filter.
+    let mut prev_gray: Option<&'s [u8]> = None;
     let mut used = 0;
     for (k, slot) in levels.iter_mut().enumerate().take(want) {
         let (w, h) = (tw >> k, th >> k);
@@ -728,7 +807,22 @@ fn build_template_levels<'s>(
                 }
             }
             Some((ppx, pmk)) => {
-                downsample(ppx, w * 2, h * 2, px);
+                if per_level && filter != Filter::Gray {
+                    let (gray, rest) = core::mem::take(&mut tbuf)
+                        .split_at_mut_checked(n_px)
+                        .ok_or(FailureCode::NccScratchTooSmall)?;
+                    tbuf = rest;
+                    match prev_gray {
+                        None => downsample(template, gray),
+                        Some(g) => downsample(&GrayView::new(g, 2 * w, 2 * h, 2 * w)?, gray),
+                    }
+                    let gray: &'s [u8] = gray;
+                    let gv = GrayView::new(gray, w, h, w)?;
+                    filter_region(&gv, gv.rect(), filter, px)?;
+                    prev_gray = Some(gray);
+                } else {
+                    downsample(&GrayView::new(ppx, 2 * w, 2 * h, 2 * w)?, px);
+                }
                 // A coarse pixel is kept only when all four children are kept.
                 for (y, mrow) in mk.chunks_exact_mut(w).enumerate() {
                     let r0 = pmk.get(2 * y * 2 * w..(2 * y + 1) * 2 * w).unwrap_or(&[]);
@@ -831,7 +925,6 @@ fn build_template_levels<'s>(
 /// [`FailureCode::NccTemplateLargerThanWindow`], [`FailureCode::NccScratchTooSmall`],
 /// [`FailureCode::NccMaskEmpty`], [`FailureCode::NccTemplateFlat`],
 /// [`FailureCode::NccWindowFlat`] (every position has zero variance).
-#[allow(clippy::too_many_lines)]
 pub fn match_template(
     template: GrayView,
     mask: Option<GrayView>,
@@ -841,6 +934,35 @@ pub fn match_template(
     mode: Search,
     scratch: &mut Scratch,
 ) -> Result<(Match, MatchStats), FailureCode> {
+    match_template_with(
+        template,
+        mask,
+        image,
+        search,
+        filter,
+        mode,
+        &SearchConfig::for_filter(filter),
+        scratch,
+    )
+}
+
+/// [`match_template`] with an explicit coarse-to-fine configuration (clamped
+/// with [`SearchConfig::clamped`]; ignored by [`Search::Exhaustive`]).
+///
+/// # Errors
+/// As [`match_template`].
+#[allow(clippy::too_many_lines, clippy::too_many_arguments)]
+pub fn match_template_with(
+    template: GrayView,
+    mask: Option<GrayView>,
+    image: GrayView,
+    search: Rect,
+    filter: Filter,
+    mode: Search,
+    cfg: &SearchConfig,
+    scratch: &mut Scratch,
+) -> Result<(Match, MatchStats), FailureCode> {
+    let cfg = cfg.clamped();
     let (tw, th) = (template.width(), template.height());
     let side_ok = |s: usize| (MIN_TEMPLATE_PX..=MAX_TEMPLATE_PX).contains(&s);
     if !side_ok(tw) || !side_ok(th) {
@@ -867,8 +989,9 @@ pub fn match_template(
     }
     let want = match mode {
         Search::Exhaustive => 1,
-        Search::CoarseToFine => pyramid_levels(tw, th),
+        Search::CoarseToFine => pyramid_levels_min(tw, th, cfg.min_coarse_px),
     };
+    let per_level = cfg.filter_per_level && filter != Filter::Gray;
     let Scratch {
         window,
         template: tbuf,
@@ -881,6 +1004,7 @@ pub fn match_template(
         mask.as_ref(),
         filter,
         want,
+        per_level,
         tbuf,
         runs,
         &mut tpls,
@@ -890,6 +1014,8 @@ pub fn match_template(
     let mut wins: [Option<Win>; MAX_LEVELS] = [None; MAX_LEVELS];
     let mut wbuf: &mut [u8] = window;
     let mut prev: Option<Win> = None;
+    // Gray level k - 1 (k >= 2) for the per-level filter.
+    let mut prev_gray: Option<&[u8]> = None;
     for (k, slot) in wins.iter_mut().enumerate().take(levels) {
         let (w, h) = (ww >> k, wh >> k);
         let (px, rest) = core::mem::take(&mut wbuf)
@@ -898,8 +1024,26 @@ pub fn match_template(
         wbuf = rest;
         match prev {
             None => filter_region(&image, wr, filter, px)?,
-            Some(p) => downsample(p.px, p.w, p.h, px),
+            Some(_) if per_level => {
+                let (gray, rest) = core::mem::take(&mut wbuf)
+                    .split_at_mut_checked(w * h)
+                    .ok_or(FailureCode::NccScratchTooSmall)?;
+                wbuf = rest;
+                match prev_gray {
+                    None => downsample(
+                        &image.sub(wr).ok_or(FailureCode::NccWindowOutsideImage)?,
+                        gray,
+                    ),
+                    Some(g) => downsample(&GrayView::new(g, 2 * w, 2 * h, 2 * w)?, gray),
+                }
+                let gray: &[u8] = gray;
+                let gv = GrayView::new(gray, w, h, w)?;
+                filter_region(&gv, gv.rect(), filter, px)?;
+                prev_gray = Some(gray);
+            }
+            Some(p) => downsample(&GrayView::new(p.px, p.w, p.h, p.w)?, px),
         }
+        let px: &[u8] = px;
         let win = Win { px, w, h };
         *slot = Some(win);
         prev = Some(win);
@@ -921,7 +1065,7 @@ pub fn match_template(
     let mut top = if lc == 0 {
         TopK::new(2, radius0)
     } else {
-        TopK::new(MAX_CANDIDATES, COARSE_NMS_RADIUS_PX)
+        TopK::new(cfg.candidates, cfg.nms_radius_px)
     };
     eval_positions(&tc, &wc, (0, 0, lx, ly), integral, &mut stats, |x, y, s| {
         top.offer(Cand { x, y, s });
@@ -937,9 +1081,9 @@ pub fn match_template(
         };
         let (lx, ly) = w.last_pos(t.w, t.h);
         let (r, keep) = if k == 0 {
-            (FINAL_REFINE_RADIUS_PX, MAX_FINAL_CANDIDATES)
+            (cfg.final_refine_radius_px, cfg.final_candidates)
         } else {
-            (REFINE_RADIUS_PX, MAX_CANDIDATES)
+            (cfg.refine_radius_px, cfg.candidates)
         };
         let mut next = TopK::new(MAX_CANDIDATES, 0);
         for c in top.as_slice().iter().take(keep) {
@@ -1843,6 +1987,16 @@ mod tests {
     /// Agreement of coarse-to-fine with exhaustive search on `cases` textured
     /// matches (template cut under gain, offset and noise), and the MACs of both.
     fn agreement(seed: u64, cases: u32, filter: Filter, masked: bool) -> (u32, u64, u64) {
+        agreement_with(seed, cases, filter, masked, &SearchConfig::for_filter(filter))
+    }
+
+    fn agreement_with(
+        seed: u64,
+        cases: u32,
+        filter: Filter,
+        masked: bool,
+        cfg: &SearchConfig,
+    ) -> (u32, u64, u64) {
         let mut rng = Rng::new(seed);
         let mut agree = 0;
         let mut work = (0u64, 0u64);
@@ -1880,13 +2034,14 @@ mod tests {
                 .collect();
             let run = |mode| {
                 let mut b = Bufs::new(l, l, iw, ih, mode);
-                match_template(
+                match_template_with(
                     view(&t, l, l),
                     masked.then(|| view(&mask, l, l)),
                     view(&img, iw, ih),
                     Rect::new(0, 0, iw as u32, ih as u32),
                     filter,
                     mode,
+                    cfg,
                     &mut b.scratch(),
                 )
                 .unwrap()
@@ -1937,6 +2092,56 @@ mod tests {
         }
     }
 
+    /// Verifies: VTSM-NCC-012
+    #[test]
+    fn search_config_is_clamped() {
+        let wild = SearchConfig {
+            candidates: 0,
+            final_candidates: 999,
+            refine_radius_px: 99,
+            final_refine_radius_px: 99,
+            nms_radius_px: 0,
+            min_coarse_px: 0,
+            filter_per_level: true,
+        }
+        .clamped();
+        assert_eq!((wild.candidates, wild.final_candidates), (1, MAX_CANDIDATES));
+        assert_eq!(wild.refine_radius_px, MAX_REFINE_RADIUS_PX);
+        assert_eq!(wild.final_refine_radius_px, MAX_REFINE_RADIUS_PX);
+        assert_eq!(wild.min_coarse_px, MIN_COARSE_PX);
+        for f in [Filter::Gray, Filter::Sobel, Filter::Laplacian] {
+            let c = SearchConfig::for_filter(f);
+            assert_eq!(c, c.clamped(), "{f:?} default is in range");
+        }
+        assert_eq!(pyramid_levels_min(64, 64, 32), 2);
+        assert_eq!(pyramid_levels_min(64, 64, 0), pyramid_levels(64, 64));
+    }
+
+    /// Both ways of building the coarse levels of a filtered domain, and the
+    /// smallest and largest configurations, agree with the exhaustive search on
+    /// the synthetic cases and fit the scratch of [`ScratchSizes`].
+    /// Verifies: VTSM-NCC-012
+    #[test]
+    fn every_search_config_agrees_on_textured_cases() {
+        for per_level in [false, true] {
+            for (cand, radius) in [(1usize, 0usize), (MAX_CANDIDATES, MAX_REFINE_RADIUS_PX)] {
+                let cfg = SearchConfig {
+                    candidates: cand,
+                    final_candidates: cand,
+                    refine_radius_px: radius,
+                    final_refine_radius_px: radius,
+                    filter_per_level: per_level,
+                    ..SearchConfig::for_filter(Filter::Sobel)
+                };
+                let cases = 30;
+                let (agree, _, _) = agreement_with(29, cases, Filter::Sobel, true, &cfg);
+                std::println!("{cfg:?}: {agree}/{cases}");
+                let need = if cand == 1 { cases / 2 } else { cases * 29 / 30 };
+                assert!(agree >= need, "{cfg:?}: {agree}/{cases}");
+            }
+        }
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(300))]
         /// Verifies: VTSM-NCC-008
@@ -1946,6 +2151,7 @@ mod tests {
             sx in -20i32..100, sy in -20i32..100, sw in 0u32..120, sh in 0u32..120,
             seed in any::<u64>(), levels in 0u32..256, flat in any::<bool>(),
             masked in any::<bool>(), filt in 0u8..3, exhaustive in any::<bool>(), short in any::<bool>(),
+            per_level in any::<bool>(),
         ) {
             let mut rng = Rng::new(seed);
             let img: Vec<u8> = if flat { vec![levels as u8; iw * ih] } else { random_px(iw * ih, &mut rng) };
@@ -1955,9 +2161,10 @@ mod tests {
             let filter = [Filter::Gray, Filter::Sobel, Filter::Laplacian][usize::from(filt)];
             let mut b = Bufs::new(tw, th, sw as usize, sh as usize, mode);
             if short { b.i.truncate(b.i.len() / 2); }
-            let r = match_template(
+            let cfg = SearchConfig { filter_per_level: per_level, ..SearchConfig::for_filter(filter) };
+            let r = match_template_with(
                 view(&t, tw, th), masked.then(|| view(&mask, tw, th)), view(&img, iw, ih),
-                Rect::new(sx, sy, sw, sh), filter, mode, &mut b.scratch(),
+                Rect::new(sx, sy, sw, sh), filter, mode, &cfg, &mut b.scratch(),
             );
             match r {
                 Ok((m, st)) => {
