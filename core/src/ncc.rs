@@ -22,9 +22,8 @@
 //! [`Search::CoarseToFine`] scores every position of a 2×-box pyramid's coarsest
 //! level, keeps several separated peaks, refines each at each finer level and
 //! picks the winner at full resolution; [`SearchConfig`] holds the numbers
-//! (candidates, radii, coarsest size, and whether a filtered domain's coarse
-//! levels are the filter of the down-sampled gray image), with a default per
-//! [`Filter`] ([`SearchConfig::for_filter`]).
+//! (candidates, radii, coarsest template size), with a default per [`Filter`]
+//! ([`SearchConfig::for_filter`]).
 //!
 //! Bounds: template sides in `MIN_TEMPLATE_PX..=MAX_TEMPLATE_PX`, window sides up
 //! to `MAX_SEARCH_PX`, at most [`MAX_LEVELS`] pyramid levels; all memory is the
@@ -42,9 +41,12 @@ pub const MAX_LEVELS: usize = 4;
 /// this (the smallest [`SearchConfig::min_coarse_px`] allowed; scratch is sized for it).
 pub const MIN_COARSE_PX: usize = 16;
 /// Largest number of coarse candidates any [`SearchConfig`] may keep.
-pub const MAX_CANDIDATES: usize = 16;
+pub const MAX_CANDIDATES: usize = 32;
 /// Largest refinement radius any [`SearchConfig`] may use (scratch is sized for it).
 pub const MAX_REFINE_RADIUS_PX: usize = 2;
+/// A window whose shorter side exceeds this many template sides is "wide"
+/// ([`SearchConfig::wide_min_coarse_px`]).
+pub const WIDE_WINDOW_RATIO: usize = 4;
 /// Re-centring steps allowed when a refined peak lies on its region's border.
 pub const MAX_CLIMB_STEPS: usize = 4;
 /// Fewest kept template pixels a (masked) template may have at any level.
@@ -94,12 +96,13 @@ pub struct SearchConfig {
     pub final_refine_radius_px: usize,
     /// Non-maximum-suppression radius between coarse candidates (coarse pixels, Chebyshev).
     pub nms_radius_px: usize,
-    /// Coarsest template side: a level is added only while the template's shorter
-    /// side stays at least this.
+    /// Coarsest template side (see [`pyramid_levels_min`]) when the window's
+    /// shorter side is at most [`WIDE_WINDOW_RATIO`] template sides (every search
+    /// of the relocalization pipeline, whose windows are capped near 3.2 ℓ).
     pub min_coarse_px: usize,
-    /// Coarse levels of a filtered domain are the filter applied to the
-    /// down-sampled gray image (`true`) rather than the down-sampled filtered image.
-    pub filter_per_level: bool,
+    /// Coarsest template side for wider windows, where the coarsest level's
+    /// exhaustive scan would otherwise dominate the cost.
+    pub wide_min_coarse_px: usize,
 }
 
 impl SearchConfig {
@@ -108,13 +111,13 @@ impl SearchConfig {
     pub const fn for_filter(filter: Filter) -> Self {
         let _ = filter;
         Self {
-            candidates: 8,
-            final_candidates: 4,
+            candidates: 32,
+            final_candidates: 8,
             refine_radius_px: 2,
-            final_refine_radius_px: 1,
+            final_refine_radius_px: 2,
             nms_radius_px: 2,
-            min_coarse_px: MIN_COARSE_PX,
-            filter_per_level: false,
+            min_coarse_px: 32,
+            wide_min_coarse_px: MIN_COARSE_PX,
         }
     }
 
@@ -136,7 +139,7 @@ impl SearchConfig {
             final_refine_radius_px: clamp(self.final_refine_radius_px, 0, MAX_REFINE_RADIUS_PX),
             nms_radius_px: self.nms_radius_px,
             min_coarse_px: clamp(self.min_coarse_px, MIN_COARSE_PX, usize::MAX),
-            filter_per_level: self.filter_per_level,
+            wide_min_coarse_px: clamp(self.wide_min_coarse_px, MIN_COARSE_PX, usize::MAX),
         }
     }
 }
@@ -291,8 +294,9 @@ pub const fn pyramid_levels(tw: usize, th: usize) -> usize {
     pyramid_levels_min(tw, th, MIN_COARSE_PX)
 }
 
-/// Pyramid levels for a `tw × th` template when the coarsest template side must
-/// stay at least `min_coarse_px` (never more than [`pyramid_levels`]).
+/// Pyramid levels for a `tw × th` template when the coarsest template side should
+/// stay at least `min_coarse_px`: halve while it does, but always halve once when
+/// the shorter side is at least `2·MIN_COARSE_PX` (never more than [`pyramid_levels`]).
 pub const fn pyramid_levels_min(tw: usize, th: usize, min_coarse_px: usize) -> usize {
     let m = if tw < th { tw } else { th };
     let min = if min_coarse_px > MIN_COARSE_PX {
@@ -304,7 +308,24 @@ pub const fn pyramid_levels_min(tw: usize, th: usize, min_coarse_px: usize) -> u
     while levels < MAX_LEVELS && (m >> levels) >= min {
         levels += 1;
     }
+    if levels == 1 && (m >> 1) >= MIN_COARSE_PX && MAX_LEVELS > 1 {
+        levels = 2;
+    }
     levels
+}
+
+/// Pyramid levels the coarse-to-fine search with `cfg` uses for a `tw × th`
+/// template in a `ww × wh` window.
+pub const fn search_levels(tw: usize, th: usize, ww: usize, wh: usize, cfg: &SearchConfig) -> usize {
+    let c = cfg.clamped();
+    let t = if tw < th { tw } else { th };
+    let w = if ww < wh { ww } else { wh };
+    let min = if w > WIDE_WINDOW_RATIO * t {
+        c.wide_min_coarse_px
+    } else {
+        c.min_coarse_px
+    };
+    pyramid_levels_min(tw, th, min)
 }
 
 /// Radius (full-resolution pixels, Chebyshev) of the main peak's neighbourhood,
@@ -327,19 +348,37 @@ const fn max_usize(a: usize, b: usize) -> usize {
 }
 
 impl ScratchSizes {
-    /// Sizes for a `tw × th` template in a `ww × wh` window with `mode`.
+    /// Sizes for a `tw × th` template in a `ww × wh` window with `mode` and the
+    /// default [`SearchConfig`] (the same for every filter).
     pub const fn new(tw: usize, th: usize, ww: usize, wh: usize, mode: Search) -> Self {
+        Self::with_config(
+            tw,
+            th,
+            ww,
+            wh,
+            mode,
+            &SearchConfig::for_filter(Filter::Gray),
+        )
+    }
+
+    /// Sizes for a `tw × th` template in a `ww × wh` window with `mode` and `cfg`.
+    pub const fn with_config(
+        tw: usize,
+        th: usize,
+        ww: usize,
+        wh: usize,
+        mode: Search,
+        cfg: &SearchConfig,
+    ) -> Self {
         let levels = match mode {
             Search::Exhaustive => 1,
-            Search::CoarseToFine => pyramid_levels(tw, th),
+            Search::CoarseToFine => search_levels(tw, th, ww, wh, cfg),
         };
         let (mut window, mut template, mut runs) = (0, 0, 0);
         let mut k = 0;
         while k < levels {
-            // Filtered level, plus (k >= 1) the gray level it is computed from.
-            let copies = if k == 0 { 1 } else { 2 };
-            window += copies * (ww >> k) * (wh >> k);
-            template += (1 + copies) * (tw >> k) * (th >> k);
+            window += (ww >> k) * (wh >> k);
+            template += 2 * (tw >> k) * (th >> k);
             runs += (th >> k) * (tw >> k).div_ceil(2);
             k += 1;
         }
@@ -771,15 +810,12 @@ fn build_template_levels<'s>(
     mask: Option<&GrayView>,
     filter: Filter,
     want: usize,
-    per_level: bool,
     mut tbuf: &'s mut [u8],
     mut rbuf: &'s mut [Run],
     levels: &mut [Option<Tpl<'s>>; MAX_LEVELS],
 ) -> Result<usize, FailureCode> {
     let (tw, th) = (template.width(), template.height());
     let mut prev: Option<(&'s [u8], &'s [u8])> = None;
-    // Gray level k - 1 (k >= 2) for the per-level filter.
-    let mut prev_gray: Option<&'s [u8]> = None;
     let mut used = 0;
     for (k, slot) in levels.iter_mut().enumerate().take(want) {
         let (w, h) = (tw >> k, th >> k);
@@ -807,22 +843,7 @@ fn build_template_levels<'s>(
                 }
             }
             Some((ppx, pmk)) => {
-                if per_level && filter != Filter::Gray {
-                    let (gray, rest) = core::mem::take(&mut tbuf)
-                        .split_at_mut_checked(n_px)
-                        .ok_or(FailureCode::NccScratchTooSmall)?;
-                    tbuf = rest;
-                    match prev_gray {
-                        None => downsample(template, gray),
-                        Some(g) => downsample(&GrayView::new(g, 2 * w, 2 * h, 2 * w)?, gray),
-                    }
-                    let gray: &'s [u8] = gray;
-                    let gv = GrayView::new(gray, w, h, w)?;
-                    filter_region(&gv, gv.rect(), filter, px)?;
-                    prev_gray = Some(gray);
-                } else {
-                    downsample(&GrayView::new(ppx, 2 * w, 2 * h, 2 * w)?, px);
-                }
+                downsample(&GrayView::new(ppx, 2 * w, 2 * h, 2 * w)?, px);
                 // A coarse pixel is kept only when all four children are kept.
                 for (y, mrow) in mk.chunks_exact_mut(w).enumerate() {
                     let r0 = pmk.get(2 * y * 2 * w..(2 * y + 1) * 2 * w).unwrap_or(&[]);
@@ -984,14 +1005,13 @@ pub fn match_template_with(
     if tw > ww || th > wh {
         return Err(FailureCode::NccTemplateLargerThanWindow);
     }
-    if !ScratchSizes::new(tw, th, ww, wh, mode).fits(scratch) {
+    if !ScratchSizes::with_config(tw, th, ww, wh, mode, &cfg).fits(scratch) {
         return Err(FailureCode::NccScratchTooSmall);
     }
     let want = match mode {
         Search::Exhaustive => 1,
-        Search::CoarseToFine => pyramid_levels_min(tw, th, cfg.min_coarse_px),
+        Search::CoarseToFine => search_levels(tw, th, ww, wh, &cfg),
     };
-    let per_level = cfg.filter_per_level && filter != Filter::Gray;
     let Scratch {
         window,
         template: tbuf,
@@ -1004,7 +1024,6 @@ pub fn match_template_with(
         mask.as_ref(),
         filter,
         want,
-        per_level,
         tbuf,
         runs,
         &mut tpls,
@@ -1014,8 +1033,6 @@ pub fn match_template_with(
     let mut wins: [Option<Win>; MAX_LEVELS] = [None; MAX_LEVELS];
     let mut wbuf: &mut [u8] = window;
     let mut prev: Option<Win> = None;
-    // Gray level k - 1 (k >= 2) for the per-level filter.
-    let mut prev_gray: Option<&[u8]> = None;
     for (k, slot) in wins.iter_mut().enumerate().take(levels) {
         let (w, h) = (ww >> k, wh >> k);
         let (px, rest) = core::mem::take(&mut wbuf)
@@ -1024,23 +1041,6 @@ pub fn match_template_with(
         wbuf = rest;
         match prev {
             None => filter_region(&image, wr, filter, px)?,
-            Some(_) if per_level => {
-                let (gray, rest) = core::mem::take(&mut wbuf)
-                    .split_at_mut_checked(w * h)
-                    .ok_or(FailureCode::NccScratchTooSmall)?;
-                wbuf = rest;
-                match prev_gray {
-                    None => downsample(
-                        &image.sub(wr).ok_or(FailureCode::NccWindowOutsideImage)?,
-                        gray,
-                    ),
-                    Some(g) => downsample(&GrayView::new(g, 2 * w, 2 * h, 2 * w)?, gray),
-                }
-                let gray: &[u8] = gray;
-                let gv = GrayView::new(gray, w, h, w)?;
-                filter_region(&gv, gv.rect(), filter, px)?;
-                prev_gray = Some(gray);
-            }
             Some(p) => downsample(&GrayView::new(p.px, p.w, p.h, p.w)?, px),
         }
         let px: &[u8] = px;
@@ -1235,7 +1235,17 @@ mod tests {
 
     impl Bufs {
         fn new(tw: usize, th: usize, ww: usize, wh: usize, mode: Search) -> Self {
-            let s = ScratchSizes::new(tw, th, ww, wh, mode);
+            Self::with_config(tw, th, ww, wh, mode, &SearchConfig::for_filter(Filter::Gray))
+        }
+        fn with_config(
+            tw: usize,
+            th: usize,
+            ww: usize,
+            wh: usize,
+            mode: Search,
+            cfg: &SearchConfig,
+        ) -> Self {
+            let s = ScratchSizes::with_config(tw, th, ww, wh, mode, cfg);
             Self {
                 w: vec![0; s.window],
                 t: vec![0; s.template],
@@ -2033,7 +2043,7 @@ mod tests {
                 })
                 .collect();
             let run = |mode| {
-                let mut b = Bufs::new(l, l, iw, ih, mode);
+                let mut b = Bufs::with_config(l, l, iw, ih, mode, cfg);
                 match_template_with(
                     view(&t, l, l),
                     masked.then(|| view(&mask, l, l)),
@@ -2102,35 +2112,45 @@ mod tests {
             final_refine_radius_px: 99,
             nms_radius_px: 0,
             min_coarse_px: 0,
-            filter_per_level: true,
+            wide_min_coarse_px: 0,
         }
         .clamped();
         assert_eq!((wild.candidates, wild.final_candidates), (1, MAX_CANDIDATES));
         assert_eq!(wild.refine_radius_px, MAX_REFINE_RADIUS_PX);
         assert_eq!(wild.final_refine_radius_px, MAX_REFINE_RADIUS_PX);
         assert_eq!(wild.min_coarse_px, MIN_COARSE_PX);
+        assert_eq!(wild.wide_min_coarse_px, MIN_COARSE_PX);
+        let d = SearchConfig::for_filter(Filter::Gray);
+        assert_eq!(search_levels(64, 64, 204, 204, &d), 2);
+        assert_eq!(search_levels(128, 128, 800, 800, &d), 4);
+        assert_eq!(search_levels(256, 256, 800, 800, &d), 4);
         for f in [Filter::Gray, Filter::Sobel, Filter::Laplacian] {
             let c = SearchConfig::for_filter(f);
             assert_eq!(c, c.clamped(), "{f:?} default is in range");
         }
         assert_eq!(pyramid_levels_min(64, 64, 32), 2);
+        assert_eq!(pyramid_levels_min(32, 32, 32), 2);
+        assert_eq!(pyramid_levels_min(31, 64, 32), 1);
+        assert_eq!(pyramid_levels_min(256, 256, 32), 4);
+        assert_eq!(pyramid_levels_min(128, 128, 32), 3);
         assert_eq!(pyramid_levels_min(64, 64, 0), pyramid_levels(64, 64));
     }
 
-    /// Both ways of building the coarse levels of a filtered domain, and the
-    /// smallest and largest configurations, agree with the exhaustive search on
-    /// the synthetic cases and fit the scratch of [`ScratchSizes`].
+    /// The smallest and largest configurations, with the shallowest and deepest
+    /// pyramids, agree with the exhaustive search on the synthetic cases and fit
+    /// the scratch of [`ScratchSizes::with_config`].
     /// Verifies: VTSM-NCC-012
     #[test]
     fn every_search_config_agrees_on_textured_cases() {
-        for per_level in [false, true] {
+        for min_coarse_px in [MIN_COARSE_PX, 64] {
             for (cand, radius) in [(1usize, 0usize), (MAX_CANDIDATES, MAX_REFINE_RADIUS_PX)] {
                 let cfg = SearchConfig {
                     candidates: cand,
                     final_candidates: cand,
                     refine_radius_px: radius,
                     final_refine_radius_px: radius,
-                    filter_per_level: per_level,
+                    min_coarse_px,
+                    wide_min_coarse_px: min_coarse_px,
                     ..SearchConfig::for_filter(Filter::Sobel)
                 };
                 let cases = 30;
@@ -2151,7 +2171,7 @@ mod tests {
             sx in -20i32..100, sy in -20i32..100, sw in 0u32..120, sh in 0u32..120,
             seed in any::<u64>(), levels in 0u32..256, flat in any::<bool>(),
             masked in any::<bool>(), filt in 0u8..3, exhaustive in any::<bool>(), short in any::<bool>(),
-            per_level in any::<bool>(),
+            min_coarse in 0usize..80,
         ) {
             let mut rng = Rng::new(seed);
             let img: Vec<u8> = if flat { vec![levels as u8; iw * ih] } else { random_px(iw * ih, &mut rng) };
@@ -2159,9 +2179,12 @@ mod tests {
             let mask: Vec<u8> = (0..tw * th).map(|_| if rng.below(4) == 0 { 0 } else { 255 }).collect();
             let mode = if exhaustive { Search::Exhaustive } else { Search::CoarseToFine };
             let filter = [Filter::Gray, Filter::Sobel, Filter::Laplacian][usize::from(filt)];
-            let mut b = Bufs::new(tw, th, sw as usize, sh as usize, mode);
+            let cfg = SearchConfig {
+                min_coarse_px: min_coarse, wide_min_coarse_px: min_coarse / 2,
+                ..SearchConfig::for_filter(filter)
+            };
+            let mut b = Bufs::with_config(tw, th, sw as usize, sh as usize, mode, &cfg);
             if short { b.i.truncate(b.i.len() / 2); }
-            let cfg = SearchConfig { filter_per_level: per_level, ..SearchConfig::for_filter(filter) };
             let r = match_template_with(
                 view(&t, tw, th), masked.then(|| view(&mask, tw, th)), view(&img, iw, ih),
                 Rect::new(sx, sy, sw, sh), filter, mode, &cfg, &mut b.scratch(),

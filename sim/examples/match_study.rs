@@ -65,10 +65,10 @@ struct Found {
 type SampleResult = Vec<(usize, Option<Found>, Option<Found>, Vec<Option<Found>>)>;
 
 /// A coarse-to-fine configuration by name: `default` (the core's choice per
-/// filter) or `+`-joined changes to the old defaults (8 candidates, 4 verified at
-/// full resolution, ±2 / ±1 px, NMS 2, coarsest side ≥ 16, downsampled filtered
-/// image): `cN` N candidates all verified, `rN` every radius N, `pl` filter per
-/// level, `mN` coarsest side ≥ N, `nN` NMS radius N.
+/// filter) or `+`-joined changes to the previous defaults (8 candidates, 4
+/// verified at full resolution, ±2 / ±1 px, NMS 2, coarsest side ≥ 16, `o` alone):
+/// `cN` N candidates all verified, `fN` N verified at full resolution (after
+/// `cN`), `rN` every radius N, `mN` coarsest side ≥ N, `nN` NMS radius N.
 fn named_config(name: &str, filter: Filter) -> SearchConfig {
     if name == "default" {
         return SearchConfig::for_filter(filter);
@@ -80,7 +80,7 @@ fn named_config(name: &str, filter: Filter) -> SearchConfig {
         final_refine_radius_px: 1,
         nms_radius_px: 2,
         min_coarse_px: 16,
-        filter_per_level: false,
+        wide_min_coarse_px: 16,
     };
     for part in name.split('+') {
         let num = |p: &str| p[1..].parse::<usize>().expect("config number");
@@ -93,8 +93,11 @@ fn named_config(name: &str, filter: Filter) -> SearchConfig {
                 c.refine_radius_px = num(part);
                 c.final_refine_radius_px = num(part);
             }
-            Some('p') => c.filter_per_level = true,
-            Some('m') => c.min_coarse_px = num(part),
+            Some('f') => c.final_candidates = num(part),
+            Some('m') => {
+                c.min_coarse_px = num(part);
+                c.wide_min_coarse_px = num(part);
+            }
             Some('n') => c.nms_radius_px = num(part),
             Some('o') => {}
             _ => panic!("unknown config part {part}"),
@@ -129,7 +132,14 @@ struct Buffers {
 
 impl Buffers {
     fn new(mode: Search) -> Self {
-        let s = ScratchSizes::max(mode);
+        // Field-wise maximum over the coarsest-side settings the study uses.
+        let (a, b) = (ScratchSizes::max(mode), ScratchSizes::max(Search::Exhaustive));
+        let s = ScratchSizes {
+            window: a.window.max(b.window),
+            template: a.template.max(b.template),
+            integral: a.integral.max(b.integral),
+            runs: a.runs.max(b.runs),
+        };
         Self {
             window: vec![0; s.window],
             template: vec![0; s.template],
