@@ -87,8 +87,12 @@ pub enum Search {
 pub struct SearchConfig {
     /// Separated peaks kept at the coarsest level and refined at each finer level.
     pub candidates: usize,
-    /// Candidates carried into the full-resolution verification (best first).
+    /// Candidates carried into the full-resolution verification (best first)
+    /// for templates whose shorter side is at least `verify_all_below_px`.
     pub final_candidates: usize,
+    /// Templates whose shorter side is below this verify every candidate at full
+    /// resolution (the verification costs `(2r + 1)²·ℓ²` MACs per candidate).
+    pub verify_all_below_px: usize,
     /// Refinement radius (pixels of the finer level) around each up-scaled
     /// candidate at the intermediate levels.
     pub refine_radius_px: usize,
@@ -109,10 +113,14 @@ impl SearchConfig {
     /// The default search for `filter`, chosen by the simulated-depot study
     /// (`fsw-docs/eval/matching.md`).
     pub const fn for_filter(filter: Filter) -> Self {
-        let _ = filter;
         Self {
-            candidates: 32,
+            // Gray agrees at 16 (matching.md); the derivative domains need 32.
+            candidates: match filter {
+                Filter::Gray => 16,
+                Filter::Sobel | Filter::Laplacian => 32,
+            },
             final_candidates: 8,
+            verify_all_below_px: 128,
             refine_radius_px: 2,
             final_refine_radius_px: 2,
             nms_radius_px: 2,
@@ -135,6 +143,7 @@ impl SearchConfig {
         Self {
             candidates: clamp(self.candidates, 1, MAX_CANDIDATES),
             final_candidates: clamp(self.final_candidates, 1, MAX_CANDIDATES),
+            verify_all_below_px: self.verify_all_below_px,
             refine_radius_px: clamp(self.refine_radius_px, 0, MAX_REFINE_RADIUS_PX),
             final_refine_radius_px: clamp(self.final_refine_radius_px, 0, MAX_REFINE_RADIUS_PX),
             nms_radius_px: self.nms_radius_px,
@@ -1081,15 +1090,34 @@ pub fn match_template_with(
         };
         let (lx, ly) = w.last_pos(t.w, t.h);
         let (r, keep) = if k == 0 {
-            (cfg.final_refine_radius_px, cfg.final_candidates)
+            let all = tw.min(th) < cfg.verify_all_below_px;
+            let n = if all {
+                cfg.candidates
+            } else {
+                cfg.final_candidates
+            };
+            (cfg.final_refine_radius_px, n)
         } else {
             (cfg.refine_radius_px, cfg.candidates)
         };
         let mut next = TopK::new(MAX_CANDIDATES, 0);
+        // Region centres already evaluated at this level: a climb that reaches one
+        // stops, since the candidate that evaluated it carries that climb on (the
+        // result is the same, without scoring the same positions twice).
+        let mut visited = [(usize::MAX, usize::MAX); MAX_CANDIDATES * (MAX_CLIMB_STEPS + 1)];
+        let mut n_visited = 0;
         for c in top.as_slice().iter().take(keep) {
             let mut center = ((2 * c.x).min(lx), (2 * c.y).min(ly));
             let mut best = TopK::new(1, 0);
             for _ in 0..=MAX_CLIMB_STEPS {
+                let seen = visited.get(..n_visited).unwrap_or(&[]);
+                if seen.contains(&center) {
+                    break;
+                }
+                if let Some(v) = visited.get_mut(n_visited) {
+                    *v = center;
+                    n_visited += 1;
+                }
                 let (cx, cy) = center;
                 let bounds = (
                     cx.saturating_sub(r),
@@ -2108,6 +2136,7 @@ mod tests {
         let wild = SearchConfig {
             candidates: 0,
             final_candidates: 999,
+            verify_all_below_px: 0,
             refine_radius_px: 99,
             final_refine_radius_px: 99,
             nms_radius_px: 0,

@@ -76,6 +76,7 @@ fn named_config(name: &str, filter: Filter) -> SearchConfig {
     let mut c = SearchConfig {
         candidates: 8,
         final_candidates: 4,
+        verify_all_below_px: 0,
         refine_radius_px: 2,
         final_refine_radius_px: 1,
         nms_radius_px: 2,
