@@ -325,7 +325,13 @@ pub const fn pyramid_levels_min(tw: usize, th: usize, min_coarse_px: usize) -> u
 
 /// Pyramid levels the coarse-to-fine search with `cfg` uses for a `tw × th`
 /// template in a `ww × wh` window.
-pub const fn search_levels(tw: usize, th: usize, ww: usize, wh: usize, cfg: &SearchConfig) -> usize {
+pub const fn search_levels(
+    tw: usize,
+    th: usize,
+    ww: usize,
+    wh: usize,
+    cfg: &SearchConfig,
+) -> usize {
     let c = cfg.clamped();
     let t = if tw < th { tw } else { th };
     let w = if ww < wh { ww } else { wh };
@@ -1263,7 +1269,14 @@ mod tests {
 
     impl Bufs {
         fn new(tw: usize, th: usize, ww: usize, wh: usize, mode: Search) -> Self {
-            Self::with_config(tw, th, ww, wh, mode, &SearchConfig::for_filter(Filter::Gray))
+            Self::with_config(
+                tw,
+                th,
+                ww,
+                wh,
+                mode,
+                &SearchConfig::for_filter(Filter::Gray),
+            )
         }
         fn with_config(
             tw: usize,
@@ -2025,7 +2038,13 @@ mod tests {
     /// Agreement of coarse-to-fine with exhaustive search on `cases` textured
     /// matches (template cut under gain, offset and noise), and the MACs of both.
     fn agreement(seed: u64, cases: u32, filter: Filter, masked: bool) -> (u32, u64, u64) {
-        agreement_with(seed, cases, filter, masked, &SearchConfig::for_filter(filter))
+        agreement_with(
+            seed,
+            cases,
+            filter,
+            masked,
+            &SearchConfig::for_filter(filter),
+        )
     }
 
     fn agreement_with(
@@ -2144,7 +2163,10 @@ mod tests {
             wide_min_coarse_px: 0,
         }
         .clamped();
-        assert_eq!((wild.candidates, wild.final_candidates), (1, MAX_CANDIDATES));
+        assert_eq!(
+            (wild.candidates, wild.final_candidates),
+            (1, MAX_CANDIDATES)
+        );
         assert_eq!(wild.refine_radius_px, MAX_REFINE_RADIUS_PX);
         assert_eq!(wild.final_refine_radius_px, MAX_REFINE_RADIUS_PX);
         assert_eq!(wild.min_coarse_px, MIN_COARSE_PX);

@@ -24,7 +24,7 @@
 //! alternative coarse-to-fine configurations (see [`named_config`]) on the same
 //! templates and prints their agreement with the exhaustive search.
 
-#![allow(clippy::expect_used)] // a study harness: a failed setup step should stop it loudly
+#![allow(clippy::expect_used, clippy::panic)] // a study harness: a failed setup step or a bad argument should stop it loudly
 
 use nalgebra::UnitQuaternion;
 use rayon::prelude::*;
@@ -134,7 +134,10 @@ struct Buffers {
 impl Buffers {
     fn new(mode: Search) -> Self {
         // Field-wise maximum over the coarsest-side settings the study uses.
-        let (a, b) = (ScratchSizes::max(mode), ScratchSizes::max(Search::Exhaustive));
+        let (a, b) = (
+            ScratchSizes::max(mode),
+            ScratchSizes::max(Search::Exhaustive),
+        );
         let s = ScratchSizes {
             window: a.window.max(b.window),
             template: a.template.max(b.template),
@@ -316,9 +319,8 @@ fn main() {
             .map(|x| x.parse().expect("--variants 0,1,3,4"))
             .collect()
     });
-    let compare: Vec<String> = get("--compare").map_or(Vec::new(), |s| {
-        s.split(',').map(str::to_string).collect()
-    });
+    let compare: Vec<String> =
+        get("--compare").map_or(Vec::new(), |s| s.split(',').map(str::to_string).collect());
     for n in &compare {
         let _ = named_config(n, Filter::Gray);
     }
@@ -640,8 +642,10 @@ fn agreement(records: &[Record], variants: &[usize], compare: &[String]) {
                     .collect();
                 let same = |(e, c): &(Found, Found)| e.x == c.x && e.y == c.y;
                 let all = pairs.iter().filter(|p| same(p)).count();
-                let acc: Vec<&(Found, Found)> =
-                    pairs.iter().filter(|(e, _)| accepted(e, 0.5, 0.9)).collect();
+                let acc: Vec<&(Found, Found)> = pairs
+                    .iter()
+                    .filter(|(e, _)| accepted(e, 0.5, 0.9))
+                    .collect();
                 let acc_same = acc.iter().filter(|p| same(p)).count();
                 let ties = pairs
                     .iter()
