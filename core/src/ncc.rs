@@ -20,8 +20,10 @@
 //!
 //! Search: [`Search::Exhaustive`] scores every position (the oracle);
 //! [`Search::CoarseToFine`] scores every position of a 2×-box pyramid's coarsest
-//! level, keeps [`MAX_CANDIDATES`] separated peaks, refines each by ±
-//! [`REFINE_RADIUS_PX`] at each finer level and picks the winner at full resolution.
+//! level, keeps several separated peaks, refines each at each finer level and
+//! picks the winner at full resolution; [`SearchConfig`] holds the numbers
+//! (candidates, radii, coarsest template size), with a default per [`Filter`]
+//! ([`SearchConfig::for_filter`]).
 //!
 //! Bounds: template sides in `MIN_TEMPLATE_PX..=MAX_TEMPLATE_PX`, window sides up
 //! to `MAX_SEARCH_PX`, at most [`MAX_LEVELS`] pyramid levels; all memory is the
@@ -35,22 +37,18 @@ use crate::image::{GrayView, Rect};
 
 /// Largest number of pyramid levels (level 0 = full resolution).
 pub const MAX_LEVELS: usize = 4;
-/// A coarser level is added only while the template's shorter side stays at least this.
+/// A coarser level is added only while the template's shorter side stays at least
+/// this (the smallest [`SearchConfig::min_coarse_px`] allowed; scratch is sized for it).
 pub const MIN_COARSE_PX: usize = 16;
-/// Coarse candidates kept and refined by the coarse-to-fine search.
-pub const MAX_CANDIDATES: usize = 8;
-/// Refinement radius (pixels of the finer level) around each up-scaled candidate
-/// at the intermediate levels.
-pub const REFINE_RADIUS_PX: usize = 2;
-/// Refinement radius at full resolution (the half-resolution peak is already
-/// within a pixel or so of the true one; hill climbing covers the rest).
-pub const FINAL_REFINE_RADIUS_PX: usize = 1;
+/// Largest number of coarse candidates any [`SearchConfig`] may keep.
+pub const MAX_CANDIDATES: usize = 32;
+/// Largest refinement radius any [`SearchConfig`] may use (scratch is sized for it).
+pub const MAX_REFINE_RADIUS_PX: usize = 2;
+/// A window whose shorter side exceeds this many template sides is "wide"
+/// ([`SearchConfig::wide_min_coarse_px`]).
+pub const WIDE_WINDOW_RATIO: usize = 4;
 /// Re-centring steps allowed when a refined peak lies on its region's border.
 pub const MAX_CLIMB_STEPS: usize = 4;
-/// Candidates carried into the full-resolution verification.
-pub const MAX_FINAL_CANDIDATES: usize = 4;
-/// Non-maximum-suppression radius between coarse candidates (coarse pixels).
-pub const COARSE_NMS_RADIUS_PX: usize = 2;
 /// Fewest kept template pixels a (masked) template may have at any level.
 pub const MIN_MASK_PX: u32 = 16;
 /// Lanes of the correlation kernel's accumulator (a multiple of every SIMD width in use).
@@ -77,6 +75,82 @@ pub enum Search {
     /// Pyramid search with several coarse candidates, verified at full resolution.
     #[default]
     CoarseToFine,
+}
+
+/// Tuning of the coarse-to-fine search (ignored by [`Search::Exhaustive`]).
+///
+/// Out-of-range fields are clamped: `candidates` and `final_candidates` to
+/// `1..=MAX_CANDIDATES`, the radii to `0..=MAX_REFINE_RADIUS_PX`, `min_coarse_px`
+/// to at least [`MIN_COARSE_PX`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SearchConfig {
+    /// Separated peaks kept at the coarsest level and refined at each finer level.
+    pub candidates: usize,
+    /// Candidates carried into the full-resolution verification (best first)
+    /// for templates whose shorter side is at least `verify_all_below_px`.
+    pub final_candidates: usize,
+    /// Templates whose shorter side is below this verify every candidate at full
+    /// resolution (the verification costs `(2r + 1)²·ℓ²` MACs per candidate).
+    pub verify_all_below_px: usize,
+    /// Refinement radius (pixels of the finer level) around each up-scaled
+    /// candidate at the intermediate levels.
+    pub refine_radius_px: usize,
+    /// Refinement radius at full resolution.
+    pub final_refine_radius_px: usize,
+    /// Non-maximum-suppression radius between coarse candidates (coarse pixels, Chebyshev).
+    pub nms_radius_px: usize,
+    /// Coarsest template side (see [`pyramid_levels_min`]) when the window's
+    /// shorter side is at most [`WIDE_WINDOW_RATIO`] template sides (every search
+    /// of the relocalization pipeline, whose windows are capped near 3.2 ℓ).
+    pub min_coarse_px: usize,
+    /// Coarsest template side for wider windows, where the coarsest level's
+    /// exhaustive scan would otherwise dominate the cost.
+    pub wide_min_coarse_px: usize,
+}
+
+impl SearchConfig {
+    /// The default search for `filter`, chosen by the simulated-depot study
+    /// (`fsw-docs/eval/matching.md`).
+    pub const fn for_filter(filter: Filter) -> Self {
+        Self {
+            // Gray agrees at 16 (matching.md); the derivative domains need 32.
+            candidates: match filter {
+                Filter::Gray => 16,
+                Filter::Sobel | Filter::Laplacian => 32,
+            },
+            final_candidates: 8,
+            verify_all_below_px: 128,
+            refine_radius_px: 2,
+            final_refine_radius_px: 2,
+            nms_radius_px: 2,
+            min_coarse_px: 32,
+            wide_min_coarse_px: MIN_COARSE_PX,
+        }
+    }
+
+    /// The configuration with every field clamped to its allowed range.
+    pub const fn clamped(self) -> Self {
+        const fn clamp(v: usize, lo: usize, hi: usize) -> usize {
+            if v < lo {
+                lo
+            } else if v > hi {
+                hi
+            } else {
+                v
+            }
+        }
+        Self {
+            candidates: clamp(self.candidates, 1, MAX_CANDIDATES),
+            final_candidates: clamp(self.final_candidates, 1, MAX_CANDIDATES),
+            verify_all_below_px: self.verify_all_below_px,
+            refine_radius_px: clamp(self.refine_radius_px, 0, MAX_REFINE_RADIUS_PX),
+            final_refine_radius_px: clamp(self.final_refine_radius_px, 0, MAX_REFINE_RADIUS_PX),
+            nms_radius_px: self.nms_radius_px,
+            min_coarse_px: clamp(self.min_coarse_px, MIN_COARSE_PX, usize::MAX),
+            wide_min_coarse_px: clamp(self.wide_min_coarse_px, MIN_COARSE_PX, usize::MAX),
+        }
+    }
 }
 
 /// Exact integer terms of one zero-mean NCC score.
@@ -226,12 +300,47 @@ pub struct ScratchSizes {
 /// Pyramid levels the coarse-to-fine search uses for a `tw × th` template:
 /// halve while the shorter side stays at least [`MIN_COARSE_PX`], at most [`MAX_LEVELS`].
 pub const fn pyramid_levels(tw: usize, th: usize) -> usize {
+    pyramid_levels_min(tw, th, MIN_COARSE_PX)
+}
+
+/// Pyramid levels for a `tw × th` template when the coarsest template side should
+/// stay at least `min_coarse_px`: halve while it does, but always halve once when
+/// the shorter side is at least `2·MIN_COARSE_PX` (never more than [`pyramid_levels`]).
+pub const fn pyramid_levels_min(tw: usize, th: usize, min_coarse_px: usize) -> usize {
     let m = if tw < th { tw } else { th };
+    let min = if min_coarse_px > MIN_COARSE_PX {
+        min_coarse_px
+    } else {
+        MIN_COARSE_PX
+    };
     let mut levels = 1;
-    while levels < MAX_LEVELS && (m >> levels) >= MIN_COARSE_PX {
+    while levels < MAX_LEVELS && (m >> levels) >= min {
         levels += 1;
     }
+    if levels == 1 && (m >> 1) >= MIN_COARSE_PX && MAX_LEVELS > 1 {
+        levels = 2;
+    }
     levels
+}
+
+/// Pyramid levels the coarse-to-fine search with `cfg` uses for a `tw × th`
+/// template in a `ww × wh` window.
+pub const fn search_levels(
+    tw: usize,
+    th: usize,
+    ww: usize,
+    wh: usize,
+    cfg: &SearchConfig,
+) -> usize {
+    let c = cfg.clamped();
+    let t = if tw < th { tw } else { th };
+    let w = if ww < wh { ww } else { wh };
+    let min = if w > WIDE_WINDOW_RATIO * t {
+        c.wide_min_coarse_px
+    } else {
+        c.min_coarse_px
+    };
+    pyramid_levels_min(tw, th, min)
 }
 
 /// Radius (full-resolution pixels, Chebyshev) of the main peak's neighbourhood,
@@ -254,11 +363,31 @@ const fn max_usize(a: usize, b: usize) -> usize {
 }
 
 impl ScratchSizes {
-    /// Sizes for a `tw × th` template in a `ww × wh` window with `mode`.
+    /// Sizes for a `tw × th` template in a `ww × wh` window with `mode` and the
+    /// default [`SearchConfig`] (the same for every filter).
     pub const fn new(tw: usize, th: usize, ww: usize, wh: usize, mode: Search) -> Self {
+        Self::with_config(
+            tw,
+            th,
+            ww,
+            wh,
+            mode,
+            &SearchConfig::for_filter(Filter::Gray),
+        )
+    }
+
+    /// Sizes for a `tw × th` template in a `ww × wh` window with `mode` and `cfg`.
+    pub const fn with_config(
+        tw: usize,
+        th: usize,
+        ww: usize,
+        wh: usize,
+        mode: Search,
+        cfg: &SearchConfig,
+    ) -> Self {
         let levels = match mode {
             Search::Exhaustive => 1,
-            Search::CoarseToFine => pyramid_levels(tw, th),
+            Search::CoarseToFine => search_levels(tw, th, ww, wh, cfg),
         };
         let (mut window, mut template, mut runs) = (0, 0, 0);
         let mut k = 0;
@@ -270,7 +399,7 @@ impl ScratchSizes {
         }
         let lc = levels - 1;
         let coarse = ((ww >> lc) + 1) * ((wh >> lc) + 1);
-        let refine = (tw + 2 * REFINE_RADIUS_PX + 1) * (th + 2 * REFINE_RADIUS_PX + 1);
+        let refine = (tw + 2 * MAX_REFINE_RADIUS_PX + 1) * (th + 2 * MAX_REFINE_RADIUS_PX + 1);
         Self {
             window,
             template,
@@ -388,15 +517,16 @@ pub fn filter_region(
     Ok(())
 }
 
-/// 2× box downsample (rounded mean of each 2×2 block) of `sw × sh` `src` into `dst`.
-fn downsample(src: &[u8], sw: usize, sh: usize, dst: &mut [u8]) {
-    let (dw, dh) = (sw / 2, sh / 2);
+/// 2× box downsample (rounded mean of each 2×2 block) of `src` into `dst`
+/// (`src.width()/2 × src.height()/2`, row-major).
+fn downsample(src: &GrayView, dst: &mut [u8]) {
+    let (dw, dh) = (src.width() / 2, src.height() / 2);
     if dw == 0 || dh == 0 {
         return;
     }
     for (y, drow) in dst.chunks_exact_mut(dw).take(dh).enumerate() {
-        let r0 = src.get(2 * y * sw..2 * y * sw + 2 * dw);
-        let r1 = src.get((2 * y + 1) * sw..(2 * y + 1) * sw + 2 * dw);
+        let r0 = src.row(2 * y).and_then(|r| r.get(..2 * dw));
+        let r1 = src.row(2 * y + 1).and_then(|r| r.get(..2 * dw));
         if let (Some(r0), Some(r1)) = (r0, r1) {
             for ((d, a), b) in drow
                 .iter_mut()
@@ -728,7 +858,7 @@ fn build_template_levels<'s>(
                 }
             }
             Some((ppx, pmk)) => {
-                downsample(ppx, w * 2, h * 2, px);
+                downsample(&GrayView::new(ppx, 2 * w, 2 * h, 2 * w)?, px);
                 // A coarse pixel is kept only when all four children are kept.
                 for (y, mrow) in mk.chunks_exact_mut(w).enumerate() {
                     let r0 = pmk.get(2 * y * 2 * w..(2 * y + 1) * 2 * w).unwrap_or(&[]);
@@ -831,7 +961,6 @@ fn build_template_levels<'s>(
 /// [`FailureCode::NccTemplateLargerThanWindow`], [`FailureCode::NccScratchTooSmall`],
 /// [`FailureCode::NccMaskEmpty`], [`FailureCode::NccTemplateFlat`],
 /// [`FailureCode::NccWindowFlat`] (every position has zero variance).
-#[allow(clippy::too_many_lines)]
 pub fn match_template(
     template: GrayView,
     mask: Option<GrayView>,
@@ -841,6 +970,35 @@ pub fn match_template(
     mode: Search,
     scratch: &mut Scratch,
 ) -> Result<(Match, MatchStats), FailureCode> {
+    match_template_with(
+        template,
+        mask,
+        image,
+        search,
+        filter,
+        mode,
+        &SearchConfig::for_filter(filter),
+        scratch,
+    )
+}
+
+/// [`match_template`] with an explicit coarse-to-fine configuration (clamped
+/// with [`SearchConfig::clamped`]; ignored by [`Search::Exhaustive`]).
+///
+/// # Errors
+/// As [`match_template`].
+#[allow(clippy::too_many_lines, clippy::too_many_arguments)]
+pub fn match_template_with(
+    template: GrayView,
+    mask: Option<GrayView>,
+    image: GrayView,
+    search: Rect,
+    filter: Filter,
+    mode: Search,
+    cfg: &SearchConfig,
+    scratch: &mut Scratch,
+) -> Result<(Match, MatchStats), FailureCode> {
+    let cfg = cfg.clamped();
     let (tw, th) = (template.width(), template.height());
     let side_ok = |s: usize| (MIN_TEMPLATE_PX..=MAX_TEMPLATE_PX).contains(&s);
     if !side_ok(tw) || !side_ok(th) {
@@ -862,12 +1020,12 @@ pub fn match_template(
     if tw > ww || th > wh {
         return Err(FailureCode::NccTemplateLargerThanWindow);
     }
-    if !ScratchSizes::new(tw, th, ww, wh, mode).fits(scratch) {
+    if !ScratchSizes::with_config(tw, th, ww, wh, mode, &cfg).fits(scratch) {
         return Err(FailureCode::NccScratchTooSmall);
     }
     let want = match mode {
         Search::Exhaustive => 1,
-        Search::CoarseToFine => pyramid_levels(tw, th),
+        Search::CoarseToFine => search_levels(tw, th, ww, wh, &cfg),
     };
     let Scratch {
         window,
@@ -898,8 +1056,9 @@ pub fn match_template(
         wbuf = rest;
         match prev {
             None => filter_region(&image, wr, filter, px)?,
-            Some(p) => downsample(p.px, p.w, p.h, px),
+            Some(p) => downsample(&GrayView::new(p.px, p.w, p.h, p.w)?, px),
         }
+        let px: &[u8] = px;
         let win = Win { px, w, h };
         *slot = Some(win);
         prev = Some(win);
@@ -921,7 +1080,7 @@ pub fn match_template(
     let mut top = if lc == 0 {
         TopK::new(2, radius0)
     } else {
-        TopK::new(MAX_CANDIDATES, COARSE_NMS_RADIUS_PX)
+        TopK::new(cfg.candidates, cfg.nms_radius_px)
     };
     eval_positions(&tc, &wc, (0, 0, lx, ly), integral, &mut stats, |x, y, s| {
         top.offer(Cand { x, y, s });
@@ -937,15 +1096,34 @@ pub fn match_template(
         };
         let (lx, ly) = w.last_pos(t.w, t.h);
         let (r, keep) = if k == 0 {
-            (FINAL_REFINE_RADIUS_PX, MAX_FINAL_CANDIDATES)
+            let all = tw.min(th) < cfg.verify_all_below_px;
+            let n = if all {
+                cfg.candidates
+            } else {
+                cfg.final_candidates
+            };
+            (cfg.final_refine_radius_px, n)
         } else {
-            (REFINE_RADIUS_PX, MAX_CANDIDATES)
+            (cfg.refine_radius_px, cfg.candidates)
         };
         let mut next = TopK::new(MAX_CANDIDATES, 0);
+        // Region centres already evaluated at this level: a climb that reaches one
+        // stops, since the candidate that evaluated it carries that climb on (the
+        // result is the same, without scoring the same positions twice).
+        let mut visited = [(usize::MAX, usize::MAX); MAX_CANDIDATES * (MAX_CLIMB_STEPS + 1)];
+        let mut n_visited = 0;
         for c in top.as_slice().iter().take(keep) {
             let mut center = ((2 * c.x).min(lx), (2 * c.y).min(ly));
             let mut best = TopK::new(1, 0);
             for _ in 0..=MAX_CLIMB_STEPS {
+                let seen = visited.get(..n_visited).unwrap_or(&[]);
+                if seen.contains(&center) {
+                    break;
+                }
+                if let Some(v) = visited.get_mut(n_visited) {
+                    *v = center;
+                    n_visited += 1;
+                }
                 let (cx, cy) = center;
                 let bounds = (
                     cx.saturating_sub(r),
@@ -1091,7 +1269,24 @@ mod tests {
 
     impl Bufs {
         fn new(tw: usize, th: usize, ww: usize, wh: usize, mode: Search) -> Self {
-            let s = ScratchSizes::new(tw, th, ww, wh, mode);
+            Self::with_config(
+                tw,
+                th,
+                ww,
+                wh,
+                mode,
+                &SearchConfig::for_filter(Filter::Gray),
+            )
+        }
+        fn with_config(
+            tw: usize,
+            th: usize,
+            ww: usize,
+            wh: usize,
+            mode: Search,
+            cfg: &SearchConfig,
+        ) -> Self {
+            let s = ScratchSizes::with_config(tw, th, ww, wh, mode, cfg);
             Self {
                 w: vec![0; s.window],
                 t: vec![0; s.template],
@@ -1843,6 +2038,22 @@ mod tests {
     /// Agreement of coarse-to-fine with exhaustive search on `cases` textured
     /// matches (template cut under gain, offset and noise), and the MACs of both.
     fn agreement(seed: u64, cases: u32, filter: Filter, masked: bool) -> (u32, u64, u64) {
+        agreement_with(
+            seed,
+            cases,
+            filter,
+            masked,
+            &SearchConfig::for_filter(filter),
+        )
+    }
+
+    fn agreement_with(
+        seed: u64,
+        cases: u32,
+        filter: Filter,
+        masked: bool,
+        cfg: &SearchConfig,
+    ) -> (u32, u64, u64) {
         let mut rng = Rng::new(seed);
         let mut agree = 0;
         let mut work = (0u64, 0u64);
@@ -1879,14 +2090,15 @@ mod tests {
                 })
                 .collect();
             let run = |mode| {
-                let mut b = Bufs::new(l, l, iw, ih, mode);
-                match_template(
+                let mut b = Bufs::with_config(l, l, iw, ih, mode, cfg);
+                match_template_with(
                     view(&t, l, l),
                     masked.then(|| view(&mask, l, l)),
                     view(&img, iw, ih),
                     Rect::new(0, 0, iw as u32, ih as u32),
                     filter,
                     mode,
+                    cfg,
                     &mut b.scratch(),
                 )
                 .unwrap()
@@ -1937,6 +2149,71 @@ mod tests {
         }
     }
 
+    /// Verifies: VTSM-NCC-012
+    #[test]
+    fn search_config_is_clamped() {
+        let wild = SearchConfig {
+            candidates: 0,
+            final_candidates: 999,
+            verify_all_below_px: 0,
+            refine_radius_px: 99,
+            final_refine_radius_px: 99,
+            nms_radius_px: 0,
+            min_coarse_px: 0,
+            wide_min_coarse_px: 0,
+        }
+        .clamped();
+        assert_eq!(
+            (wild.candidates, wild.final_candidates),
+            (1, MAX_CANDIDATES)
+        );
+        assert_eq!(wild.refine_radius_px, MAX_REFINE_RADIUS_PX);
+        assert_eq!(wild.final_refine_radius_px, MAX_REFINE_RADIUS_PX);
+        assert_eq!(wild.min_coarse_px, MIN_COARSE_PX);
+        assert_eq!(wild.wide_min_coarse_px, MIN_COARSE_PX);
+        let d = SearchConfig::for_filter(Filter::Gray);
+        assert_eq!(search_levels(64, 64, 204, 204, &d), 2);
+        assert_eq!(search_levels(128, 128, 800, 800, &d), 4);
+        assert_eq!(search_levels(256, 256, 800, 800, &d), 4);
+        for f in [Filter::Gray, Filter::Sobel, Filter::Laplacian] {
+            let c = SearchConfig::for_filter(f);
+            assert_eq!(c, c.clamped(), "{f:?} default is in range");
+        }
+        assert_eq!(pyramid_levels_min(64, 64, 32), 2);
+        assert_eq!(pyramid_levels_min(32, 32, 32), 2);
+        assert_eq!(pyramid_levels_min(31, 64, 32), 1);
+        assert_eq!(pyramid_levels_min(256, 256, 32), 4);
+        assert_eq!(pyramid_levels_min(128, 128, 32), 3);
+        assert_eq!(pyramid_levels_min(64, 64, 0), pyramid_levels(64, 64));
+    }
+
+    /// The smallest and largest configurations, with the shallowest and deepest
+    /// pyramids, run in the scratch of [`ScratchSizes::with_config`], and the
+    /// largest agrees with the exhaustive search on the synthetic cases.
+    /// Verifies: VTSM-NCC-012
+    #[test]
+    fn every_search_config_agrees_on_textured_cases() {
+        for min_coarse_px in [MIN_COARSE_PX, 64] {
+            for (cand, radius) in [(1usize, 0usize), (MAX_CANDIDATES, MAX_REFINE_RADIUS_PX)] {
+                let cfg = SearchConfig {
+                    candidates: cand,
+                    final_candidates: cand,
+                    refine_radius_px: radius,
+                    final_refine_radius_px: radius,
+                    min_coarse_px,
+                    wide_min_coarse_px: min_coarse_px,
+                    ..SearchConfig::for_filter(Filter::Sobel)
+                };
+                let cases = 30;
+                let (agree, _, _) = agreement_with(29, cases, Filter::Sobel, true, &cfg);
+                std::println!("{cfg:?}: {agree}/{cases}");
+                // The minimal search only has to run (its agreement is printed).
+                let need = if cand == 1 { 0 } else { cases * 29 / 30 };
+                assert!(agree >= need, "{cfg:?}: {agree}/{cases}");
+            }
+        }
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(300))]
         /// Verifies: VTSM-NCC-008
@@ -1946,6 +2223,7 @@ mod tests {
             sx in -20i32..100, sy in -20i32..100, sw in 0u32..120, sh in 0u32..120,
             seed in any::<u64>(), levels in 0u32..256, flat in any::<bool>(),
             masked in any::<bool>(), filt in 0u8..3, exhaustive in any::<bool>(), short in any::<bool>(),
+            min_coarse in 0usize..80,
         ) {
             let mut rng = Rng::new(seed);
             let img: Vec<u8> = if flat { vec![levels as u8; iw * ih] } else { random_px(iw * ih, &mut rng) };
@@ -1953,11 +2231,15 @@ mod tests {
             let mask: Vec<u8> = (0..tw * th).map(|_| if rng.below(4) == 0 { 0 } else { 255 }).collect();
             let mode = if exhaustive { Search::Exhaustive } else { Search::CoarseToFine };
             let filter = [Filter::Gray, Filter::Sobel, Filter::Laplacian][usize::from(filt)];
-            let mut b = Bufs::new(tw, th, sw as usize, sh as usize, mode);
+            let cfg = SearchConfig {
+                min_coarse_px: min_coarse, wide_min_coarse_px: min_coarse / 2,
+                ..SearchConfig::for_filter(filter)
+            };
+            let mut b = Bufs::with_config(tw, th, sw as usize, sh as usize, mode, &cfg);
             if short { b.i.truncate(b.i.len() / 2); }
-            let r = match_template(
+            let r = match_template_with(
                 view(&t, tw, th), masked.then(|| view(&mask, tw, th)), view(&img, iw, ih),
-                Rect::new(sx, sy, sw, sh), filter, mode, &mut b.scratch(),
+                Rect::new(sx, sy, sw, sh), filter, mode, &cfg, &mut b.scratch(),
             );
             match r {
                 Ok((m, st)) => {

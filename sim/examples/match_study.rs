@@ -17,9 +17,14 @@
 //! ```text
 //! cargo run --release -p vtsm-sim --example match_study -- [--profile demo] [--terrains flagstone,cfa6,cfa2]
 //!     [--stops 3,11] [--samples 40] [--seed 1] [--tol 2] [--csv out.csv]
+//!     [--variants 0,1,3,4] [--compare NAME,NAME,...]
 //! ```
+//! `--variants` limits the searches to some variants (0–2 gray/Sobel/Laplacian at ℓ,
+//! 3–5 at ℓ/2; the others count as failed searches). `--compare` also runs
+//! alternative coarse-to-fine configurations (see [`named_config`]) on the same
+//! templates and prints their agreement with the exhaustive search.
 
-#![allow(clippy::expect_used)] // a study harness: a failed setup step should stop it loudly
+#![allow(clippy::expect_used, clippy::panic)] // a study harness: a failed setup step or a bad argument should stop it loudly
 
 use nalgebra::UnitQuaternion;
 use rayon::prelude::*;
@@ -28,7 +33,7 @@ use std::time::Instant;
 use vtsm_core::geom::{Camera, Pose, Vec3};
 use vtsm_core::image::{GrayView, Rect};
 use vtsm_core::map::MapView;
-use vtsm_core::ncc::{self, Filter, Run, Scratch, ScratchSizes, Search};
+use vtsm_core::ncc::{self, Filter, Run, Scratch, ScratchSizes, Search, SearchConfig};
 use vtsm_core::raster;
 use vtsm_core::rng::Rng;
 use vtsm_sim::io::mesh;
@@ -55,8 +60,52 @@ struct Found {
     err_px: f32,
 }
 
-/// Per variant: (index, exhaustive result, coarse-to-fine result).
-type SampleResult = Vec<(usize, Option<Found>, Option<Found>)>;
+/// Per variant: (index, exhaustive result, coarse-to-fine result, results of the
+/// compared configurations).
+type SampleResult = Vec<(usize, Option<Found>, Option<Found>, Vec<Option<Found>>)>;
+
+/// A coarse-to-fine configuration by name: `default` (the core's choice per
+/// filter) or `+`-joined changes to the previous defaults (8 candidates, 4
+/// verified at full resolution, ±2 / ±1 px, NMS 2, coarsest side ≥ 16, `o` alone):
+/// `cN` N candidates all verified, `fN` N verified at full resolution (after
+/// `cN`), `rN` every radius N, `mN` coarsest side ≥ N, `nN` NMS radius N.
+fn named_config(name: &str, filter: Filter) -> SearchConfig {
+    if name == "default" {
+        return SearchConfig::for_filter(filter);
+    }
+    let mut c = SearchConfig {
+        candidates: 8,
+        final_candidates: 4,
+        verify_all_below_px: 0,
+        refine_radius_px: 2,
+        final_refine_radius_px: 1,
+        nms_radius_px: 2,
+        min_coarse_px: 16,
+        wide_min_coarse_px: 16,
+    };
+    for part in name.split('+') {
+        let num = |p: &str| p[1..].parse::<usize>().expect("config number");
+        match part.chars().next() {
+            Some('c') => {
+                c.candidates = num(part);
+                c.final_candidates = num(part);
+            }
+            Some('r') => {
+                c.refine_radius_px = num(part);
+                c.final_refine_radius_px = num(part);
+            }
+            Some('f') => c.final_candidates = num(part),
+            Some('m') => {
+                c.min_coarse_px = num(part);
+                c.wide_min_coarse_px = num(part);
+            }
+            Some('n') => c.nms_radius_px = num(part),
+            Some('o') => {}
+            _ => panic!("unknown config part {part}"),
+        }
+    }
+    c
+}
 
 #[derive(Clone, Debug)]
 struct Record {
@@ -67,6 +116,7 @@ struct Record {
     variant: usize,
     exh: Option<Found>,
     c2f: Option<Found>,
+    alt: Vec<Option<Found>>,
 }
 
 fn variant_name(v: usize) -> String {
@@ -83,7 +133,17 @@ struct Buffers {
 
 impl Buffers {
     fn new(mode: Search) -> Self {
-        let s = ScratchSizes::max(mode);
+        // Field-wise maximum over the coarsest-side settings the study uses.
+        let (a, b) = (
+            ScratchSizes::max(mode),
+            ScratchSizes::max(Search::Exhaustive),
+        );
+        let s = ScratchSizes {
+            window: a.window.max(b.window),
+            template: a.template.max(b.template),
+            integral: a.integral.max(b.integral),
+            runs: a.runs.max(b.runs),
+        };
         Self {
             window: vec![0; s.window],
             template: vec![0; s.template],
@@ -140,6 +200,8 @@ fn one_sample(
     t_max: f32,
     r_deg: f32,
     tol: f32,
+    variants: &[usize],
+    compare: &[String],
     bufs: &mut (Buffers, Buffers),
 ) -> Option<SampleResult> {
     let l = locate::template_px_for_width(cam.width) as usize;
@@ -169,6 +231,10 @@ fn one_sample(
     let mv = GrayView::new(&mask, l, l, l).ok()?;
     let mut out = Vec::new();
     for v in 0..6 {
+        if !variants.contains(&v) {
+            out.push((v, None, None, vec![None; compare.len()]));
+            continue;
+        }
         let half = v >= 3;
         let filter = FILTERS[v % 3];
         let (t, m, ox, oy) = if half {
@@ -182,10 +248,18 @@ fn one_sample(
         } else {
             (tv, mv, 0.0, 0.0)
         };
-        let run = |mode: Search, b: &mut Buffers| {
-            let (m, _) =
-                ncc::match_template(t, Some(m), img, search, filter, mode, &mut b.scratch())
-                    .ok()?;
+        let run_with = |mode: Search, cfg: &SearchConfig, b: &mut Buffers| {
+            let (m, _) = ncc::match_template_with(
+                t,
+                Some(m),
+                img,
+                search,
+                filter,
+                mode,
+                cfg,
+                &mut b.scratch(),
+            )
+            .ok()?;
             let px = m.sub_x + (uv_vp[0] - rect.x as f32 - ox);
             let py = m.sub_y + (uv_vp[1] - rect.y as f32 - oy);
             Some(Found {
@@ -196,9 +270,14 @@ fn one_sample(
                 err_px: (px - uv_true[0]).hypot(py - uv_true[1]),
             })
         };
-        let e = run(Search::Exhaustive, &mut bufs.0);
-        let c = run(Search::CoarseToFine, &mut bufs.1);
-        out.push((v, e, c));
+        let default = SearchConfig::for_filter(filter);
+        let e = run_with(Search::Exhaustive, &default, &mut bufs.0);
+        let c = run_with(Search::CoarseToFine, &default, &mut bufs.1);
+        let alt = compare
+            .iter()
+            .map(|n| run_with(Search::CoarseToFine, &named_config(n, filter), &mut bufs.1))
+            .collect();
+        out.push((v, e, c, alt));
     }
     let _ = tol;
     Some(out)
@@ -235,6 +314,16 @@ fn main() {
             .collect()
     });
     let csv = get("--csv");
+    let variants: Vec<usize> = get("--variants").map_or((0..6).collect(), |s| {
+        s.split(',')
+            .map(|x| x.parse().expect("--variants 0,1,3,4"))
+            .collect()
+    });
+    let compare: Vec<String> =
+        get("--compare").map_or(Vec::new(), |s| s.split(',').map(str::to_string).collect());
+    for n in &compare {
+        let _ = named_config(n, Filter::Gray);
+    }
     let t_all = Instant::now();
     let mut records: Vec<Record> = Vec::new();
     let names = get("--terrains").unwrap_or_else(|| "flagstone,cfa6,cfa2".into());
@@ -292,7 +381,8 @@ fn main() {
                             },
                             |bufs, (vp, world)| {
                                 one_sample(
-                                    &map, &cam, img, &truth, vp, world, t_hi, r_deg, tol, bufs,
+                                    &map, &cam, img, &truth, vp, world, t_hi, r_deg, tol,
+                                    &variants, &compare, bufs,
                                 )
                             },
                         )
@@ -300,7 +390,7 @@ fn main() {
                         .collect();
                     let n = got.len();
                     for s in got {
-                        for (variant, exh, c2f) in s {
+                        for (variant, exh, c2f, alt) in s {
                             records.push(Record {
                                 terrain: kind.name(),
                                 dh,
@@ -308,6 +398,7 @@ fn main() {
                                 variant,
                                 exh,
                                 c2f,
+                                alt,
                             });
                         }
                     }
@@ -341,6 +432,7 @@ fn main() {
         std::fs::write(&path, s).expect("write csv");
     }
     report(&records, tol, profile, samples, seed, &stops);
+    agreement(&records, &variants, &compare);
     eprintln!("total {:.1} s", t_all.elapsed().as_secs_f64());
 }
 
@@ -516,6 +608,60 @@ fn report(
                     cells[0], cells[1], cells[2]
                 );
             }
+        }
+    }
+}
+
+/// Agreement of the default and each compared configuration with the exhaustive
+/// search: same integer peak over all searches, over the searches whose exhaustive
+/// peak the default policy would accept (score ≥ 0.5, runner-up ≤ 0.9·score), and
+/// the misses that are near-ties (coarse-to-fine score within 1e-3 of the exhaustive one).
+fn agreement(records: &[Record], variants: &[usize], compare: &[String]) {
+    println!("\n### Coarse-to-fine configurations vs exhaustive (same integer peak)\n");
+    println!("Cells: all searches % (n) / accepted exhaustive peaks % (n) / misses within 1e-3 of the exhaustive score.\n");
+    let names: Vec<String> = std::iter::once("default".to_string())
+        .chain(compare.iter().cloned())
+        .collect();
+    print!("| variant | level |");
+    for n in &names {
+        print!(" {n} |");
+    }
+    println!();
+    println!("|---|---|{}", "---|".repeat(names.len()));
+    for &v in variants {
+        for &(level, ..) in &LEVELS {
+            print!("| {} | {level} |", variant_name(v));
+            for k in 0..names.len() {
+                let pairs: Vec<(Found, Found)> = records
+                    .iter()
+                    .filter(|r| r.variant == v && r.level == level)
+                    .filter_map(|r| {
+                        let c = if k == 0 { r.c2f } else { *r.alt.get(k - 1)? };
+                        Some((r.exh?, c?))
+                    })
+                    .collect();
+                let same = |(e, c): &(Found, Found)| e.x == c.x && e.y == c.y;
+                let all = pairs.iter().filter(|p| same(p)).count();
+                let acc: Vec<&(Found, Found)> = pairs
+                    .iter()
+                    .filter(|(e, _)| accepted(e, 0.5, 0.9))
+                    .collect();
+                let acc_same = acc.iter().filter(|p| same(p)).count();
+                let ties = pairs
+                    .iter()
+                    .filter(|p| !same(p) && (p.0.score - p.1.score).abs() < 1e-3)
+                    .count();
+                print!(
+                    " {} ({}) / {} ({}) / {} of {} |",
+                    pct(all, pairs.len()),
+                    pairs.len(),
+                    pct(acc_same, acc.len()),
+                    acc.len(),
+                    ties,
+                    pairs.len() - all
+                );
+            }
+            println!();
         }
     }
 }
