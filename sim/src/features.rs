@@ -471,3 +471,93 @@ pub fn relocalize_features(req: &Request<'_>, p: &FeatureParams) -> Result<Featu
     report.elapsed = t0.elapsed();
     Ok(report)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A textured image: smooth random blobs, deterministic.
+    fn texture(w: usize, h: usize, seed: u64) -> Vec<u8> {
+        let mut rng = Rng::new(seed);
+        let blobs: Vec<(f32, f32, f32, f32)> = (0..200)
+            .map(|_| {
+                (
+                    rng.uniform(0.0, w as f32),
+                    rng.uniform(0.0, h as f32),
+                    rng.uniform(3.0, 9.0),
+                    rng.uniform(-120.0, 120.0),
+                )
+            })
+            .collect();
+        let mut img = vec![0u8; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let mut v = 128.0f32;
+                for &(bx, by, r, a) in &blobs {
+                    let d2 = ((x as f32 - bx).powi(2) + (y as f32 - by).powi(2)) / (r * r);
+                    v += a * (-d2).exp();
+                }
+                img[y * w + x] = v.clamp(0.0, 255.0) as u8;
+            }
+        }
+        img
+    }
+
+    /// Verifies: VTSM-CLI-023
+    #[test]
+    fn test_pairs_are_fixed_and_inside_the_patch() {
+        let a = test_pairs();
+        assert_eq!(a.len(), DESCRIPTOR_BITS);
+        assert_eq!(a, test_pairs());
+        assert!(a
+            .iter()
+            .all(|t| t.p0.x < 31 && t.p0.y < 31 && t.p1.x < 31 && t.p1.y < 31));
+    }
+
+    /// Verifies: VTSM-CLI-023
+    #[test]
+    fn stereo_search_recovers_a_known_shift_and_matching_finds_shifted_keypoints() {
+        let (w, h) = (200usize, 120usize);
+        let left = texture(w, h, 3);
+        // right(x) = left(x + 17): disparity 17.
+        let right: Vec<u8> = (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                left[y * w + (x + 17).min(w - 1)]
+            })
+            .collect();
+        let d = disparity(&left, &right, w, h, 120, 60, 60, 0.8).unwrap();
+        assert!((d - 17.0).abs() < 0.25, "{d}");
+        // Too far left for any disparity: clean refusal.
+        assert!(disparity(&left, &right, w, h, 3, 60, 60, 0.8).is_none());
+        // Flat image: no match.
+        let flat = vec![7u8; w * h];
+        assert!(disparity(&flat, &flat, w, h, 120, 60, 60, 0.8).is_none());
+
+        let p = FeatureParams {
+            cell_px: 10,
+            ..FeatureParams::for_width(w as u32)
+        };
+        let pairs = test_pairs();
+        let a = GrayImage::from_raw(w as u32, h as u32, left).unwrap();
+        let b = GrayImage::from_raw(w as u32, h as u32, right).unwrap();
+        let (ka, kb) = (detect(&a, &p, |_, _| true), detect(&b, &p, |_, _| true));
+        assert!(ka.len() >= 10, "{}", ka.len());
+        assert!(ka
+            .iter()
+            .all(|k| k.x >= BORDER_PX && k.y >= BORDER_PX && k.x < w as u32 - BORDER_PX));
+        let (da, db) = (describe(&a, &ka, &pairs), describe(&b, &kb, &pairs));
+        let m = match_descriptors(&db, &da, &p);
+        assert!(m.len() >= 5, "{}", m.len());
+        let good = m
+            .iter()
+            .filter(|&&(i, j, _)| {
+                let (pb, pa) = (db[i].position(), da[j].position());
+                pa.y.abs_diff(pb.y) <= 1 && pa.x.abs_diff(pb.x + 17) <= 1
+            })
+            .count();
+        assert!(good * 10 >= m.len() * 7, "{good} of {}", m.len());
+        // Sorted by distance.
+        assert!(m.windows(2).all(|w| w[0].2 <= w[1].2));
+    }
+}

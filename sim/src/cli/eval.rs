@@ -1185,6 +1185,67 @@ mod tests {
         assert!(run.groups[0].group.contains("b=0.20m"));
     }
 
+    /// Verifies: VTSM-CLI-022, VTSM-CLI-023
+    #[test]
+    fn feature_baseline_runs_on_the_same_trials_and_is_reported_side_by_side() {
+        let cfg = SuiteConfig {
+            baseline: Some(Method::Features),
+            ..small(Suite::Paper)
+        };
+        let run = run_suite(&cfg, "test").unwrap();
+        check_run(
+            &run,
+            2,
+            1,
+            (100.0, 200.0),
+            &["final_vs_view_distance.svg", "final_vs_view_angle.svg"],
+        );
+        let (v, f) = (&run.outcomes[0], &run.outcomes[1]);
+        assert_eq!((v.method.as_str(), f.method.as_str()), ("vtsm", "features"));
+        assert_eq!(f.group, format!("{} · features", v.group));
+        // Paired: same capture, seed and prior.
+        assert_eq!(
+            (v.seed, v.init_t_mm, v.extra["stop"]),
+            (f.seed, f.init_t_mm, f.extra["stop"])
+        );
+        // A finite result or a clean, named failure.
+        assert!(
+            f.final_t_mm.is_finite() && f.final_r_deg.is_finite(),
+            "{f:?}"
+        );
+        assert!(f.success || f.failure.as_deref().is_some_and(|c| !c.is_empty()));
+        assert!(f.extra["live_keypoints"] > 0.0, "{f:?}");
+        assert!(run.notes.contains("VTSM and the features baseline"));
+        assert!(run.notes.contains(&format!("| {} |", v.group)));
+        // Deterministic.
+        let again = run_suite(&cfg, "test").unwrap();
+        assert_eq!(again.outcomes[1].final_t_mm, f.final_t_mm);
+        assert_eq!(again.outcomes[1].failure, f.failure);
+        // Only with the suites it is defined for, and only known names.
+        let mut args = Args {
+            suite: "uncertainty50".into(),
+            trials: 1,
+            seed: 1,
+            profile: "test".into(),
+            out: None,
+            force: false,
+            terrains: None,
+            hours: None,
+            steps: None,
+            seeds_k: 4,
+            baseline: Some("features".into()),
+            quiet: true,
+        };
+        assert!(config_from_args(&args).is_err());
+        args.suite = "baseline".into();
+        assert_eq!(
+            config_from_args(&args).unwrap().baseline,
+            Some(Method::Features)
+        );
+        args.baseline = Some("sift".into());
+        assert!(config_from_args(&args).is_err());
+    }
+
     /// Verifies: VTSM-CLI-019, VTSM-CLI-021
     #[test]
     fn uncertainty_suite_pairs_k0_and_k_seeds_with_wide_priors() {
