@@ -152,7 +152,7 @@ pub fn test_pairs() -> Vec<TestPair> {
     let mut pairs = Vec::with_capacity(DESCRIPTOR_BITS);
     let draw = |rng: &mut Rng| {
         let v = 16.0 + 6.6 * rng.normal();
-        (v >= 0.0 && v < 31.0).then_some(v as u32)
+        (0.0..31.0).contains(&v).then_some(v as u32)
     };
     // Bounded: each draw lands in the patch with probability > 0.95.
     for _ in 0..DESCRIPTOR_BITS * 64 {
@@ -282,16 +282,14 @@ fn zncc(left: &[u8], right: &[u8], w: usize, xl: usize, xr: usize, y: usize) -> 
     ((sab - sa * sb / n) / (va * vb).sqrt()) as f32
 }
 
-/// Disparity of left pixel `(x, y)` along the same row of `right`: the ZNCC
+/// Disparity of left pixel `(x, y)` of `w×h` images along the same row of `right`: the ZNCC
 /// peak over `1..=max_d`, refined by a parabola; `None` when the peak is below
 /// `min_zncc`, at the search edge, or the patch leaves the image.
 pub fn disparity(
     left: &[u8],
     right: &[u8],
-    w: usize,
-    h: usize,
-    x: usize,
-    y: usize,
+    (w, h): (usize, usize),
+    (x, y): (usize, usize),
     max_d: usize,
     min_zncc: f32,
 ) -> Option<f32> {
@@ -366,10 +364,8 @@ fn step(
         let Some(d) = disparity(
             req.left,
             req.right,
-            w,
-            h,
-            pa.x as usize,
-            pa.y as usize,
+            (w, h),
+            (pa.x as usize, pa.y as usize),
             max_d,
             p.min_zncc,
         ) else {
@@ -526,13 +522,13 @@ mod tests {
                 left[y * w + (x + 17).min(w - 1)]
             })
             .collect();
-        let d = disparity(&left, &right, w, h, 120, 60, 60, 0.8).unwrap();
+        let d = disparity(&left, &right, (w, h), (120, 60), 60, 0.8).unwrap();
         assert!((d - 17.0).abs() < 0.25, "{d}");
         // Too far left for any disparity: clean refusal.
-        assert!(disparity(&left, &right, w, h, 3, 60, 60, 0.8).is_none());
+        assert!(disparity(&left, &right, (w, h), (3, 60), 60, 0.8).is_none());
         // Flat image: no match.
         let flat = vec![7u8; w * h];
-        assert!(disparity(&flat, &flat, w, h, 120, 60, 60, 0.8).is_none());
+        assert!(disparity(&flat, &flat, (w, h), (120, 60), 60, 0.8).is_none());
 
         let p = FeatureParams {
             cell_px: 10,
