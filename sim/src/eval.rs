@@ -19,6 +19,8 @@ use std::path::Path;
 pub struct TrialOutcome {
     /// Group label (a row of the table), e.g. `"flagstone Δ6h"`.
     pub group: String,
+    /// Relocalization method: `"vtsm"` or a baseline's name (`"features"`).
+    pub method: String,
     /// Trial index within the suite.
     pub trial: usize,
     /// Seed of the trial (scene, perturbation and relocalization).
@@ -218,7 +220,7 @@ pub fn csv(outcomes: &[TrialOutcome]) -> String {
     keys.sort();
     keys.dedup();
     let mut s = String::from(
-        "group,trial,seed,success,failure,init_t_mm,init_r_deg,final_t_mm,final_r_deg,inliers,iterations,time_s",
+        "group,method,trial,seed,success,failure,init_t_mm,init_r_deg,final_t_mm,final_r_deg,inliers,iterations,time_s",
     );
     for k in &keys {
         s.push(',');
@@ -228,8 +230,9 @@ pub fn csv(outcomes: &[TrialOutcome]) -> String {
     for o in outcomes {
         let _ = write!(
             s,
-            "{},{},{},{},{},{:.3},{:.4},{:.3},{:.4},{},{},{:.4}",
+            "{},{},{},{},{},{},{:.3},{:.4},{:.3},{:.4},{},{},{:.4}",
             csv_field(&o.group),
+            csv_field(&o.method),
             o.trial,
             o.seed,
             o.success,
@@ -464,6 +467,7 @@ mod tests {
     fn outcome(group: &str, trial: usize, success: bool, final_t_mm: f64) -> TrialOutcome {
         TrialOutcome {
             group: group.into(),
+            method: "vtsm".into(),
             trial,
             seed: trial as u64,
             success,

@@ -4,13 +4,15 @@
 //! renderer of its own ([`render`]), photogrammetry-like map products
 //! ([`mapping`]), capture grids and scenes ([`scene`]), HAL implementations with
 //! seeded fault injection ([`devices`]), file formats ([`io`]), evaluation suites
-//! ([`eval`]) and the `vtsm` command line ([`cli`]).
+//! ([`eval`]), the local-feature baseline ([`features`]) and the `vtsm`
+//! command line ([`cli`]).
 #![forbid(unsafe_code)]
 
 pub mod cli;
 pub mod devices;
 pub mod error;
 pub mod eval;
+pub mod features;
 pub mod io;
 pub mod locate;
 pub mod mapping;

@@ -91,9 +91,41 @@ pub struct Args {
     /// Pose seeds K of the multi-seed mode in `uncertainty50`.
     #[arg(long, default_value_t = 16)]
     pub seeds_k: u16,
+    /// Also run a baseline relocalizer on the same trials and report it next to
+    /// VTSM: `features` (FAST + BRIEF + stereo + RANSAC; `paper` and `baseline`
+    /// suites).
+    #[arg(long)]
+    pub baseline: Option<String>,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// A relocalizer evaluated on the suite's trials.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// The paper's method (the core's engine).
+    Vtsm,
+    /// The local-feature baseline ([`crate::features`]).
+    Features,
+}
+
+impl Method {
+    /// Parse a `--baseline` name (only baselines, not `vtsm`).
+    pub fn parse_baseline(s: &str) -> Option<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "features" => Some(Self::Features),
+            _ => None,
+        }
+    }
+
+    /// Name used in the `method` column and in group labels.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Vtsm => "vtsm",
+            Self::Features => "features",
+        }
+    }
 }
 
 /// The four suites.
@@ -151,6 +183,8 @@ pub struct SuiteConfig {
     pub steps: Vec<usize>,
     /// Pose seeds K of the multi-seed mode (`uncertainty50` only).
     pub seeds_k: u16,
+    /// Baseline run on the same trials next to VTSM (`paper` and `baseline` only).
+    pub baseline: Option<Method>,
     /// Show a progress bar.
     pub progress: bool,
 }
@@ -172,6 +206,7 @@ impl SuiteConfig {
             },
             steps: vec![1, 3, 6, 12],
             seeds_k: 16,
+            baseline: None,
             progress: false,
         }
     }
@@ -204,6 +239,7 @@ struct Group {
     baseline_m: f32,
     prior_m: (f32, f32),
     seeds: u16,
+    method: Method,
     extra: Vec<(&'static str, f64)>,
 }
 
@@ -389,6 +425,16 @@ pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
         )));
     }
     cfg.seeds_k = args.seeds_k;
+    if let Some(b) = &args.baseline {
+        let m = Method::parse_baseline(b)
+            .ok_or_else(|| Error::msg(format!("unknown --baseline `{b}` (features)")))?;
+        if !matches!(suite, Suite::Paper | Suite::Baseline) {
+            return Err(Error::msg(
+                "--baseline runs with the paper and baseline suites only",
+            ));
+        }
+        cfg.baseline = Some(m);
+    }
     cfg.progress = !args.quiet;
     Ok(cfg)
 }
@@ -457,6 +503,7 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
                             baseline_m,
                             prior_m,
                             seeds,
+                            method: Method::Vtsm,
                             extra: vec![("hours", f64::from(h)), ("seeds_k", f64::from(seeds))],
                         });
                     };
@@ -521,6 +568,7 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
                     baseline_m: MAIN_BASELINE_M,
                     prior_m: PRIOR_M,
                     seeds: 0,
+                    method: Method::Vtsm,
                     extra: vec![
                         ("hours", f64::from(live_hours[0])),
                         ("step", step as f64),
@@ -529,6 +577,20 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
                 });
             }
         }
+    }
+    if let Some(m) = cfg.baseline {
+        groups = groups
+            .into_iter()
+            .flat_map(|g| {
+                let b = Group {
+                    label: format!("{} · {}", g.label, m.name()),
+                    method: m,
+                    extra: g.extra.clone(),
+                    ..g
+                };
+                [g, b]
+            })
+            .collect();
     }
     let setup_s = t_setup.elapsed().as_secs_f64();
 
@@ -561,6 +623,10 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
             "prior_max_deg": PRIOR_MAX_DEG,
             "map_view_range_m": MAP_VIEW_RANGE_M,
             "tile_m": TILE_M,
+            "baseline": cfg.baseline.map(Method::name),
+            "features": cfg.baseline.map(|_| {
+                format!("{:?}", crate::features::FeatureParams::for_width(scenes[0].camera().width))
+            }),
             "mapping_views": if cfg.suite == Suite::Stepsize {
                 "sub-sampled mapping path of the group"
             } else {
@@ -569,7 +635,10 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
         }),
         command: command.to_string(),
     };
-    let (notes, plots) = breakdowns(cfg, &outcomes);
+    let (mut notes, plots) = breakdowns(cfg, &outcomes);
+    if let Some(m) = cfg.baseline {
+        notes = side_by_side(&summary, m) + &notes;
+    }
     Ok(SuiteRun {
         meta,
         outcomes,
@@ -611,6 +680,7 @@ fn run_trial(
     }
     let mut o = TrialOutcome {
         group: g.label.clone(),
+        method: g.method.name().to_string(),
         trial: s.k,
         seed,
         success: false,
@@ -642,6 +712,31 @@ fn run_trial(
         params,
         seed,
     };
+    if g.method == Method::Features {
+        let fp = crate::features::FeatureParams::for_width(rig.cam.width);
+        match crate::features::relocalize_features(&req, &fp) {
+            Ok(r) => {
+                let (t1, r1) = r.pose.error_to(&truth);
+                o.success = r.failure.is_none();
+                o.failure = r.failure;
+                o.final_t_mm = f64::from(t1) * 1e3;
+                o.final_r_deg = f64::from(r1).to_degrees();
+                o.inliers = r.inliers;
+                o.iterations = r.iterations;
+                o.time_s = r.elapsed.as_secs_f64();
+                for (k, v) in [
+                    ("map_keypoints", r.map_keypoints),
+                    ("live_keypoints", r.live_keypoints),
+                    ("matches", r.matches),
+                    ("stereo_points", r.stereo_points),
+                ] {
+                    o.extra.insert(k.into(), v as f64);
+                }
+            }
+            Err(e) => o.failure = Some(format!("error: {e}")),
+        }
+        return o;
+    }
     match locate::relocalize(&req) {
         Ok(r) => {
             let out = &r.outcome;
@@ -694,7 +789,9 @@ fn breakdowns(cfg: &SuiteConfig, outcomes: &[TrialOutcome]) -> (String, Vec<(Str
                         color,
                         points: outcomes
                             .iter()
-                            .filter(|o| o.success && extra(o, "hours") == f64::from(h))
+                            .filter(|o| {
+                                o.success && o.method == "vtsm" && extra(o, "hours") == f64::from(h)
+                            })
                             .map(|o| (extra(o, key), o.final_t_mm))
                             .collect(),
                     })
@@ -706,6 +803,17 @@ fn breakdowns(cfg: &SuiteConfig, outcomes: &[TrialOutcome]) -> (String, Vec<(Str
                     .collect();
                 for (s, n) in series.iter_mut().zip(&names) {
                     s.name = n;
+                }
+                if let Some(m) = cfg.baseline {
+                    series.push(Series {
+                        name: m.name(),
+                        color: "#7f7f7f",
+                        points: outcomes
+                            .iter()
+                            .filter(|o| o.success && o.method == m.name())
+                            .map(|o| (extra(o, key), o.final_t_mm))
+                            .collect(),
+                    });
                 }
                 let fail_pts: Vec<(f64, f64)> = outcomes
                     .iter()
@@ -804,6 +912,39 @@ fn breakdowns(cfg: &SuiteConfig, outcomes: &[TrialOutcome]) -> (String, Vec<(Str
         }
     }
     (notes, plots)
+}
+
+/// VTSM and a baseline next to each other, one row per VTSM group (the
+/// baseline's group is the next one, labelled `"<group> · <method>"`).
+pub fn side_by_side(groups: &[GroupSummary], m: Method) -> String {
+    let mut s = format!(
+        "\nVTSM and the {0} baseline on the same trials:\n\n| group | VTSM success | VTSM final error (mm, median) | {0} success | {0} final error (mm, median) | {0} final error (mm, mean) |\n|---|---:|---:|---:|---:|---:|\n",
+        m.name()
+    );
+    let num = |v: f64| {
+        if v.is_finite() {
+            format!("{v:.1}")
+        } else {
+            "—".to_string()
+        }
+    };
+    for g in groups {
+        let label = format!("{} · {}", g.group, m.name());
+        let Some(b) = groups.iter().find(|b| b.group == label) else {
+            continue;
+        };
+        let _ = writeln!(
+            s,
+            "| {} | {:.0} % | {} | {:.0} % | {} | {} |",
+            g.group,
+            g.success_pct,
+            num(g.final_t_mm_median),
+            b.success_pct,
+            num(b.final_t_mm_median),
+            num(b.final_t_mm_mean)
+        );
+    }
+    s
 }
 
 /// Range bins (m) of the stepsize breakdown.
@@ -1042,6 +1183,67 @@ mod tests {
             &["final_vs_view_distance.svg", "final_vs_view_angle.svg"],
         );
         assert!(run.groups[0].group.contains("b=0.20m"));
+    }
+
+    /// Verifies: VTSM-CLI-022, VTSM-CLI-023
+    #[test]
+    fn feature_baseline_runs_on_the_same_trials_and_is_reported_side_by_side() {
+        let cfg = SuiteConfig {
+            baseline: Some(Method::Features),
+            ..small(Suite::Paper)
+        };
+        let run = run_suite(&cfg, "test").unwrap();
+        check_run(
+            &run,
+            2,
+            1,
+            (100.0, 200.0),
+            &["final_vs_view_distance.svg", "final_vs_view_angle.svg"],
+        );
+        let (v, f) = (&run.outcomes[0], &run.outcomes[1]);
+        assert_eq!((v.method.as_str(), f.method.as_str()), ("vtsm", "features"));
+        assert_eq!(f.group, format!("{} · features", v.group));
+        // Paired: same capture, seed and prior.
+        assert_eq!(
+            (v.seed, v.init_t_mm, v.extra["stop"]),
+            (f.seed, f.init_t_mm, f.extra["stop"])
+        );
+        // A finite result or a clean, named failure.
+        assert!(
+            f.final_t_mm.is_finite() && f.final_r_deg.is_finite(),
+            "{f:?}"
+        );
+        assert!(f.success || f.failure.as_deref().is_some_and(|c| !c.is_empty()));
+        assert!(f.extra["live_keypoints"] > 0.0, "{f:?}");
+        assert!(run.notes.contains("VTSM and the features baseline"));
+        assert!(run.notes.contains(&format!("| {} |", v.group)));
+        // Deterministic.
+        let again = run_suite(&cfg, "test").unwrap();
+        assert_eq!(again.outcomes[1].final_t_mm, f.final_t_mm);
+        assert_eq!(again.outcomes[1].failure, f.failure);
+        // Only with the suites it is defined for, and only known names.
+        let mut args = Args {
+            suite: "uncertainty50".into(),
+            trials: 1,
+            seed: 1,
+            profile: "test".into(),
+            out: None,
+            force: false,
+            terrains: None,
+            hours: None,
+            steps: None,
+            seeds_k: 4,
+            baseline: Some("features".into()),
+            quiet: true,
+        };
+        assert!(config_from_args(&args).is_err());
+        args.suite = "baseline".into();
+        assert_eq!(
+            config_from_args(&args).unwrap().baseline,
+            Some(Method::Features)
+        );
+        args.baseline = Some("sift".into());
+        assert!(config_from_args(&args).is_err());
     }
 
     /// Verifies: VTSM-CLI-019, VTSM-CLI-021
