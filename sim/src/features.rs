@@ -205,7 +205,18 @@ pub fn detect(
     best.into_iter().flatten().map(|(_, p)| p).collect()
 }
 
-/// BRIEF descriptors of `kps` in `img` with `pairs` (empty on error).
+/// Largest image area (pixels) described in one piece: imageproc's BRIEF sums
+/// two corners of a `u32` integral image, which stays below 2³² only while
+/// 2 · area · 255 does (a 5472 × 3648 image does not).
+const BRIEF_MAX_AREA_PX: u64 = (u32::MAX as u64) / (2 * 255);
+
+/// Tile side for images larger than [`BRIEF_MAX_AREA_PX`]; each tile is
+/// described with a [`BORDER_PX`] apron so every keypoint sees its whole patch.
+const BRIEF_TILE_PX: u32 = 1024;
+
+/// BRIEF descriptors of `kps` in `img` with `pairs`, in keypoint order (empty on
+/// error). Large images are described tile by tile with the same result as one
+/// piece: a descriptor depends only on the keypoint's 31 × 31 patch.
 pub fn describe(
     img: &GrayImage,
     kps: &[Point<u32>],
@@ -214,9 +225,52 @@ pub fn describe(
     if kps.is_empty() {
         return Vec::new();
     }
-    brief(img, kps, DESCRIPTOR_BITS, Some(pairs))
-        .map(|(d, _)| d)
-        .unwrap_or_default()
+    let (w, h) = img.dimensions();
+    if u64::from(w) * u64::from(h) <= BRIEF_MAX_AREA_PX {
+        return brief(img, kps, DESCRIPTOR_BITS, Some(pairs))
+            .map(|(d, _)| d)
+            .unwrap_or_default();
+    }
+    describe_tiled(img, kps, pairs, BRIEF_TILE_PX)
+}
+
+/// [`describe`] in tiles of side `t`.
+fn describe_tiled(
+    img: &GrayImage,
+    kps: &[Point<u32>],
+    pairs: &Vec<TestPair>,
+    t: u32,
+) -> Vec<BriefDescriptor> {
+    let (w, h) = img.dimensions();
+    let mut out: Vec<Option<BriefDescriptor>> = vec![None; kps.len()];
+    for ty in 0..h.div_ceil(t) {
+        for tx in 0..w.div_ceil(t) {
+            let idx: Vec<usize> = (0..kps.len())
+                .filter(|&i| kps[i].x / t == tx && kps[i].y / t == ty)
+                .collect();
+            if idx.is_empty() {
+                continue;
+            }
+            let x0 = (tx * t).saturating_sub(BORDER_PX);
+            let y0 = (ty * t).saturating_sub(BORDER_PX);
+            let x1 = (tx * t + t + BORDER_PX).min(w);
+            let y1 = (ty * t + t + BORDER_PX).min(h);
+            let sub = image::imageops::crop_imm(img, x0, y0, x1 - x0, y1 - y0).to_image();
+            let local: Vec<Point<u32>> = idx
+                .iter()
+                .map(|&i| Point::new(kps[i].x - x0, kps[i].y - y0))
+                .collect();
+            let Ok((descs, _)) = brief(&sub, &local, DESCRIPTOR_BITS, Some(pairs)) else {
+                return Vec::new();
+            };
+            for (&i, mut d) in idx.iter().zip(descs) {
+                d.corner.x += x0;
+                d.corner.y += y0;
+                out[i] = Some(d);
+            }
+        }
+    }
+    out.into_iter().flatten().collect()
 }
 
 /// For each descriptor of `live`, the index of its match in `map`: nearest by
@@ -497,6 +551,30 @@ mod tests {
             }
         }
         img
+    }
+
+    /// Tiled description equals one-piece description, and a paper-profile image
+    /// (whose one-piece integral image would overflow `u32`) is described without
+    /// a panic.
+    /// Verifies: VTSM-CLI-023
+    #[test]
+    fn large_images_are_described_in_tiles_with_the_one_piece_result() {
+        let (w, h) = (300u32, 200u32);
+        let img = GrayImage::from_raw(w, h, texture(w as usize, h as usize, 5)).unwrap();
+        let pairs = test_pairs();
+        let mut fp = FeatureParams::for_width(w);
+        fp.cell_px = 16;
+        let kps = detect(&img, &fp, |_, _| true);
+        assert!(kps.len() > 10, "{} keypoints", kps.len());
+        let one = describe(&img, &kps, &pairs);
+        let tiled = describe_tiled(&img, &kps, &pairs, 64);
+        assert_eq!(one.len(), kps.len());
+        assert!(one == tiled);
+        let big = GrayImage::from_pixel(5472, 3648, image::Luma([255u8]));
+        let corner = [Point::new(5472 - BORDER_PX - 1, 3648 - BORDER_PX - 1)];
+        let d = describe(&big, &corner, &pairs);
+        assert_eq!(d.len(), 1);
+        assert_eq!((d[0].corner.x, d[0].corner.y), (corner[0].x, corner[0].y));
     }
 
     /// Verifies: VTSM-CLI-023
