@@ -36,7 +36,6 @@ use vtsm_core::map::MapView;
 use vtsm_core::ncc::{self, Filter, Run, Scratch, ScratchSizes, Search, SearchConfig};
 use vtsm_core::raster;
 use vtsm_core::rng::Rng;
-use vtsm_sim::io::mesh;
 use vtsm_sim::locate::{self, Template};
 use vtsm_sim::scene::{Capture, Profile, Scene};
 use vtsm_sim::terrain::TerrainKind;
@@ -334,7 +333,7 @@ fn main() {
     for kind in terrains {
         let t0 = Instant::now();
         let scene = Scene::new(kind, seed, profile);
-        let map_mesh: mesh::MeshData = scene.map(&scene.lighting(MAP_HOURS)).into();
+        let map_mesh = scene.map(&scene.lighting(MAP_HOURS));
         let map_bytes = map_mesh.encode_map(0.5).expect("encode map");
         let map = MapView::new_checked(&map_bytes).expect("map view");
         eprintln!(

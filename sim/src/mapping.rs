@@ -17,26 +17,13 @@
 //! [`render_mesh`] is a small float z-buffer rasterizer of such a mesh (perspective-correct
 //! UVs, bilinear texture) used to check the product against the photometric renderer.
 
+use crate::io::image::Gray8;
+pub use crate::io::mesh::MeshData;
 use crate::render::{radiance, tone, Lighting};
 use crate::terrain::{fbm, Terrain, DEPOT_HALF_X_M, DEPOT_HALF_Y_M};
 use rayon::prelude::*;
 use vtsm_core::geom::{Camera, Pose, Vec3};
 use vtsm_core::rng::Rng;
-
-/// A textured triangle mesh with a per-triangle sampling mask.
-#[derive(Clone, Debug, PartialEq, Default)]
-pub struct MeshData {
-    /// Vertex positions, world metres.
-    pub vertices: Vec<[f32; 3]>,
-    /// Triangles as vertex indices, counter-clockwise seen from above.
-    pub triangles: Vec<[u32; 3]>,
-    /// Per-corner texture coordinates, normalized, OBJ convention (v = 0 bottom row).
-    pub uvs: Vec<[[f32; 2]; 3]>,
-    /// Sampling mask M̂, one flag per triangle.
-    pub mask: Vec<bool>,
-    /// Gray texture: (width, height, row-major bytes, row 0 = top = largest y).
-    pub texture: (u32, u32, Vec<u8>),
-}
 
 /// How the map is made.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -144,23 +131,11 @@ pub fn build_map(terrain: &Terrain, light: &Lighting, opts: &MappingOptions) -> 
         triangles,
         uvs,
         mask,
-        texture: (tw as u32, th as u32, tex),
-    }
-}
-
-impl MeshData {
-    /// Bilinear texture lookup at normalized `(u, v)` (OBJ convention), 0..255.
-    pub fn sample_texture(&self, u: f32, v: f32) -> f32 {
-        let (w, h, ref t) = self.texture;
-        let fx = (u * w as f32 - 0.5).clamp(0.0, w as f32 - 1.0);
-        let fy = ((1.0 - v) * h as f32 - 0.5).clamp(0.0, h as f32 - 1.0);
-        let (i, j) = (fx.floor() as usize, fy.floor() as usize);
-        let (i1, j1) = ((i + 1).min(w as usize - 1), (j + 1).min(h as usize - 1));
-        let (ax, ay) = (fx - i as f32, fy - j as f32);
-        let g = |a: usize, b: usize| f32::from(t[b * w as usize + a]);
-        let top = g(i, j) + (g(i1, j) - g(i, j)) * ax;
-        let bot = g(i, j1) + (g(i1, j1) - g(i, j1)) * ax;
-        top + (bot - top) * ay
+        texture: Gray8 {
+            width: tw as u32,
+            height: th as u32,
+            pixels: tex,
+        },
     }
 }
 

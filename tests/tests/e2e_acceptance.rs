@@ -9,7 +9,6 @@
 use std::sync::OnceLock;
 use vtsm_core::geom::{Pose, StereoRig, Vec3};
 use vtsm_core::reloc::Outcome;
-use vtsm_sim::io::mesh;
 use vtsm_sim::locate::{self, Request};
 use vtsm_sim::scene::{perturbed_prior, Capture, Profile, Scene, StereoPair};
 use vtsm_sim::terrain::TerrainKind;
@@ -31,7 +30,7 @@ fn depot() -> &'static Depot {
     D.get_or_init(|| {
         let scene = Scene::new(TERRAIN, SCENE_SEED, Profile::Test);
         let light = scene.lighting(HOURS);
-        let m: mesh::MeshData = scene.map(&light).into();
+        let m = scene.map(&light);
         let map = m.encode_map(0.5).unwrap();
         Depot { scene, light, map }
     })

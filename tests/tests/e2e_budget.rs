@@ -8,7 +8,6 @@ use vtsm_core::ncc::Run;
 use vtsm_core::reloc::workspace::{PAPER_WORKSPACE_BYTES, TEST_WORKSPACE_BYTES};
 use vtsm_core::reloc::{Outcome, Pipeline, RansacSolver, Relocalizer};
 use vtsm_sim::cli::budget::{measured_rows, rows, Row, MEASURED_SCENE};
-use vtsm_sim::io::mesh;
 use vtsm_sim::locate::{self, Request};
 use vtsm_sim::scene::{perturbed_prior, Capture, Profile, Scene};
 
@@ -63,7 +62,7 @@ fn budget_measured_rows_are_a_real_run() {
     let (kind, hours, stop) = MEASURED_SCENE;
     let scene = Scene::new(kind, seed, Profile::Test);
     let light = scene.lighting(hours);
-    let map: mesh::MeshData = scene.map(&light).into();
+    let map = scene.map(&light);
     let bytes = map.encode_map(0.5).unwrap();
     let (rig, truth, pair) = scene.capture(&light, &Capture::from_index(stop, 0, 0.40));
     let prior = perturbed_prior(&truth, seed);

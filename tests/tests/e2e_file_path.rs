@@ -36,7 +36,7 @@ fn exported() -> &'static Exported {
     E.get_or_init(|| {
         let scene = Scene::new(TerrainKind::Flagstone, SEED, Profile::Test);
         let light = scene.lighting(MAP_HOURS);
-        let map_raw = scene.map(&light);
+        let map = scene.map(&light);
         let (rig, truth, pair) = scene.capture(&light, &Capture::from_index(STOP, 0, 0.40));
         let prior = perturbed_prior(&truth, SEED);
         let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!(
@@ -46,7 +46,7 @@ fn exported() -> &'static Exported {
         ));
         let _ = std::fs::remove_dir_all(&dir);
         let files = SceneFiles {
-            map: &map_raw,
+            map: &map,
             rig: &rig,
             left: &pair.left,
             right: &pair.right,
@@ -55,7 +55,6 @@ fn exported() -> &'static Exported {
             meta: serde_json::json!({"test": "e2e_file_path"}),
         };
         write_scene(&dir, &files, false).unwrap();
-        let map: mesh::MeshData = map_raw.into();
         let map_bytes = map.encode_map(DEFAULT_TILE_SIZE_M).unwrap();
         Exported {
             dir,
@@ -182,12 +181,16 @@ fn exporter_floats_round_trip() {
     ];
     values.extend((0..2000).map(|_| f32::from_bits(rng.next_u32() & 0x7f7f_ffff) * 1.0e-30));
     values.extend((0..2000).map(|_| rng.uniform(-50.0, 50.0)));
-    let mesh = vtsm_sim::mapping::MeshData {
+    let mesh = mesh::MeshData {
         vertices: values.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
         triangles: Vec::new(),
         uvs: Vec::new(),
         mask: Vec::new(),
-        texture: (1, 1, vec![0]),
+        texture: vtsm_sim::io::image::Gray8 {
+            width: 1,
+            height: 1,
+            pixels: vec![0],
+        },
     };
     let text = obj_text(&mesh, None, false);
     let read: Vec<[f32; 3]> = text

@@ -9,7 +9,6 @@
 //! relocalization of a simulated test-profile scene through the same
 //! [`crate::locate::relocalize`] as every other command.
 
-use crate::io::mesh;
 use crate::locate::{self, Request};
 use crate::scene::{perturbed_prior, Capture, Profile, Scene};
 use crate::terrain::TerrainKind;
@@ -158,7 +157,7 @@ pub fn measured_rows(seed: u64) -> crate::Result<Vec<Row>> {
     let (kind, hours, stop) = MEASURED_SCENE;
     let scene = Scene::new(kind, seed, Profile::Test);
     let light = scene.lighting(hours);
-    let map: mesh::MeshData = scene.map(&light).into();
+    let map = scene.map(&light);
     let bytes = map.encode_map(super::map_build::DEFAULT_TILE_SIZE_M)?;
     let (rig, truth, pair) = scene.capture(&light, &Capture::from_index(stop, 0, 0.40));
     let prior = perturbed_prior(&truth, seed);

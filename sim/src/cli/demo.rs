@@ -6,7 +6,7 @@
 
 use crate::cli::relocalize::{outcome_from_core, outcome_result};
 use crate::error::{Error, Result, EXIT_RELOC_FAILED};
-use crate::io::{json, mesh};
+use crate::io::json;
 use crate::locate::{self, Request};
 use crate::panel::Canvas;
 use crate::scene::{perturbed_prior, Capture, Profile, Scene, STOPS_PER_CIRCLE};
@@ -94,7 +94,7 @@ pub fn run(args: &Args) -> Result<u8> {
     );
     let t0 = Instant::now();
     let scene = Scene::new(kind, args.seed, profile);
-    let map_mesh: mesh::MeshData = scene.map(&scene.lighting(MAP_HOURS)).into();
+    let map_mesh = scene.map(&scene.lighting(MAP_HOURS));
     let map_bytes = map_mesh.encode_map(0.5)?;
     let capture = Capture::from_index(args.stop, 0, 0.40);
     let (rig, truth, pair) = scene.capture(&scene.lighting(MAP_HOURS + args.hours), &capture);

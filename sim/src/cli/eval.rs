@@ -460,7 +460,7 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
         .collect();
     let full_meshes: Vec<MeshData> = scenes
         .par_iter()
-        .map(|s| s.map(&s.lighting(MAP_HOURS)).into())
+        .map(|s| s.map(&s.lighting(MAP_HOURS)))
         .collect();
     let live_hours: Vec<f32> = if cfg.suite == Suite::Stepsize {
         vec![cfg.hours.first().copied().unwrap_or(0.0)]

@@ -133,6 +133,28 @@ impl MeshData {
         Ok(mesh)
     }
 
+    /// Bilinear texture lookup at normalized `(u, v)` (OBJ convention), 0..255
+    /// (0 outside a texture that does not hold `width · height` bytes).
+    pub fn sample_texture(&self, u: f32, v: f32) -> f32 {
+        let (w, h, t) = (
+            self.texture.width,
+            self.texture.height,
+            &self.texture.pixels,
+        );
+        let fx = (u * w as f32 - 0.5).clamp(0.0, (w.max(1) - 1) as f32);
+        let fy = ((1.0 - v) * h as f32 - 0.5).clamp(0.0, (h.max(1) - 1) as f32);
+        let (i, j) = (fx.floor() as usize, fy.floor() as usize);
+        let (i1, j1) = (
+            (i + 1).min(w.max(1) as usize - 1),
+            (j + 1).min(h.max(1) as usize - 1),
+        );
+        let (ax, ay) = (fx - i as f32, fy - j as f32);
+        let g = |a: usize, b: usize| f32::from(t.get(b * w as usize + a).copied().unwrap_or(0));
+        let top = g(i, j) + (g(i1, j) - g(i, j)) * ax;
+        let bot = g(i, j1) + (g(i1, j1) - g(i, j1)) * ax;
+        top + (bot - top) * ay
+    }
+
     /// Check the invariants listed on [`MeshData`].
     ///
     /// # Errors
@@ -450,36 +472,5 @@ fn load_raw(path: &Path, appearance: bool) -> Result<RawMesh> {
             path,
             "unknown mesh format (expected a .obj or .ply file)",
         ))
-    }
-}
-
-/// From the simulator's mapping output (same fields, texture as a tuple).
-impl From<crate::mapping::MeshData> for MeshData {
-    fn from(m: crate::mapping::MeshData) -> Self {
-        let (width, height, pixels) = m.texture;
-        Self {
-            vertices: m.vertices,
-            triangles: m.triangles,
-            uvs: m.uvs,
-            mask: m.mask,
-            texture: Gray8 {
-                width,
-                height,
-                pixels,
-            },
-        }
-    }
-}
-
-/// To the simulator's mapping form.
-impl From<MeshData> for crate::mapping::MeshData {
-    fn from(m: MeshData) -> Self {
-        Self {
-            vertices: m.vertices,
-            triangles: m.triangles,
-            uvs: m.uvs,
-            mask: m.mask,
-            texture: (m.texture.width, m.texture.height, m.texture.pixels),
-        }
     }
 }

@@ -9,7 +9,7 @@
 //! the mask OBJ repeats the same vertex list and holds only the masked faces.
 
 use crate::error::{Error, Result};
-use crate::mapping::MeshData;
+use crate::io::mesh::MeshData;
 use std::fmt::Write as _;
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -151,8 +151,13 @@ pub fn write_scene(dir: &Path, files: &SceneFiles<'_>, force: bool) -> Result<()
         &dir.join("map.mtl"),
         "newmtl depot\nKa 1 1 1\nKd 1 1 1\nKs 0 0 0\nillum 1\nmap_Kd map_texture.png\n",
     )?;
-    let (tw, th, ref tex) = files.map.texture;
-    write_png_gray(&dir.join("map_texture.png"), tw, th, tex)?;
+    let tex = &files.map.texture;
+    write_png_gray(
+        &dir.join("map_texture.png"),
+        tex.width,
+        tex.height,
+        &tex.pixels,
+    )?;
     write_text(&dir.join("mask.obj"), &obj_text(files.map, None, true))?;
     write_text(&dir.join("calib.json"), &calib_json(files.rig))?;
     write_png_gray(&dir.join("left.png"), w, h, files.left)?;
