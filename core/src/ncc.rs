@@ -41,9 +41,9 @@ pub const MAX_LEVELS: usize = 4;
 /// this (the smallest [`SearchConfig::min_coarse_px`] allowed; scratch is sized for it).
 pub const MIN_COARSE_PX: usize = 16;
 /// Largest number of coarse candidates any [`SearchConfig`] may keep.
-pub const MAX_CANDIDATES: usize = 32;
+pub const MAX_CANDIDATES: usize = 64;
 /// Largest refinement radius any [`SearchConfig`] may use (scratch is sized for it).
-pub const MAX_REFINE_RADIUS_PX: usize = 2;
+pub const MAX_REFINE_RADIUS_PX: usize = 3;
 /// A window whose shorter side exceeds this many template sides is "wide"
 /// ([`SearchConfig::wide_min_coarse_px`]).
 pub const WIDE_WINDOW_RATIO: usize = 4;
