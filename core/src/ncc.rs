@@ -98,6 +98,13 @@ pub struct SearchConfig {
     pub refine_radius_px: usize,
     /// Refinement radius at full resolution.
     pub final_refine_radius_px: usize,
+    /// Smallest refinement radius at the level just below the coarsest (the full
+    /// resolution itself in a two-level search; the larger of this and the
+    /// level's own radius above is used there). A coarse position suppressed by the non-maximum suppression lies
+    /// within `nms_radius_px` coarse pixels of a kept candidate, i.e. up to
+    /// `2·nms_radius_px + 1` pixels of the finer level from its up-scaled
+    /// position; this radius at `2·nms_radius_px + 1` reaches those positions.
+    pub first_refine_radius_px: usize,
     /// Non-maximum-suppression radius between coarse candidates (coarse pixels, Chebyshev).
     pub nms_radius_px: usize,
     /// Coarsest template side (see [`pyramid_levels_min`]) when the window's
@@ -123,7 +130,18 @@ impl SearchConfig {
             verify_all_below_px: 128,
             refine_radius_px: 2,
             final_refine_radius_px: 2,
-            nms_radius_px: 2,
+            // Gray keeps candidates 2 coarse px apart refined at ±2 px (it agrees,
+            // matching.md §1b, and the wide-window benchmarks stay cheap); the
+            // derivative domains keep them 1 coarse px apart and cover the gap
+            // between neighbours at ±3 px below the coarsest level.
+            first_refine_radius_px: match filter {
+                Filter::Gray => 0,
+                Filter::Sobel | Filter::Laplacian => 3,
+            },
+            nms_radius_px: match filter {
+                Filter::Gray => 2,
+                Filter::Sobel | Filter::Laplacian => 1,
+            },
             min_coarse_px: 32,
             wide_min_coarse_px: MIN_COARSE_PX,
         }
@@ -146,6 +164,7 @@ impl SearchConfig {
             verify_all_below_px: self.verify_all_below_px,
             refine_radius_px: clamp(self.refine_radius_px, 0, MAX_REFINE_RADIUS_PX),
             final_refine_radius_px: clamp(self.final_refine_radius_px, 0, MAX_REFINE_RADIUS_PX),
+            first_refine_radius_px: clamp(self.first_refine_radius_px, 0, MAX_REFINE_RADIUS_PX),
             nms_radius_px: self.nms_radius_px,
             min_coarse_px: clamp(self.min_coarse_px, MIN_COARSE_PX, usize::MAX),
             wide_min_coarse_px: clamp(self.wide_min_coarse_px, MIN_COARSE_PX, usize::MAX),
@@ -1105,6 +1124,11 @@ pub fn match_template_with(
             (cfg.final_refine_radius_px, n)
         } else {
             (cfg.refine_radius_px, cfg.candidates)
+        };
+        let r = if k + 1 == lc {
+            r.max(cfg.first_refine_radius_px)
+        } else {
+            r
         };
         let mut next = TopK::new(MAX_CANDIDATES, 0);
         // Region centres already evaluated at this level: a climb that reaches one
@@ -2158,6 +2182,7 @@ mod tests {
             verify_all_below_px: 0,
             refine_radius_px: 99,
             final_refine_radius_px: 99,
+            first_refine_radius_px: 99,
             nms_radius_px: 0,
             min_coarse_px: 0,
             wide_min_coarse_px: 0,
@@ -2169,6 +2194,7 @@ mod tests {
         );
         assert_eq!(wild.refine_radius_px, MAX_REFINE_RADIUS_PX);
         assert_eq!(wild.final_refine_radius_px, MAX_REFINE_RADIUS_PX);
+        assert_eq!(wild.first_refine_radius_px, MAX_REFINE_RADIUS_PX);
         assert_eq!(wild.min_coarse_px, MIN_COARSE_PX);
         assert_eq!(wild.wide_min_coarse_px, MIN_COARSE_PX);
         let d = SearchConfig::for_filter(Filter::Gray);
@@ -2200,6 +2226,7 @@ mod tests {
                     final_candidates: cand,
                     refine_radius_px: radius,
                     final_refine_radius_px: radius,
+                    first_refine_radius_px: radius,
                     min_coarse_px,
                     wide_min_coarse_px: min_coarse_px,
                     ..SearchConfig::for_filter(Filter::Sobel)

@@ -70,7 +70,8 @@ type SampleResult = Vec<(usize, Option<Found>, Option<Found>, Vec<Option<Found>>
 /// filter) or `+`-joined changes to the previous defaults (8 candidates, 4
 /// verified at full resolution, ±2 / ±1 px, NMS 2, coarsest side ≥ 16, `o` alone):
 /// `cN` N candidates all verified, `fN` N verified at full resolution (after
-/// `cN`), `rN` every radius N, `mN` coarsest side ≥ N, `nN` NMS radius N.
+/// `cN`), `rN` every radius N, `aN` radius at least N at the level below the
+/// coarsest, `mN` coarsest side ≥ N, `nN` NMS radius N.
 fn named_config(name: &str, filter: Filter) -> SearchConfig {
     if name == "default" {
         return SearchConfig::for_filter(filter);
@@ -81,6 +82,7 @@ fn named_config(name: &str, filter: Filter) -> SearchConfig {
         verify_all_below_px: 0,
         refine_radius_px: 2,
         final_refine_radius_px: 1,
+        first_refine_radius_px: 0,
         nms_radius_px: 2,
         min_coarse_px: 16,
         wide_min_coarse_px: 16,
@@ -96,6 +98,7 @@ fn named_config(name: &str, filter: Filter) -> SearchConfig {
                 c.refine_radius_px = num(part);
                 c.final_refine_radius_px = num(part);
             }
+            Some('a') => c.first_refine_radius_px = num(part),
             Some('f') => c.final_candidates = num(part),
             Some('m') => {
                 c.min_coarse_px = num(part);
