@@ -57,6 +57,8 @@ struct Found {
     runner_up: f32,
     /// Pixel distance of the placed vertex from its true projection.
     err_px: f32,
+    /// Multiply-accumulates of the search (all levels).
+    macs: u64,
 }
 
 /// Per variant: (index, exhaustive result, coarse-to-fine result, results of the
@@ -67,7 +69,8 @@ type SampleResult = Vec<(usize, Option<Found>, Option<Found>, Vec<Option<Found>>
 /// filter) or `+`-joined changes to the previous defaults (8 candidates, 4
 /// verified at full resolution, ±2 / ±1 px, NMS 2, coarsest side ≥ 16, `o` alone):
 /// `cN` N candidates all verified, `fN` N verified at full resolution (after
-/// `cN`), `rN` every radius N, `mN` coarsest side ≥ N, `nN` NMS radius N.
+/// `cN`), `rN` every radius N, `aN` radius at least N at the level below the
+/// coarsest, `mN` coarsest side ≥ N, `nN` NMS radius N.
 fn named_config(name: &str, filter: Filter) -> SearchConfig {
     if name == "default" {
         return SearchConfig::for_filter(filter);
@@ -78,6 +81,7 @@ fn named_config(name: &str, filter: Filter) -> SearchConfig {
         verify_all_below_px: 0,
         refine_radius_px: 2,
         final_refine_radius_px: 1,
+        first_refine_radius_px: 0,
         nms_radius_px: 2,
         min_coarse_px: 16,
         wide_min_coarse_px: 16,
@@ -93,6 +97,7 @@ fn named_config(name: &str, filter: Filter) -> SearchConfig {
                 c.refine_radius_px = num(part);
                 c.final_refine_radius_px = num(part);
             }
+            Some('a') => c.first_refine_radius_px = num(part),
             Some('f') => c.final_candidates = num(part),
             Some('m') => {
                 c.min_coarse_px = num(part);
@@ -248,7 +253,7 @@ fn one_sample(
             (tv, mv, 0.0, 0.0)
         };
         let run_with = |mode: Search, cfg: &SearchConfig, b: &mut Buffers| {
-            let (m, _) = ncc::match_template_with(
+            let (m, stats) = ncc::match_template_with(
                 t,
                 Some(m),
                 img,
@@ -267,6 +272,7 @@ fn one_sample(
                 score: m.score,
                 runner_up: m.runner_up,
                 err_px: (px - uv_true[0]).hypot(py - uv_true[1]),
+                macs: stats.macs,
             })
         };
         let default = SearchConfig::for_filter(filter);
@@ -617,7 +623,7 @@ fn report(
 /// the misses that are near-ties (coarse-to-fine score within 1e-3 of the exhaustive one).
 fn agreement(records: &[Record], variants: &[usize], compare: &[String]) {
     println!("\n### Coarse-to-fine configurations vs exhaustive (same integer peak)\n");
-    println!("Cells: all searches % (n) / accepted exhaustive peaks % (n) / misses within 1e-3 of the exhaustive score.\n");
+    println!("Cells: all searches % (n) / accepted exhaustive peaks % (n) / misses within 1e-3 of the exhaustive score / mean MACs per search (millions).\n");
     let names: Vec<String> = std::iter::once("default".to_string())
         .chain(compare.iter().cloned())
         .collect();
@@ -650,8 +656,11 @@ fn agreement(records: &[Record], variants: &[usize], compare: &[String]) {
                     .iter()
                     .filter(|p| !same(p) && (p.0.score - p.1.score).abs() < 1e-3)
                     .count();
+                let macs = pairs.iter().map(|p| p.1.macs as f64).sum::<f64>()
+                    / pairs.len().max(1) as f64
+                    / 1e6;
                 print!(
-                    " {} ({}) / {} ({}) / {} of {} |",
+                    " {} ({}) / {} ({}) / {} of {} / {macs:.1}M |",
                     pct(all, pairs.len()),
                     pairs.len(),
                     pct(acc_same, acc.len()),
@@ -662,5 +671,42 @@ fn agreement(records: &[Record], variants: &[usize], compare: &[String]) {
             }
             println!();
         }
+    }
+    // Every miss of the default on an accepted exhaustive peak, with the peak of
+    // each compared configuration (`=` when it equals the exhaustive one).
+    println!("\n### Default misses on accepted exhaustive peaks\n");
+    println!("| terrain | Δ h | level | variant | exhaustive (x, y) score / runner-up | default (x, y) score | compared |");
+    println!("|---|---|---|---|---|---|---|");
+    for r in records {
+        let (Some(e), Some(c)) = (r.exh, r.c2f) else {
+            continue;
+        };
+        if !accepted(&e, 0.5, 0.9) || (e.x == c.x && e.y == c.y) {
+            continue;
+        }
+        let alts: Vec<String> = r
+            .alt
+            .iter()
+            .map(|a| match a {
+                Some(a) if a.x == e.x && a.y == e.y => "=".to_string(),
+                Some(a) => format!("({}, {}) {:.4}", a.x, a.y, a.score),
+                None => "–".to_string(),
+            })
+            .collect();
+        println!(
+            "| {} | {} | {} | {} | ({}, {}) {:.4} / {:.4} | ({}, {}) {:.4} | {} |",
+            r.terrain,
+            r.dh,
+            r.level,
+            variant_name(r.variant),
+            e.x,
+            e.y,
+            e.score,
+            e.runner_up,
+            c.x,
+            c.y,
+            c.score,
+            alts.join(" · ")
+        );
     }
 }
