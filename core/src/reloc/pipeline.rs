@@ -2,12 +2,12 @@
 //! Stereo (paper §III-C, §III-D), implementing [`super::Attempt`].
 //!
 //! Inputs: the map, the real left/right images, the rig, a [`MatchPolicy`] and a
-//! [`Workspace`] of caller-provided buffers sized by [`WorkspaceSizes`]. Output:
+//! [`Workspace`] of caller-provided buffers sized by [`WorkspaceSizes`](super::WorkspaceSizes). Output:
 //! one [`Correspondence`] (map vertex in world, triangulated point in the left
 //! camera) or the code of the rejecting step.
 //!
 //! Bounds per attempt: at most [`MAX_SAMPLE_TRIES`] vertex draws, two renders of
-//! ℓ×ℓ, at most two template searches per policy variant (≤ [`MATCH_VARIANTS`]),
+//! ℓ×ℓ, at most two template searches per policy variant (≤ [`MATCH_VARIANTS`](super::MATCH_VARIANTS)),
 //! each in a window of at most `policy.search_px`² pixels, and one triangulation.
 
 use super::policy::MatchPolicy;

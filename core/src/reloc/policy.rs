@@ -16,7 +16,7 @@ pub struct Variant {
 }
 
 impl Variant {
-    /// Index into [`PipelineStats::matches`]: `size * 3 + filter`.
+    /// Index into [`PipelineStats::matches`](super::PipelineStats::matches): `size * 3 + filter`.
     pub const fn index(self) -> usize {
         let f = match self.filter {
             Filter::Gray => 0,

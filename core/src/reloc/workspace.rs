@@ -28,7 +28,7 @@ pub struct WorkspaceSizes {
     pub bytes: usize,
     /// `u32` elements: left/right depth and mask depth (4·ℓ²) + NCC integral images.
     pub words: usize,
-    /// [`ncc::Run`] elements.
+    /// [`Run`] elements.
     pub runs: usize,
     /// The NCC part (covers both ℓ and ℓ/2 templates).
     pub ncc: ScratchSizes,

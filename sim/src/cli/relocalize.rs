@@ -43,7 +43,7 @@ pub struct Args {
     /// Right image, same size as the left one and as the calibration.
     #[arg(long, value_name = "R.png")]
     pub right: PathBuf,
-    /// Prior pose: {"world_from_left":{"t":[x,y,z],"q":[w,x,y,z]}}.
+    /// Prior pose JSON file: `world_from_left` with translation `t` (x, y, z) and quaternion `q` (w, x, y, z).
     #[arg(long, value_name = "prior.json")]
     pub prior: PathBuf,
     /// Seed of the relocalizer's random draws (same inputs + seed = same result).
