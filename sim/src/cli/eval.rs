@@ -748,6 +748,15 @@ fn run_trial(
             o.inliers = u32::from(out.quality.inliers);
             o.iterations = u32::from(out.stats.successes);
             o.time_s = r.elapsed.as_secs_f64();
+            // The engine's work counters, so a slow trial can be told apart
+            // from a loaded machine.
+            for (k, v) in [
+                ("attempts", out.stats.attempts),
+                ("stalls", u32::from(out.stats.stalls)),
+                ("reseeds", u32::from(out.stats.reseeds)),
+            ] {
+                o.extra.insert(k.into(), f64::from(v));
+            }
         }
         Err(e) => o.failure = Some(format!("error: {e}")),
     }
@@ -1215,6 +1224,13 @@ mod tests {
         );
         assert!(f.success || f.failure.as_deref().is_some_and(|c| !c.is_empty()));
         assert!(f.extra["live_keypoints"] > 0.0, "{f:?}");
+        // The engine's work counters are recorded with each VTSM trial.
+        assert!(v.extra["attempts"] >= 1.0, "{v:?}");
+        assert!(v.extra.contains_key("stalls") && v.extra.contains_key("reseeds"));
+        assert!(eval::csv(&run.outcomes)
+            .lines()
+            .next()
+            .is_some_and(|h| h.contains(",attempts,")));
         assert!(run.notes.contains("VTSM and the features baseline"));
         assert!(run.notes.contains(&format!("| {} |", v.group)));
         // Deterministic.
