@@ -148,38 +148,35 @@ impl Lighting {
 
     /// Lit fraction at `(x, y)` (bilinear; 1 outside the grid).
     pub fn lit(&self, x: f32, y: f32) -> f32 {
-        let gx = (x - self.x0) / self.cell_m;
-        let gy = (y - self.y0) / self.cell_m;
-        if gx < 0.0 || gy < 0.0 || gx > (self.nx - 1) as f32 || gy > (self.ny - 1) as f32 {
-            return if self.sun.dir[2] > 0.0 { 1.0 } else { 0.0 };
-        }
-        // Non-negative here, so truncation is the floor.
-        let (i, j) = (gx as usize, gy as usize);
-        let (i1, j1) = ((i + 1).min(self.nx - 1), (j + 1).min(self.ny - 1));
-        let (tx, ty) = (gx - i as f32, gy - j as f32);
-        let g = |a: usize, b: usize| self.lit[b * self.nx + a];
-        let top = g(i, j) + (g(i1, j) - g(i, j)) * tx;
-        let bot = g(i, j1) + (g(i1, j1) - g(i, j1)) * tx;
-        top + (bot - top) * ty
+        self.bilinear(&self.lit, x, y)
+            .unwrap_or(if self.sun.dir[2] > 0.0 { 1.0 } else { 0.0 })
     }
 
     /// Irradiance at `(x, y)` relative to the direct sun on a surface facing it (bilinear
     /// between cell centres; open flat ground beyond them).
     pub fn irradiance(&self, x: f32, y: f32) -> f32 {
+        self.bilinear(&self.irr, x, y).unwrap_or_else(|| {
+            let lit = if self.sun.dir[2] > 0.0 { 1.0 } else { 0.0 };
+            irradiance(&self.sun, [0.0, 0.0, 1.0], lit, 1.0)
+        })
+    }
+
+    /// Bilinear lookup of a per-cell `grid` (`nx × ny`, row-major) at `(x, y)`;
+    /// `None` outside the grid's cell centres.
+    fn bilinear(&self, grid: &[f32], x: f32, y: f32) -> Option<f32> {
         let gx = (x - self.x0) / self.cell_m;
         let gy = (y - self.y0) / self.cell_m;
         if gx < 0.0 || gy < 0.0 || gx > (self.nx - 1) as f32 || gy > (self.ny - 1) as f32 {
-            let lit = if self.sun.dir[2] > 0.0 { 1.0 } else { 0.0 };
-            return irradiance(&self.sun, [0.0, 0.0, 1.0], lit, 1.0);
+            return None;
         }
         // Non-negative here, so truncation is the floor.
         let (i, j) = (gx as usize, gy as usize);
         let (i1, j1) = ((i + 1).min(self.nx - 1), (j + 1).min(self.ny - 1));
         let (tx, ty) = (gx - i as f32, gy - j as f32);
-        let g = |a: usize, b: usize| self.irr[b * self.nx + a];
+        let g = |a: usize, b: usize| grid[b * self.nx + a];
         let top = g(i, j) + (g(i1, j) - g(i, j)) * tx;
         let bot = g(i, j1) + (g(i1, j1) - g(i, j1)) * tx;
-        top + (bot - top) * ty
+        Some(top + (bot - top) * ty)
     }
 
     /// Fraction of the terrain grid in full shadow (lit < 0.5).
