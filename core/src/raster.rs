@@ -248,21 +248,19 @@ impl PixelSink for ZBuffer<'_, '_> {
         }
         let mut acc = acc;
         let mut written = 0u32;
-        {
-            for ((slot, m), p) in ds.iter_mut().zip(ms.iter_mut()).zip(is.iter_mut()) {
-                let d = (acc[0] >> RUN_SHIFT).clamp(0, i64::from(DEPTH_MAX)) as u32;
-                if d < *slot {
-                    *slot = d;
-                    *m = d | not_mask;
-                    *p = sample_bilinear(tex, tw, th, acc[1] >> RUN_SHIFT, acc[2] >> RUN_SHIFT);
-                    written = written.wrapping_add(1);
-                }
-                acc = [
-                    acc[0].wrapping_add(step[0]),
-                    acc[1].wrapping_add(step[1]),
-                    acc[2].wrapping_add(step[2]),
-                ];
+        for ((slot, m), p) in ds.iter_mut().zip(ms.iter_mut()).zip(is.iter_mut()) {
+            let d = (acc[0] >> RUN_SHIFT).clamp(0, i64::from(DEPTH_MAX)) as u32;
+            if d < *slot {
+                *slot = d;
+                *m = d | not_mask;
+                *p = sample_bilinear(tex, tw, th, acc[1] >> RUN_SHIFT, acc[2] >> RUN_SHIFT);
+                written = written.wrapping_add(1);
             }
+            acc = [
+                acc[0].wrapping_add(step[0]),
+                acc[1].wrapping_add(step[1]),
+                acc[2].wrapping_add(step[2]),
+            ];
         }
         self.written = self.written.saturating_add(written);
     }
@@ -946,32 +944,37 @@ fn draw_triangle<S: PixelSink>(
         // The choice of interpolation depends on the triangle only (a triangle
         // inside the image's guard band is clipped only by rounding), so it is the
         // same whatever window, and hence guard band, the call uses.
-        let make = || {
-            let s = [
-                project(frame, &p[0]),
-                project(frame, &p[1]),
-                project(frame, &p[2]),
-            ];
-            match Affine::new(frame, &p, &s, uv) {
-                Some(af) => Some(Attr::Affine(af)),
-                None => Interp::new(&p, uv).map(Attr::Perspective),
-            }
-        };
+        let make = || attributes(frame, &p, &p.map(|c| project(frame, &c)), uv);
         fill_polygon(&screen, n, make, mask, frame, stats, sink);
     } else {
-        let s = [
-            project(frame, &p[0]),
-            project(frame, &p[1]),
-            project(frame, &p[2]),
-        ];
+        let s = p.map(|c| project(frame, &c));
         for (sv, c) in screen.iter_mut().zip(s) {
             *sv = snap(frame, c);
         }
-        let make = || match Affine::new(frame, &p, &s, uv) {
-            Some(af) => Some(Attr::Affine(af)),
-            None => Interp::new(&p, uv).map(Attr::Perspective),
-        };
-        fill_polygon(&screen, 3, make, mask, frame, stats, sink);
+        fill_polygon(
+            &screen,
+            3,
+            || attributes(frame, &p, &s, uv),
+            mask,
+            frame,
+            stats,
+            sink,
+        );
+    }
+}
+
+/// Depth and texture interpolation of the triangle `p` (camera frame) with
+/// projected corners `s`: linear when [`Affine::new`] accepts it, perspective-correct
+/// otherwise; `None` for a triangle neither can interpolate.
+fn attributes(
+    frame: &Frame,
+    p: &[Vec3; 3],
+    s: &[(f32, f32); 3],
+    uv: &[[f32; 2]; 3],
+) -> Option<Attr> {
+    match Affine::new(frame, p, s, uv) {
+        Some(af) => Some(Attr::Affine(af)),
+        None => Interp::new(p, uv).map(Attr::Perspective),
     }
 }
 
