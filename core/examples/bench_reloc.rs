@@ -15,7 +15,7 @@ use vtsm_core::image::GrayView;
 use vtsm_core::map::MapView;
 use vtsm_core::ncc::Run;
 use vtsm_core::reloc::workspace::TEST_WORKSPACE;
-use vtsm_core::reloc::{MatchPolicy, Options, Pipeline, RansacSolver, Relocalizer, Workspace};
+use vtsm_core::reloc::{Setup, Workspace};
 use vtsm_core::rng::Rng;
 
 #[path = "../testkit/testkit.rs"]
@@ -34,10 +34,6 @@ fn main() {
     let left = render_full(&map, &rig.cam, &truth, 0.85, 20.0);
     let right = render_full(&map, &rig.cam, &rig.world_from_right(&truth), 0.85, 20.0);
     let p = test_params();
-    let mut policy = MatchPolicy::for_params(&p);
-    policy.search_px = TEST_WORKSPACE.search_px as u16;
-    let mut o = Options::for_params(&p);
-    o.min_inliers = 15;
     let (mut b, mut w, mut r) = (
         vec![0u8; TEST_WORKSPACE.bytes],
         vec![0u32; TEST_WORKSPACE.words],
@@ -58,10 +54,10 @@ fn main() {
             truth.rotation() * UnitQuaternion::from_scaled_axis(axis * rdeg.to_radians()),
             truth.translation() + d,
         );
+        let mut setup = Setup::new(&map, lv, rv, &rig, &p, &prior, k);
+        setup.options.min_inliers = 15;
         let ws = Workspace::new(TEST_WORKSPACE, &mut b, &mut w, &mut r).unwrap();
-        let pipe = Pipeline::new(&map, lv, rv, &rig, &p, &policy, ws).unwrap();
-        let mut reloc =
-            Relocalizer::new(pipe, RansacSolver::from_params(&p), &p, &o, &prior, k).unwrap();
+        let mut reloc = setup.build(ws).unwrap();
         let t0 = Instant::now();
         let out = reloc.run_to_completion(0);
         let ms = t0.elapsed().as_secs_f64() * 1e3;

@@ -108,6 +108,37 @@ const _: () = assert!(MAX_TEXTURE_DIM * MAX_TEXTURE_DIM <= u32::MAX as usize);
 // 255² · 256² must fit a u32 for exact integer NCC sums (see fsw-docs/budgets/numeric.md).
 const _: () = assert!((255u64 * 255 * (MAX_TEMPLATE_PX * MAX_TEMPLATE_PX) as u64) < (1u64 << 32));
 
+// ---- template and search-window policy -----------------------------------
+
+/// Template side ℓ for an image `width` pixels wide: the paper's 256 px at
+/// 5472 px, scaled with the image so templates cover the same angle, rounded
+/// to the nearest integer, clamped to `32..=MAX_TEMPLATE_PX` and made even.
+///
+/// Integer arithmetic: `round(256·w / 5472)` is never a tie (`8w/171` has an
+/// odd denominator), so this equals the f64 formula for every width.
+pub const fn template_px_for_width(width: u32) -> u16 {
+    let w = width as u64;
+    let l = (2 * 256 * w + 5472) / (2 * 5472);
+    let l = if l < 32 {
+        32
+    } else if l > MAX_TEMPLATE_PX as u64 {
+        MAX_TEMPLATE_PX as u64
+    } else {
+        l
+    };
+    (l & !1) as u16
+}
+
+/// Search-window cap for template side ℓ: the paper's ~800 px for ℓ = 256,
+/// i.e. ⌊3.2 ℓ⌋, at least 2 ℓ, at most `MAX_SEARCH_PX`.
+pub const fn search_px_for_template(template_px: u16) -> u16 {
+    let l = template_px as usize;
+    let s = l * 16 / 5;
+    let s = if s < 2 * l { 2 * l } else { s };
+    let s = if s > MAX_SEARCH_PX { MAX_SEARCH_PX } else { s };
+    s as u16
+}
+
 /// The relocalization mechanisms of paper §III-E, each switchable.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -142,6 +173,11 @@ pub struct Params {
     pub epsilon_px: f32,
     /// ℓ in pixels, even, MIN_TEMPLATE_PX..=MAX_TEMPLATE_PX.
     pub template_px: u16,
+    /// Largest search-window side in pixels, `template_px..=MAX_SEARCH_PX`
+    /// (the window is the projected uncertainty, capped at this). Sizes the
+    /// workspace ([`crate::reloc::WorkspaceSizes::for_params`]); set together
+    /// with ℓ by [`Params::with_template_px`].
+    pub search_px: u16,
     /// Also match the ℓ/2 sub-template variant.
     pub sub_template: bool,
     /// Consecutive Stall cap, 1..=MAX_CONSECUTIVE_CAP.
@@ -190,6 +226,8 @@ pub enum ParamField {
     Epsilon,
     /// `template_px`
     TemplatePx,
+    /// `search_px`
+    SearchPx,
     /// `max_stall`
     MaxStall,
     /// `max_reseed`
@@ -239,6 +277,7 @@ impl Params {
             gamma: DEFAULT_GAMMA,
             epsilon_px: DEFAULT_EPSILON_PX,
             template_px: DEFAULT_TEMPLATE_PX,
+            search_px: search_px_for_template(DEFAULT_TEMPLATE_PX),
             sub_template: true,
             max_stall: DEFAULT_MAX_STALL,
             max_reseed: DEFAULT_MAX_RESEED,
@@ -256,6 +295,24 @@ impl Params {
                 distribute: true,
                 reuse: true,
             },
+        }
+    }
+
+    /// The paper's parameters with ℓ scaled to an image `width` pixels wide
+    /// ([`template_px_for_width`]) and its search window
+    /// ([`search_px_for_template`]).
+    pub const fn for_image_width(width: u32) -> Self {
+        Self::paper().with_template_px(template_px_for_width(width))
+    }
+
+    /// These parameters with template side `template_px` and the search-window
+    /// cap that goes with it ([`search_px_for_template`]).
+    #[must_use]
+    pub const fn with_template_px(self, template_px: u16) -> Self {
+        Self {
+            template_px,
+            search_px: search_px_for_template(template_px),
+            ..self
         }
     }
 
@@ -283,6 +340,9 @@ impl Params {
         let l = self.template_px as usize;
         if !(MIN_TEMPLATE_PX..=MAX_TEMPLATE_PX).contains(&l) || l % 2 != 0 {
             return err(ParamField::TemplatePx);
+        }
+        if !(l..=MAX_SEARCH_PX).contains(&usize::from(self.search_px)) {
+            return err(ParamField::SearchPx);
         }
         if !(1..=MAX_CONSECUTIVE_CAP as u8).contains(&self.max_stall) {
             return err(ParamField::MaxStall);
@@ -345,6 +405,11 @@ mod tests {
             (|p| p.template_px = 255, ParamField::TemplatePx),
             (|p| p.template_px = 512, ParamField::TemplatePx),
             (|p| p.template_px = 8, ParamField::TemplatePx),
+            (|p| p.search_px = 255, ParamField::SearchPx),
+            (
+                |p| p.search_px = MAX_SEARCH_PX as u16 + 1,
+                ParamField::SearchPx,
+            ),
             (|p| p.max_stall = 0, ParamField::MaxStall),
             (
                 |p| p.max_reseed = MAX_CONSECUTIVE_CAP as u8 + 1,
@@ -371,5 +436,24 @@ mod tests {
                 FailureCode::ConfigParamOutOfRange
             );
         }
+    }
+
+    /// Verifies: VTSM-CFG-005
+    #[test]
+    fn template_and_search_policy_match_the_f64_formula_at_every_width() {
+        for width in 1..=MAX_IMAGE_DIM as u32 {
+            let l = libm::round(256.0 * f64::from(width) / 5472.0) as u32;
+            let l = (l.clamp(32, MAX_TEMPLATE_PX as u32) & !1) as u16;
+            assert_eq!(template_px_for_width(width), l, "width {width}");
+            let p = Params::for_image_width(width);
+            assert_eq!(p.validate(), Ok(()), "width {width}");
+            assert!(p.search_px >= 2 * p.template_px);
+        }
+        assert_eq!(template_px_for_width(5472), 256);
+        assert_eq!(search_px_for_template(256), 819);
+        assert_eq!(search_px_for_template(64), 204);
+        assert_eq!(Params::paper().search_px, 819);
+        let p = Params::paper().with_template_px(64);
+        assert_eq!((p.template_px, p.search_px), (64, 204));
     }
 }

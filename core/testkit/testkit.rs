@@ -172,6 +172,7 @@ pub fn render_full(map: &MapView, cam: &Camera, pose: &Pose, gain: f32, offset: 
 pub fn test_params() -> Params {
     Params {
         template_px: 64,
+        search_px: 256,
         n_corr: 40,
         n_iter: 5,
         attempts_per_iter: 400,

@@ -208,8 +208,8 @@ fn one_sample(
     compare: &[String],
     bufs: &mut (Buffers, Buffers),
 ) -> Option<SampleResult> {
-    let l = locate::template_px_for_width(cam.width) as usize;
-    let cap = locate::search_px_for_template(l as u16) as usize;
+    let l = vtsm_core::config::template_px_for_width(cam.width) as usize;
+    let cap = vtsm_core::config::search_px_for_template(l as u16) as usize;
     let margin = (l / 2) as f32;
     let p_vp = vp.inverse().transform_point(world);
     let uv_vp = cam.project(&p_vp)?;
@@ -366,7 +366,8 @@ fn main() {
                                 map.mask_vertex(rng.below(n)).and_then(|i| map.vertex(i))?;
                             let vp = perturb(&truth, &mut rng, t_lo, t_hi, r_deg);
                             // Cheap in-view pre-check; occlusion is tested after rendering.
-                            let m = (locate::template_px_for_width(cam.width) / 2) as f32;
+                            let m =
+                                (vtsm_core::config::template_px_for_width(cam.width) / 2) as f32;
                             let ok = |pose: &Pose| {
                                 cam.project(&pose.inverse().transform_point(&world))
                                     .is_some_and(|[u, v]| cam.contains(u, v, m))
@@ -452,7 +453,7 @@ fn report(
     println!(
         "## Match study: profile {}, ℓ = {} px, stops {:?}, up to {samples} samples per (terrain, stop, Δ, level), seed {seed}, correct = within {tol} px\n",
         profile.name(),
-        locate::template_px_for_width(profile.image_size().0),
+        vtsm_core::config::template_px_for_width(profile.image_size().0),
         stops
     );
     // 1. Agreement.

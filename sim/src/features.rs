@@ -72,8 +72,8 @@ pub struct FeatureParams {
 impl FeatureParams {
     /// Settings for an image width (cells and gate scale with the image).
     pub fn for_width(width: u32) -> Self {
-        let l = locate::template_px_for_width(width);
-        let search = locate::search_px_for_template(l);
+        let l = vtsm_core::config::template_px_for_width(width);
+        let search = vtsm_core::config::search_px_for_template(l);
         Self {
             fast_threshold: 12,
             cell_px: (width / 48).max(8),

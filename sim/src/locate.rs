@@ -1,6 +1,6 @@
-//! One relocalization on the desktop: allocate the core's workspace on the
-//! heap (sized by its `const` requirement), wire the real pipeline and the
-//! RANSAC solver, and run the engine to completion. Used by `vtsm demo`,
+//! One relocalization on the desktop: build the engine with the core's one
+//! constructor ([`Setup`]), its workspace on the heap (sized by
+//! [`Setup::sizes`]), and run it to completion. Used by `vtsm demo`,
 //! `vtsm relocalize`, `vtsm eval` and the end-to-end tests, so every path runs
 //! exactly the same code.
 
@@ -11,34 +11,14 @@ use vtsm_core::geom::Camera;
 use vtsm_core::geom::{Pose, StereoRig};
 use vtsm_core::image::{GrayView, Rect};
 use vtsm_core::map::MapView;
-use vtsm_core::ncc::{Run, Search};
+use vtsm_core::ncc::Run;
 use vtsm_core::raster::{self, Target};
-use vtsm_core::reloc::workspace::WorkspaceSizes;
-use vtsm_core::reloc::{
-    MatchPolicy, Options, Outcome, Pipeline, RansacSolver, Relocalizer, Workspace,
-};
+use vtsm_core::reloc::{Outcome, Setup, Workspace};
 
-/// Template side ℓ for an image width: the paper's 256 px at 5472 px, scaled
-/// with the image (so templates cover the same angle), even, at least 32 px.
-pub fn template_px_for_width(width: u32) -> u16 {
-    let l = (256.0 * f64::from(width) / 5472.0).round() as u32;
-    let l = l.clamp(32, vtsm_core::config::MAX_TEMPLATE_PX as u32);
-    (l & !1) as u16
-}
-
-/// Search-window cap for a template side: the paper's ~800 px for ℓ = 256,
-/// i.e. about 3.2 ℓ, within the core's capacity.
-pub fn search_px_for_template(template_px: u16) -> u16 {
-    let s = (u32::from(template_px) * 16 / 5).max(u32::from(template_px) * 2);
-    s.min(vtsm_core::config::MAX_SEARCH_PX as u32) as u16
-}
-
-/// The parameters used for an image width: the paper's, with ℓ scaled to the image.
+/// The parameters used for an image width: the paper's, with ℓ and the
+/// search window scaled to the image ([`Params::for_image_width`]).
 pub fn params_for_width(width: u32) -> Params {
-    Params {
-        template_px: template_px_for_width(width),
-        ..Params::paper()
-    }
+    Params::for_image_width(width)
 }
 
 /// Everything one relocalization needs.
@@ -88,37 +68,30 @@ pub fn relocalize(req: &Request<'_>) -> Result<Report> {
     }
     let left = GrayView::new(req.left, w, h, w)?;
     let right = GrayView::new(req.right, w, h, w)?;
-    let p = req.params;
-    p.validate().map_err(vtsm_core::FailureCode::from)?;
-    let search_px = search_px_for_template(p.template_px);
-    let sizes = WorkspaceSizes::new(
-        usize::from(p.template_px),
-        usize::from(search_px),
-        Search::CoarseToFine,
+    let setup = Setup::new(
+        &map,
+        left,
+        right,
+        &req.rig,
+        &req.params,
+        &req.prior,
+        req.seed,
     );
+    // Check before allocating: a bad parameter must not size a huge workspace.
+    setup.validate()?;
+    let sizes = setup.sizes();
     let mut bytes = vec![0u8; sizes.bytes];
     let mut words = vec![0u32; sizes.words];
     let mut runs = vec![Run::default(); sizes.runs];
     let ws = Workspace::new(sizes, &mut bytes, &mut words, &mut runs)?;
-    let mut policy = MatchPolicy::for_params(&p);
-    policy.search_px = search_px;
-    let pipeline = Pipeline::new(&map, left, right, &req.rig, &p, &policy, ws)?;
-    let options = Options::for_params(&p);
-    let mut reloc = Relocalizer::new(
-        pipeline,
-        RansacSolver::from_params(&p),
-        &p,
-        &options,
-        &req.prior,
-        req.seed,
-    )?;
+    let mut reloc = setup.build(ws)?;
     let t0 = Instant::now();
     let outcome = reloc.run_to_completion(0);
     Ok(Report {
         outcome,
         elapsed: t0.elapsed(),
-        template_px: p.template_px,
-        search_px,
+        template_px: req.params.template_px,
+        search_px: req.params.search_px,
         workspace_bytes: sizes.total_bytes(),
     })
 }

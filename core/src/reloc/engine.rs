@@ -76,7 +76,7 @@ pub struct Relocalizer<A, S> {
     done: Option<Outcome>,
 }
 
-fn pose_is_valid(p: &Pose) -> bool {
+pub(super) fn pose_is_valid(p: &Pose) -> bool {
     let q = p.q();
     let n = libm::sqrtf(q.iter().map(|v| v * v).sum::<f32>());
     p.is_finite() && (n - 1.0).abs() <= 1.0e-3
@@ -101,6 +101,21 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         if !pose_is_valid(prior) {
             return Err(FailureCode::RelocPriorInvalid);
         }
+        Ok(Self::from_checked(
+            attempt, solver, params, opts, prior, seed,
+        ))
+    }
+
+    /// [`Relocalizer::new`] for inputs the caller has already validated
+    /// ([`super::Setup::build`]).
+    pub(super) fn from_checked(
+        attempt: A,
+        solver: S,
+        params: &Params,
+        opts: &Options,
+        prior: &Pose,
+        seed: u64,
+    ) -> Self {
         let mut me = Self {
             attempt,
             solver,
@@ -135,7 +150,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             me.center = me.seed_pose(0);
             me.stats.seeds_tried = 1;
         }
-        Ok(me)
+        me
     }
 
     /// Structural bound on the work units of a whole run for `params`.
@@ -217,6 +232,12 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
     /// The per-attempt pipeline.
     pub fn attempt_ref(&self) -> &A {
         &self.attempt
+    }
+
+    /// The per-attempt pipeline, mutable (tests drive single attempts).
+    #[cfg(test)]
+    pub(crate) fn attempt_mut(&mut self) -> &mut A {
+        &mut self.attempt
     }
 
     /// The solver.

@@ -22,6 +22,7 @@
 mod engine;
 pub mod pipeline;
 pub mod policy;
+mod setup;
 pub mod solver;
 pub mod viewpoint;
 pub mod workspace;
@@ -29,8 +30,11 @@ pub mod workspace;
 pub use engine::{Relocalizer, StepResult};
 pub use pipeline::Pipeline;
 pub use policy::{MatchPolicy, Variant};
+pub use setup::{Engine, Setup};
 pub use solver::RansacSolver;
-pub use workspace::{Workspace, WorkspaceSizes, PAPER_WORKSPACE_BYTES, TEST_WORKSPACE_BYTES};
+pub use workspace::{
+    Storage, Workspace, WorkspaceSizes, PAPER_WORKSPACE_BYTES, TEST_WORKSPACE_BYTES,
+};
 
 use crate::config::{Params, MAX_ITER, MAX_POSE_CANDIDATES};
 use crate::failure::{FailureCode, FailureLog};

@@ -2,13 +2,14 @@
 //! Stereo (paper §III-C, §III-D), implementing [`super::Attempt`].
 //!
 //! Inputs: the map, the real left/right images, the rig, a [`MatchPolicy`] and a
-//! [`Workspace`] of caller-provided buffers sized by [`WorkspaceSizes`](super::WorkspaceSizes). Output:
+//! [`Workspace`] of caller-provided buffers sized by [`WorkspaceSizes`](super::WorkspaceSizes),
+//! all checked once by [`super::Setup::build`], the only constructor. Output:
 //! one [`Correspondence`] (map vertex in world, triangulated point in the left
 //! camera) or the code of the rejecting step.
 //!
 //! Bounds per attempt: at most [`MAX_SAMPLE_TRIES`] vertex draws, two renders of
 //! ℓ×ℓ, at most two template searches per policy variant (≤ [`MATCH_VARIANTS`](super::MATCH_VARIANTS)),
-//! each in a window of at most `policy.search_px`² pixels, and one triangulation.
+//! each in a window of at most `params.search_px`² pixels, and one triangulation.
 
 use super::policy::MatchPolicy;
 use super::workspace::Workspace;
@@ -37,6 +38,7 @@ pub struct Pipeline<'a, 'w> {
     right: GrayView<'a>,
     rig: StereoRig,
     template_px: usize,
+    search_px: usize,
     epsilon_px: f32,
     policy: MatchPolicy,
     ws: Workspace<'w>,
@@ -76,15 +78,9 @@ fn search_rect(px: [f32; 2], l: usize, r: i32, cap: usize, w: usize, h: usize) -
 }
 
 impl<'a, 'w> Pipeline<'a, 'w> {
-    /// A pipeline over `map` and the real stereo pair.
-    ///
-    /// # Errors
-    /// [`FailureCode::ImageSizeMismatch`] if an image differs from the rig's size;
-    /// [`FailureCode::ConfigParamOutOfRange`] for an invalid policy or params;
-    /// [`FailureCode::ConfigCapacityTooSmall`] if the workspace was sized for a
-    /// smaller ℓ or search side; [`FailureCode::RelocNoVisibleMaskVertex`] if the
-    /// map has no mask vertex.
-    pub fn new(
+    /// A pipeline over `map` and the real stereo pair, from inputs that
+    /// [`super::Setup::build`] has checked (params, policy, image sizes, workspace, mask).
+    pub(super) fn from_checked(
         map: &'a MapView<'a>,
         left: GrayView<'a>,
         right: GrayView<'a>,
@@ -92,31 +88,18 @@ impl<'a, 'w> Pipeline<'a, 'w> {
         params: &Params,
         policy: &MatchPolicy,
         ws: Workspace<'w>,
-    ) -> Result<Self, FailureCode> {
-        params.validate()?;
-        let l = usize::from(params.template_px);
-        policy.validate(l)?;
-        let (w, h) = (rig.cam.width as usize, rig.cam.height as usize);
-        let same = |v: &GrayView| v.width() == w && v.height() == h;
-        if !same(&left) || !same(&right) {
-            return Err(FailureCode::ImageSizeMismatch);
-        }
-        if ws.sizes.template_px < l || ws.sizes.search_px < usize::from(policy.search_px) {
-            return Err(FailureCode::ConfigCapacityTooSmall);
-        }
-        if map.mask_vertex_count() == 0 {
-            return Err(FailureCode::RelocNoVisibleMaskVertex);
-        }
-        Ok(Self {
+    ) -> Self {
+        Self {
             map,
             left,
             right,
             rig: *rig,
-            template_px: l,
+            template_px: usize::from(params.template_px),
+            search_px: usize::from(params.search_px),
             epsilon_px: params.epsilon_px,
             policy: *policy,
             ws,
-        })
+        }
     }
 
     /// SamplePoint: a random mask vertex whose left and right projections lie
@@ -248,7 +231,7 @@ impl Attempt for Pipeline<'_, '_> {
         } else {
             0
         };
-        let cap = usize::from(self.policy.search_px);
+        let cap = self.search_px;
         let (w, h) = (cam.width as usize, cam.height as usize);
         let search_l = search_rect(s.left, l, r_px, cap, w, h);
         let search_r = search_rect(s.right, l, r_px, cap, w, h);
@@ -352,11 +335,10 @@ impl Attempt for Pipeline<'_, '_> {
 #[cfg(test)]
 mod tests {
     extern crate std;
-    use super::super::policy::MatchPolicy;
     use super::super::solver::RansacSolver;
     use super::super::workspace::WorkspaceSizes;
     use super::super::workspace::{Workspace, TEST_WORKSPACE};
-    use super::super::{Options, Outcome, Relocalizer, StepResult};
+    use super::super::{Outcome, Relocalizer, Setup, StepResult};
     use super::*;
     use crate::ncc::Run;
     use crate::rng::Rng;
@@ -391,22 +373,13 @@ mod tests {
         p: &Params,
         chunk: u32,
     ) -> Outcome {
-        let rig = rig();
-        let p = *p;
-        let mut policy = MatchPolicy::for_params(&p);
-        policy.search_px = TEST_WORKSPACE.search_px as u16;
-        let sizes = TEST_WORKSPACE;
-        let mut bytes = vec![0u8; sizes.bytes];
-        let mut words = vec![0u32; sizes.words];
-        let mut runs = vec![Run::default(); sizes.runs];
-        let ws = Workspace::new(sizes, &mut bytes, &mut words, &mut runs).unwrap();
         let lv = GrayView::new(left, 640, 480, 640).unwrap();
         let rv = GrayView::new(right, 640, 480, 640).unwrap();
-        let pipe = Pipeline::new(map, lv, rv, &rig, &p, &policy, ws).unwrap();
-        let mut o = Options::for_params(&p);
-        o.min_inliers = 15;
-        let mut r =
-            Relocalizer::new(pipe, RansacSolver::from_params(&p), &p, &o, prior, seed).unwrap();
+        let mut setup = Setup::new(map, lv, rv, &rig(), p, prior, seed);
+        setup.options.min_inliers = 15;
+        let (mut bytes, mut words, mut runs) = workspace_buffers(&setup.sizes());
+        let ws = Workspace::new(setup.sizes(), &mut bytes, &mut words, &mut runs).unwrap();
+        let mut r = setup.build(ws).unwrap();
         if chunk == 0 {
             return r.run_to_completion(0);
         }
@@ -440,13 +413,13 @@ mod tests {
         let left = render_full(&map, &rig.cam, &truth, 0.85, 20.0);
         let right = render_full(&map, &rig.cam, &rig.world_from_right(&truth), 0.85, 20.0);
         let p = test_params();
-        let mut policy = MatchPolicy::for_params(&p);
-        policy.search_px = TEST_WORKSPACE.search_px as u16;
         let (mut b, mut w, mut r) = workspace_buffers(&TEST_WORKSPACE);
         let ws = Workspace::new(TEST_WORKSPACE, &mut b, &mut w, &mut r).unwrap();
         let lv = GrayView::new(&left, 640, 480, 640).unwrap();
         let rv = GrayView::new(&right, 640, 480, 640).unwrap();
-        let mut pipe = Pipeline::new(&map, lv, rv, &rig, &p, &policy, ws).unwrap();
+        let setup = Setup::new(&map, lv, rv, &rig, &p, &truth, 0);
+        let mut engine = setup.build(ws).unwrap();
+        let pipe = engine.attempt_mut();
         let mut stats = PipelineStats::default();
         let ctx = AttemptContext {
             world_from_viewpoint: truth,
@@ -502,36 +475,73 @@ mod tests {
 
     /// Verifies: VTSM-RELOC-016
     #[test]
-    fn pipeline_refuses_mismatched_images_and_small_workspaces() {
-        let (bytes, _) = scene();
+    fn setup_refuses_mismatched_images_small_workspaces_and_bad_inputs() {
+        let (bytes, truth) = scene();
         let map = MapView::new_checked(&bytes).unwrap();
         let rig = rig();
         let p = test_params();
-        let policy = MatchPolicy {
-            search_px: 256,
-            ..MatchPolicy::for_params(&p)
-        };
         let img = vec![0u8; 640 * 480];
         let small = vec![0u8; 320 * 240];
         let lv = GrayView::new(&img, 640, 480, 640).unwrap();
         let sv = GrayView::new(&small, 320, 240, 320).unwrap();
-        let (mut b, mut w, mut r) = workspace_buffers(&TEST_WORKSPACE);
-        let ws = Workspace::new(TEST_WORKSPACE, &mut b, &mut w, &mut r).unwrap();
-        let e = Pipeline::new(&map, lv, sv, &rig, &p, &policy, ws).err();
-        assert_eq!(e, Some(FailureCode::ImageSizeMismatch));
-        let tiny = WorkspaceSizes::new(32, 256, ncc::Search::CoarseToFine);
-        let (mut b, mut w, mut r) = workspace_buffers(&tiny);
-        let ws = Workspace::new(tiny, &mut b, &mut w, &mut r).unwrap();
-        let e = Pipeline::new(&map, lv, lv, &rig, &p, &policy, ws).err();
-        assert_eq!(e, Some(FailureCode::ConfigCapacityTooSmall));
-        let (mut b, mut w, mut r) = workspace_buffers(&TEST_WORKSPACE);
-        let ws = Workspace::new(TEST_WORKSPACE, &mut b, &mut w, &mut r).unwrap();
-        let wide = MatchPolicy {
-            search_px: 512,
-            ..policy
+        let good = Setup::new(&map, lv, lv, &rig, &p, &truth, 1);
+        assert_eq!(good.sizes(), TEST_WORKSPACE);
+        assert_eq!(good.validate(), Ok(()));
+        let build = |s: &Setup, sizes: WorkspaceSizes| {
+            let (mut b, mut w, mut r) = workspace_buffers(&sizes);
+            let ws = Workspace::new(sizes, &mut b, &mut w, &mut r).unwrap();
+            s.build(ws).err()
         };
-        let e = Pipeline::new(&map, lv, lv, &rig, &p, &wide, ws).err();
-        assert_eq!(e, Some(FailureCode::ConfigCapacityTooSmall));
+        assert_eq!(build(&good, TEST_WORKSPACE), None);
+        let mismatched = Setup { right: sv, ..good };
+        assert_eq!(
+            build(&mismatched, TEST_WORKSPACE),
+            Some(FailureCode::ImageSizeMismatch)
+        );
+        let tiny = WorkspaceSizes::new(32, 256, ncc::Search::CoarseToFine);
+        assert_eq!(
+            build(&good, tiny),
+            Some(FailureCode::ConfigCapacityTooSmall)
+        );
+        let wide = Setup {
+            params: Params {
+                search_px: 512,
+                ..p
+            },
+            ..good
+        };
+        assert_eq!(
+            build(&wide, TEST_WORKSPACE),
+            Some(FailureCode::ConfigCapacityTooSmall)
+        );
+        let bad_params = Setup {
+            params: Params { n_corr: 1, ..p },
+            ..good
+        };
+        assert_eq!(
+            build(&bad_params, TEST_WORKSPACE),
+            Some(FailureCode::ConfigParamOutOfRange)
+        );
+        let mut bad_policy = good;
+        bad_policy.policy.min_score = 2.0;
+        assert_eq!(
+            bad_policy.validate(),
+            Err(FailureCode::ConfigParamOutOfRange)
+        );
+        let mut bad_options = good;
+        bad_options.options.min_inliers = 0;
+        assert_eq!(
+            bad_options.validate(),
+            Err(FailureCode::ConfigParamOutOfRange)
+        );
+        let nan_prior = Setup {
+            prior: Pose::new(truth.rotation(), Vec3::new(f32::NAN, 0.0, 0.0)),
+            ..good
+        };
+        assert_eq!(
+            build(&nan_prior, TEST_WORKSPACE),
+            Some(FailureCode::RelocPriorInvalid)
+        );
     }
 
     proptest::proptest! {

@@ -2,7 +2,7 @@
 //! order, and how to accept a match. Plain data, validated once.
 
 use super::MATCH_VARIANTS;
-use crate::config::{Params, MAX_SEARCH_PX};
+use crate::config::Params;
 use crate::failure::FailureCode;
 use crate::ncc::{Filter, Search};
 
@@ -42,8 +42,6 @@ pub struct MatchPolicy {
     pub max_runner_up_ratio: f32,
     /// Search strategy.
     pub search: Search,
-    /// Largest search-window side, pixels, ℓ..=MAX_SEARCH_PX.
-    pub search_px: u16,
     /// Disparity 1-σ for the correspondence's sigma, pixels, ≥ 0.
     pub sigma_d_px: f32,
     /// Smallest plausible disparity, pixels, ≥ 0.
@@ -79,26 +77,24 @@ impl MatchPolicy {
             min_score: params.min_score,
             max_runner_up_ratio: 0.9,
             search: Search::CoarseToFine,
-            search_px: MAX_SEARCH_PX as u16,
             sigma_d_px: 0.5,
             min_disparity_px: 1.0,
             margin_px: 4,
         }
     }
 
-    /// Check the ranges documented on each field for template side `template_px`.
+    /// Check the ranges documented on each field (the search-window cap is
+    /// [`Params::search_px`], checked with the params).
     ///
     /// # Errors
     /// [`FailureCode::ConfigParamOutOfRange`].
-    pub fn validate(&self, template_px: usize) -> Result<(), FailureCode> {
-        let s = usize::from(self.search_px);
+    pub fn validate(&self) -> Result<(), FailureCode> {
         let ok = self.min_score.is_finite()
             && self.min_score > 0.0
             && self.min_score < 1.0
             && self.max_runner_up_ratio.is_finite()
             && self.max_runner_up_ratio > 0.0
             && self.max_runner_up_ratio <= 1.0
-            && (template_px..=MAX_SEARCH_PX).contains(&s)
             && self.sigma_d_px.is_finite()
             && self.sigma_d_px >= 0.0
             && self.min_disparity_px.is_finite()
@@ -121,7 +117,7 @@ mod tests {
     fn default_policy_orders_full_then_half_and_validates_ranges() {
         let mut p = Params::paper();
         let pol = MatchPolicy::for_params(&p);
-        assert_eq!(pol.validate(256), Ok(()));
+        assert_eq!(pol.validate(), Ok(()));
         let idx: heapless::Vec<usize, 6> =
             pol.variants.iter().flatten().map(|v| v.index()).collect();
         // Sobel ℓ, gray ℓ, Sobel ℓ/2, gray ℓ/2 (index = half * 3 + filter).
@@ -138,13 +134,11 @@ mod tests {
         let bad = |f: fn(&mut MatchPolicy)| {
             let mut q = MatchPolicy::for_params(&Params::paper());
             f(&mut q);
-            q.validate(256)
+            q.validate()
         };
         let err = Err(FailureCode::ConfigParamOutOfRange);
         assert_eq!(bad(|q| q.min_score = 1.0), err);
         assert_eq!(bad(|q| q.max_runner_up_ratio = 0.0), err);
-        assert_eq!(bad(|q| q.search_px = 200), err);
-        assert_eq!(bad(|q| q.search_px = MAX_SEARCH_PX as u16 + 1), err);
         assert_eq!(bad(|q| q.sigma_d_px = f32::NAN), err);
         assert_eq!(bad(|q| q.variants = [None; MATCH_VARIANTS]), err);
     }

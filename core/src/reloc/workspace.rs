@@ -4,8 +4,12 @@
 //!
 //! Nothing here allocates; the paper-scale buffers (several MB) are meant to be
 //! static or heap memory of the caller, never a by-value stack object.
+//! [`Storage`] is that memory as one typed value whose size is fixed at compile
+//! time from a [`WorkspaceSizes`] constant (a `static`, or a stack or heap
+//! object of the caller); a caller with run-time sizes borrows three slices
+//! into [`Workspace::new`] instead.
 
-use crate::config::{MAX_SEARCH_PX, MAX_TEMPLATE_PX};
+use crate::config::{Params, MAX_SEARCH_PX, MAX_TEMPLATE_PX};
 use crate::failure::FailureCode;
 use crate::ncc::{Run, Scratch, ScratchSizes, Search};
 
@@ -57,6 +61,24 @@ impl WorkspaceSizes {
         }
     }
 
+    /// Sizes for validated `params` (ℓ = `template_px`, W = `search_px`) and search `mode`.
+    pub const fn for_params(params: &Params, mode: Search) -> Self {
+        Self::new(params.template_px as usize, params.search_px as usize, mode)
+    }
+
+    /// Whether a workspace of these sizes serves every buffer `need` asks for.
+    pub const fn covers(&self, need: &WorkspaceSizes) -> bool {
+        self.template_px >= need.template_px
+            && self.search_px >= need.search_px
+            && self.bytes >= need.bytes
+            && self.words >= need.words
+            && self.runs >= need.runs
+            && self.ncc.window >= need.ncc.window
+            && self.ncc.template >= need.ncc.template
+            && self.ncc.integral >= need.ncc.integral
+            && self.ncc.runs >= need.ncc.runs
+    }
+
     /// Total bytes of the three buffers.
     pub const fn total_bytes(&self) -> usize {
         self.bytes + 4 * self.words + self.runs * core::mem::size_of::<Run>()
@@ -72,6 +94,54 @@ pub const PAPER_WORKSPACE_BYTES: usize = PAPER_WORKSPACE.total_bytes();
 pub const TEST_WORKSPACE: WorkspaceSizes = WorkspaceSizes::new(64, 256, Search::CoarseToFine);
 /// Bytes of [`TEST_WORKSPACE`].
 pub const TEST_WORKSPACE_BYTES: usize = TEST_WORKSPACE.total_bytes();
+
+/// The engine's working memory as one value of a compile-time size: three
+/// arrays of `BYTES` bytes, `WORDS` words and `RUNS` runs. Name it from a
+/// [`WorkspaceSizes`] constant, e.g.
+/// `Storage<{ SIZES.bytes }, { SIZES.words }, { SIZES.runs }>`, and place it in
+/// a `static`, on a large stack, or on the heap; [`Storage::workspace`] carves
+/// the [`Workspace`].
+pub struct Storage<const BYTES: usize, const WORDS: usize, const RUNS: usize> {
+    bytes: [u8; BYTES],
+    words: [u32; WORDS],
+    runs: [Run; RUNS],
+}
+
+impl<const BYTES: usize, const WORDS: usize, const RUNS: usize> Storage<BYTES, WORDS, RUNS> {
+    /// Zeroed storage (usable in a `static` initializer).
+    pub const fn new() -> Self {
+        Self {
+            bytes: [0; BYTES],
+            words: [0; WORDS],
+            runs: [Run {
+                row: 0,
+                x0: 0,
+                x1: 0,
+            }; RUNS],
+        }
+    }
+
+    /// Bytes of this storage.
+    pub const fn total_bytes() -> usize {
+        core::mem::size_of::<Self>()
+    }
+
+    /// The workspace for `sizes`, borrowing this storage.
+    ///
+    /// # Errors
+    /// [`FailureCode::ConfigCapacityTooSmall`] if `sizes` needs more than this storage holds.
+    pub fn workspace(&mut self, sizes: WorkspaceSizes) -> Result<Workspace<'_>, FailureCode> {
+        Workspace::new(sizes, &mut self.bytes, &mut self.words, &mut self.runs)
+    }
+}
+
+impl<const BYTES: usize, const WORDS: usize, const RUNS: usize> Default
+    for Storage<BYTES, WORDS, RUNS>
+{
+    fn default() -> Self {
+        Self::new()
+    }
+}
 
 /// The pipeline's buffers, carved from three caller slices.
 pub struct Workspace<'w> {
@@ -97,6 +167,11 @@ fn take<'w, T>(s: &mut &'w mut [T], n: usize) -> Result<&'w mut [T], FailureCode
 }
 
 impl<'w> Workspace<'w> {
+    /// The sizes this workspace was carved for.
+    pub const fn sizes(&self) -> WorkspaceSizes {
+        self.sizes
+    }
+
     /// Carve the buffers for `sizes` out of `bytes`, `words` and `runs`.
     ///
     /// # Errors
@@ -180,5 +255,27 @@ mod tests {
             }
         }
         assert_eq!(PAPER_WORKSPACE_BYTES, PAPER_WORKSPACE.total_bytes());
+    }
+
+    /// Verifies: VTSM-RELOC-016
+    #[test]
+    fn typed_storage_serves_its_sizes_and_refuses_larger_ones() {
+        const S: WorkspaceSizes = WorkspaceSizes::new(32, 128, Search::CoarseToFine);
+        type Small = Storage<{ S.bytes }, { S.words }, { S.runs }>;
+        let mut st = std::boxed::Box::new(Small::new());
+        let ws = st.workspace(S).unwrap();
+        assert_eq!(ws.sizes(), S);
+        assert!(Small::total_bytes() >= S.total_bytes());
+        let bigger = WorkspaceSizes::new(64, 256, Search::CoarseToFine);
+        assert!(bigger.covers(&S) && !S.covers(&bigger));
+        assert_eq!(
+            st.workspace(bigger).err(),
+            Some(FailureCode::ConfigCapacityTooSmall)
+        );
+        let p = Params::paper();
+        let paper = WorkspaceSizes::for_params(&p, Search::CoarseToFine);
+        assert_eq!(paper.template_px, 256);
+        assert_eq!(paper.search_px, usize::from(p.search_px));
+        assert!(PAPER_WORKSPACE.covers(&paper));
     }
 }

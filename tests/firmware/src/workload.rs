@@ -142,9 +142,8 @@ fn reloc_block(d: &mut Digest, clock: &dyn Fn() -> u64) -> Summary {
     use vtsm_core::geom::{Camera, StereoRig, Vec3};
     use vtsm_core::image::{GrayView, Rect};
     use vtsm_core::map::{MapSource, MapView};
-    use vtsm_core::ncc::Run;
     use vtsm_core::raster::{self, Target};
-    use vtsm_core::reloc::{MatchPolicy, Options, Pipeline, RansacSolver, Relocalizer, Workspace};
+    use vtsm_core::reloc::{Setup, Storage};
     use vtsm_core::rng::Rng;
 
     let fail = |code: u16| Summary { success: false, failure: code, final_error_um: u32::MAX, initial_error_um: 0, attempts: 0, engine_ticks: 0 };
@@ -249,25 +248,16 @@ fn reloc_block(d: &mut Digest, clock: &dyn Fn() -> u64) -> Summary {
     d.bytes(&left);
     d.bytes(&right);
 
-    let p = Params { template_px: 32, n_corr: 24, n_iter: 3, attempts_per_iter: 300, ransac_iter: 300, max_reseed: 3, ..Params::paper() };
-    let mut policy = MatchPolicy::for_params(&p);
-    policy.search_px = WS.search_px as u16;
-    let options = Options::for_params(&p);
-    let mut bytes = [0u8; WS.bytes];
-    let mut words = [0u32; WS.words];
-    let mut runs = [Run::default(); WS.runs];
+    let p = Params { template_px: 32, search_px: 128, n_corr: 24, n_iter: 3, attempts_per_iter: 300, ransac_iter: 300, max_reseed: 3, ..Params::paper() };
     let (Ok(lv), Ok(rv)) = (GrayView::new(&left, W, H, W), GrayView::new(&right, W, H, W)) else { return fail(5) };
-    let ws = match Workspace::new(WS, &mut bytes, &mut words, &mut runs) {
-        Ok(w) => w,
-        Err(e) => return fail(e.code()),
-    };
-    let pipe = match Pipeline::new(&map, lv, rv, &rig, &p, &policy, ws) {
-        Ok(x) => x,
-        Err(e) => return fail(e.code()),
-    };
     let dq = nalgebra::UnitQuaternion::from_scaled_axis(Vec3::new(0.3, -0.5, 0.8).normalize() * 1.0f32.to_radians());
     let prior = vtsm_core::geom::Pose::new(dq * truth.rotation(), truth.translation() + Vec3::new(0.11, -0.06, 0.03));
-    let mut reloc = match Relocalizer::new(pipe, RansacSolver::from_params(&p), &p, &options, &prior, 2026) {
+    let setup = Setup::new(&map, lv, rv, &rig, &p, &prior, 2026);
+    if setup.sizes() != WS {
+        return fail(6);
+    }
+    let mut storage = Storage::<{ WS.bytes }, { WS.words }, { WS.runs }>::new();
+    let mut reloc = match storage.workspace(WS).and_then(|ws| setup.build(ws)) {
         Ok(r) => r,
         Err(e) => return fail(e.code()),
     };

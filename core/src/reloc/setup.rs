@@ -1,0 +1,138 @@
+//! The one constructor of the relocalization engine.
+//!
+//! [`Setup`] gathers everything one relocalization needs — the checked map,
+//! the real stereo pair, the rig, validated [`Params`], the Match policy, the
+//! engine [`Options`], the prior and the seed — and [`Setup::build`] checks it
+//! all once and wires the real [`Pipeline`], the [`RansacSolver`] and the
+//! [`Relocalizer`] over a caller-owned [`Workspace`] (carved from a typed
+//! [`Storage`](super::Storage) or from three caller slices) whose size is
+//! [`Setup::sizes`], a `const fn` of the parameters.
+//!
+//! The desktop tools, the tests, the benches and the firmware image all build
+//! the engine here, so there is one wiring to audit. Custom [`super::Attempt`]
+//! or [`super::Solver`] implementations (test fakes) use [`Relocalizer::new`].
+
+use super::pipeline::Pipeline;
+use super::policy::MatchPolicy;
+use super::solver::RansacSolver;
+use super::workspace::{Workspace, WorkspaceSizes};
+use super::{Options, Relocalizer};
+use crate::config::Params;
+use crate::failure::FailureCode;
+use crate::geom::{Pose, StereoRig};
+use crate::image::GrayView;
+use crate::map::MapView;
+
+/// The engine as built by [`Setup::build`]: the real pipeline and RANSAC.
+pub type Engine<'a, 'w> = Relocalizer<Pipeline<'a, 'w>, RansacSolver>;
+
+/// The inputs of one relocalization. Fill it with [`Setup::new`] (defaults for
+/// the policy and options from the params), adjust the public fields if
+/// needed, size the workspace with [`Setup::sizes`] and call [`Setup::build`].
+#[derive(Clone, Copy, Debug)]
+pub struct Setup<'a> {
+    /// The checked map product.
+    pub map: &'a MapView<'a>,
+    /// Left (reference) image of the rectified pair, `rig.cam` sized.
+    pub left: GrayView<'a>,
+    /// Right image, same size.
+    pub right: GrayView<'a>,
+    /// Calibrated rectified rig.
+    pub rig: StereoRig,
+    /// Relocalization parameters.
+    pub params: Params,
+    /// Match policy (variants, acceptance).
+    pub policy: MatchPolicy,
+    /// Engine options (acceptance, budget, multi-seed spread).
+    pub options: Options,
+    /// Prior `world_from_left`.
+    pub prior: Pose,
+    /// Seed of the relocalization's random streams.
+    pub seed: u64,
+}
+
+impl<'a> Setup<'a> {
+    /// A setup with the default policy ([`MatchPolicy::for_params`]) and
+    /// options ([`Options::for_params`]) for `params`. Nothing is checked yet.
+    pub fn new(
+        map: &'a MapView<'a>,
+        left: GrayView<'a>,
+        right: GrayView<'a>,
+        rig: &StereoRig,
+        params: &Params,
+        prior: &Pose,
+        seed: u64,
+    ) -> Self {
+        Self {
+            map,
+            left,
+            right,
+            rig: *rig,
+            params: *params,
+            policy: MatchPolicy::for_params(params),
+            options: Options::for_params(params),
+            prior: *prior,
+            seed,
+        }
+    }
+
+    /// Workspace sizes this setup needs (template side and search window of
+    /// the params, search mode of the policy).
+    pub const fn sizes(&self) -> WorkspaceSizes {
+        WorkspaceSizes::for_params(&self.params, self.policy.search)
+    }
+
+    /// Check every input once: params, policy, options, prior, image sizes
+    /// against the rig, and that the map has a sampling mask.
+    ///
+    /// # Errors
+    /// [`FailureCode::ConfigParamOutOfRange`] (params, policy or options),
+    /// [`FailureCode::RelocPriorInvalid`], [`FailureCode::ImageSizeMismatch`],
+    /// [`FailureCode::RelocNoVisibleMaskVertex`] (empty mask).
+    pub fn validate(&self) -> Result<(), FailureCode> {
+        self.params.validate()?;
+        self.policy.validate()?;
+        self.options.validate(&self.params)?;
+        if !super::engine::pose_is_valid(&self.prior) {
+            return Err(FailureCode::RelocPriorInvalid);
+        }
+        let (w, h) = (self.rig.cam.width as usize, self.rig.cam.height as usize);
+        let same = |v: &GrayView| v.width() == w && v.height() == h;
+        if !same(&self.left) || !same(&self.right) {
+            return Err(FailureCode::ImageSizeMismatch);
+        }
+        if self.map.mask_vertex_count() == 0 {
+            return Err(FailureCode::RelocNoVisibleMaskVertex);
+        }
+        Ok(())
+    }
+
+    /// Validate (as [`Setup::validate`]) and build the engine over `ws`.
+    ///
+    /// # Errors
+    /// As [`Setup::validate`], and [`FailureCode::ConfigCapacityTooSmall`] if
+    /// `ws` was carved for smaller sizes than [`Setup::sizes`].
+    pub fn build<'w>(&self, ws: Workspace<'w>) -> Result<Engine<'a, 'w>, FailureCode> {
+        self.validate()?;
+        if !ws.sizes().covers(&self.sizes()) {
+            return Err(FailureCode::ConfigCapacityTooSmall);
+        }
+        let pipeline = Pipeline::from_checked(
+            self.map,
+            self.left,
+            self.right,
+            &self.rig,
+            &self.params,
+            &self.policy,
+            ws,
+        );
+        Ok(Relocalizer::from_checked(
+            pipeline,
+            RansacSolver::from_params(&self.params),
+            &self.params,
+            &self.options,
+            &self.prior,
+            self.seed,
+        ))
+    }
+}
