@@ -12,11 +12,13 @@
 //! re-read whole at most `product_attempts` times when its check fails;
 //! [`Runner::drive`] calls the engine at most `max_steps` times.
 //!
-//! INTEGRATION POINT (core::reloc): the engine is called from
-//! [`Runner::drive`] through a closure, `|now| relocalizer.step(now)`, and the
-//! map check passed to [`Runner::acquire`] is
-//! `|b| core::map::MapView::new_checked(b).map(|_| ())`. Both land with the
-//! engine and the map product; nothing else in this module changes then.
+//! [`Runner::relocalize`] is the flight path of one relocalization: it
+//! acquires the map (checked with `MapView::new_checked`), the prior and the
+//! stereo pair through the devices, builds the engine with the core's one
+//! constructor ([`Setup`]) over the caller's workspace, and drives it with
+//! `now` from the clock under a step, work and tick budget ([`DriveLimits`]),
+//! ending with the anytime result when the budget runs out. The outcome and
+//! the failure log go out as telemetry frames.
 
 use crate::camera::{FrameInfo, StereoCamera};
 use crate::clock::Clock;
@@ -26,8 +28,13 @@ use crate::store::MapStore;
 use crate::telemetry::{
     failure_counters_payload, failure_event_payload, FrameKind, Telemetry, MAX_PAYLOAD,
 };
+use crate::telemetry::{outcome_payload, OutcomeSummary};
+use vtsm_core::config::Params;
 use vtsm_core::failure::{FailureLog, Retry};
+use vtsm_core::geom::StereoRig;
 use vtsm_core::image::GrayView;
+use vtsm_core::map::MapView;
+use vtsm_core::reloc::{Outcome, Setup, StepResult, Workspace};
 use vtsm_core::FailureCode;
 
 /// Cap on attempts of one device operation.
@@ -309,6 +316,43 @@ pub struct DriveReport {
     pub done: bool,
 }
 
+/// How [`Runner::relocalize`] may spend time: engine work units per step
+/// call, step calls, and clock ticks from the first step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DriveLimits {
+    /// Engine work units per step call (≥ 1; one unit is one attempt or one
+    /// RANSAC chunk). The outcome does not depend on it.
+    pub units_per_step: u32,
+    /// Step calls at most.
+    pub max_steps: u32,
+    /// Ticks at most, measured with the runner's clock.
+    pub budget_ticks: u64,
+}
+
+impl DriveLimits {
+    /// No limit beyond the engine's own structural bound.
+    pub const UNLIMITED: DriveLimits = DriveLimits {
+        units_per_step: 64,
+        max_steps: u32::MAX,
+        budget_ticks: u64::MAX,
+    };
+}
+
+/// What one [`Runner::relocalize`] did besides the engine's outcome.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RelocReport {
+    /// Frame metadata of the pair used.
+    pub frame: FrameInfo,
+    /// Capture work.
+    pub capture: CaptureReport,
+    /// Map read work.
+    pub map_read: ReadReport,
+    /// Engine driving.
+    pub drive: DriveReport,
+}
+
 /// The devices and the failure log of one relocalization run.
 #[derive(Debug)]
 pub struct Runner<C, K, S, P, T> {
@@ -469,6 +513,75 @@ where
                 .record(FailureCode::RelocBudgetExhausted, now, rep.steps);
         }
         (rep, result)
+    }
+
+    /// One relocalization on the flight path: [`Runner::acquire`] the map,
+    /// prior and stereo pair into `bufs`, build the engine with [`Setup`]
+    /// (`params`, `rig`, `seed`, the prior's pose) over `ws`, and drive it with
+    /// the clock under `limits`; if the budget ends first, the engine's anytime
+    /// result ([`FailureCode::RelocBudgetExhausted`]) is returned. The outcome
+    /// and the failure log are sent as telemetry.
+    ///
+    /// # Errors
+    /// The failure code of acquisition (device faults after their retries, a
+    /// map product that fails its check, an invalid prior, a frame that
+    /// disagrees with the calibration) or of [`Setup::build`]; each is also in
+    /// [`Runner::log`] and sent with the failure log.
+    pub fn relocalize<'w>(
+        &mut self,
+        bufs: Buffers<'_>,
+        rig: &StereoRig,
+        params: &Params,
+        ws: Workspace<'w>,
+        seed: u64,
+        limits: &DriveLimits,
+    ) -> Result<(Outcome, RelocReport), FailureCode> {
+        let result = self.relocalize_inner(bufs, rig, params, ws, seed, limits);
+        if let Ok((o, _)) = &result {
+            let summary = outcome_payload(&OutcomeSummary::of(o));
+            self.send(FrameKind::Outcome as u8, &summary);
+        }
+        self.send_failure_log();
+        result
+    }
+
+    fn relocalize_inner<'w>(
+        &mut self,
+        bufs: Buffers<'_>,
+        rig: &StereoRig,
+        params: &Params,
+        ws: Workspace<'w>,
+        seed: u64,
+        limits: &DriveLimits,
+    ) -> Result<(Outcome, RelocReport), FailureCode> {
+        // Acquisition logs its own faults; the checks after it log theirs here.
+        let inputs = self.acquire(bufs, |b| MapView::new_checked(b).map(|_| ()))?;
+        let start = inputs.start_ticks;
+        let map =
+            MapView::new_checked(inputs.map).inspect_err(|&c| self.log.record(c, start, 0))?;
+        let prior = inputs.prior.world_from_left;
+        let setup = Setup::new(&map, inputs.left, inputs.right, rig, params, &prior, seed);
+        let mut engine = setup
+            .build(ws)
+            .inspect_err(|&c| self.log.record(c, start, 0))?;
+        let units = limits.units_per_step.max(1);
+        let (drive, _) = self.drive(limits.max_steps, limits.budget_ticks, |now| {
+            Ok(match engine.step_n(now, units) {
+                StepResult::Running => StepStatus::Continue,
+                StepResult::Done(_) => StepStatus::Done,
+            })
+        });
+        let now = self.now();
+        let outcome = engine.stop(now).clone();
+        Ok((
+            outcome,
+            RelocReport {
+                frame: inputs.frame,
+                capture: inputs.capture,
+                map_read: inputs.map_read,
+                drive,
+            },
+        ))
     }
 
     /// Send one frame; a failure is counted and logged, never retried.

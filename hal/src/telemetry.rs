@@ -41,6 +41,8 @@ pub enum FrameKind {
     FailureCounters = 0x02,
     /// Free-form status text (ASCII), for bring-up.
     Text = 0x03,
+    /// The result of one relocalization ([`outcome_payload`], [`OUTCOME_LEN`] bytes).
+    Outcome = 0x04,
 }
 
 /// Size of a [`FrameKind::FailureEvent`] payload.
@@ -221,6 +223,85 @@ pub fn failure_event_payload(e: &Event) -> [u8; FAILURE_EVENT_LEN] {
     t.copy_from_slice(&e.tick.to_le_bytes());
     d.copy_from_slice(&e.detail.to_le_bytes());
     p
+}
+
+/// Size of a [`FrameKind::Outcome`] payload.
+pub const OUTCOME_LEN: usize = 42;
+
+/// The fields of a [`FrameKind::Outcome`] frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct OutcomeSummary {
+    /// Failure code value, 0 on success.
+    pub failure: u16,
+    /// Inliers of the returned pose.
+    pub inliers: u16,
+    /// Successful iterations.
+    pub successes: u16,
+    /// Correspondence attempts.
+    pub attempts: u32,
+    /// Work units done.
+    pub work_units: u32,
+    /// `world_from_left` translation, metres.
+    pub t: [f32; 3],
+    /// `world_from_left` rotation quaternion `[w, x, y, z]`.
+    pub q: [f32; 4],
+}
+
+impl OutcomeSummary {
+    /// The summary of an engine outcome.
+    pub fn of(o: &vtsm_core::reloc::Outcome) -> Self {
+        Self {
+            failure: o.failure.map_or(0, FailureCode::code),
+            inliers: o.quality.inliers,
+            successes: o.stats.successes,
+            attempts: o.stats.attempts,
+            work_units: o.stats.work_units,
+            t: o.pose.t(),
+            q: o.pose.q(),
+        }
+    }
+}
+
+/// Payload of a [`FrameKind::Outcome`] frame, little-endian: failure u16,
+/// inliers u16, successes u16, attempts u32, work units u32, t 3×f32, q 4×f32.
+pub fn outcome_payload(s: &OutcomeSummary) -> [u8; OUTCOME_LEN] {
+    let mut p = [0u8; OUTCOME_LEN];
+    let mut at = 0usize;
+    let mut put = |b: &[u8]| {
+        if let Some(d) = p.get_mut(at..at + b.len()) {
+            d.copy_from_slice(b);
+        }
+        at += b.len();
+    };
+    put(&s.failure.to_le_bytes());
+    put(&s.inliers.to_le_bytes());
+    put(&s.successes.to_le_bytes());
+    put(&s.attempts.to_le_bytes());
+    put(&s.work_units.to_le_bytes());
+    for v in s.t.iter().chain(s.q.iter()) {
+        put(&v.to_le_bytes());
+    }
+    p
+}
+
+/// Parse a [`FrameKind::Outcome`] payload; `None` if its length is wrong.
+pub fn parse_outcome(p: &[u8]) -> Option<OutcomeSummary> {
+    if p.len() != OUTCOME_LEN {
+        return None;
+    }
+    let u16_at = |i: usize| Some(u16::from_le_bytes(p.get(i..i + 2)?.try_into().ok()?));
+    let u32_at = |i: usize| Some(u32::from_le_bytes(p.get(i..i + 4)?.try_into().ok()?));
+    let f32_at = |k: usize| Some(f32::from_bits(u32_at(14 + 4 * k)?));
+    Some(OutcomeSummary {
+        failure: u16_at(0)?,
+        inliers: u16_at(2)?,
+        successes: u16_at(4)?,
+        attempts: u32_at(6)?,
+        work_units: u32_at(10)?,
+        t: [f32_at(0)?, f32_at(1)?, f32_at(2)?],
+        q: [f32_at(3)?, f32_at(4)?, f32_at(5)?, f32_at(6)?],
+    })
 }
 
 /// Parse a [`FrameKind::FailureEvent`] payload; `None` if malformed or the code is unknown.

@@ -1,19 +1,28 @@
-//! One relocalization on the desktop: build the engine with the core's one
-//! constructor ([`Setup`]), its workspace on the heap (sized by
-//! [`Setup::sizes`]), and run it to completion. Used by `vtsm demo`,
+//! One relocalization on the desktop, on the flight path: simulated devices
+//! (camera, clock, map store, prior, telemetry) serve the request to the HAL
+//! runner, which acquires the inputs, builds the engine with the core's one
+//! constructor ([`vtsm_core::reloc::Setup`]) over a heap workspace, and drives it. Used by `vtsm demo`,
 //! `vtsm relocalize`, `vtsm eval` and the end-to-end tests, so every path runs
 //! exactly the same code.
 
+use crate::devices::{
+    DecodedFrame, FaultConfig, FaultInjector, FixedCamera, FixedPrior, ManualClock, MemMapStore,
+    RecordingSink,
+};
 use crate::error::{Error, Result};
 use std::time::{Duration, Instant};
 use vtsm_core::config::Params;
+use vtsm_core::failure::FailureLog;
 use vtsm_core::geom::Camera;
 use vtsm_core::geom::{Pose, StereoRig};
-use vtsm_core::image::{GrayView, Rect};
+use vtsm_core::image::Rect;
 use vtsm_core::map::MapView;
 use vtsm_core::ncc::Run;
 use vtsm_core::raster::{self, Target};
-use vtsm_core::reloc::{Outcome, Setup, Workspace};
+use vtsm_core::reloc::{MatchPolicy, Outcome, Workspace, WorkspaceSizes};
+use vtsm_core::FailureCode;
+use vtsm_hal::runner::{Buffers, DriveLimits, RelocReport, Runner, RunnerConfig};
+use vtsm_hal::{Covariance, FramedTelemetry, PriorEstimate};
 
 /// The parameters used for an image width: the paper's, with ℓ and the
 /// search window scaled to the image ([`Params::for_image_width`]).
@@ -40,11 +49,35 @@ pub struct Request<'a> {
     pub seed: u64,
 }
 
+/// Seeded faults of the simulated devices one relocalization runs on.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DeviceFaults {
+    /// Faults of the stereo camera (one draw per capture).
+    pub camera: FaultConfig,
+    /// Faults of the map store (one draw per chunk read).
+    pub store: FaultConfig,
+    /// Seed of both fault streams.
+    pub seed: u64,
+}
+
+/// Retry and size settings of the desktop runner for a `width × height` rig.
+pub fn runner_config(width: u32, height: u32) -> RunnerConfig {
+    RunnerConfig {
+        attempts: 3,
+        product_attempts: 2,
+        chunk_len: 1 << 16,
+        capture_timeout_ticks: 1_000,
+        image_size: (width, height),
+    }
+}
+
 /// What one relocalization produced.
 pub struct Report {
     /// The engine's outcome.
     pub outcome: Outcome,
-    /// Wall time of the engine alone (not of loading or workspace allocation).
+    /// Wall time of the run through the runner: device reads of the in-memory
+    /// map and pair, engine construction and the engine (not file loading or
+    /// workspace allocation).
     pub elapsed: Duration,
     /// Template side used.
     pub template_px: u16,
@@ -52,46 +85,122 @@ pub struct Report {
     pub search_px: u16,
     /// Workspace bytes allocated for the core.
     pub workspace_bytes: usize,
+    /// Device, capture, map-read and drive work of the runner.
+    pub run: RelocReport,
+    /// Device faults and runner events (the engine's own are in `outcome.log`).
+    pub device_log: FailureLog,
+    /// Telemetry frames decoded from the downlink.
+    pub telemetry: Vec<DecodedFrame>,
 }
 
-/// Run one relocalization to completion.
+/// Run one relocalization to completion on fault-free simulated devices.
 ///
 /// # Errors
-/// Bad map product, image sizes that disagree with the rig, or parameters the
-/// core rejects — each with its failure code. A relocalization that fails
-/// cleanly is not an error: it is an [`Outcome`] with a failure code.
+/// As [`relocalize_on_devices`].
 pub fn relocalize(req: &Request<'_>) -> Result<Report> {
-    let map = MapView::new_checked(req.map)?;
-    let (w, h) = (req.rig.cam.width as usize, req.rig.cam.height as usize);
-    if req.left.len() != w * h || req.right.len() != w * h {
-        return Err(Error::from(vtsm_core::FailureCode::ImageSizeMismatch));
+    relocalize_on_devices(req, &DeviceFaults::default(), &DriveLimits::UNLIMITED)
+}
+
+/// Run one relocalization through the HAL runner, on simulated devices that
+/// serve `req`'s map, pair and prior with `faults`, under `limits`: the path a
+/// flight computer runs, with the engine built by the core's one constructor.
+///
+/// # Errors
+/// Bad map product, image sizes that disagree with the rig, parameters the
+/// core rejects, or device faults that outlast their retries — each with its
+/// failure code. A relocalization that fails cleanly is not an error: it is
+/// an [`Outcome`] with a failure code.
+pub fn relocalize_on_devices(
+    req: &Request<'_>,
+    faults: &DeviceFaults,
+    limits: &DriveLimits,
+) -> Result<Report> {
+    let run = run_on_devices(req, faults, limits)?;
+    let (outcome, report) = run.result?;
+    Ok(Report {
+        outcome,
+        elapsed: run.elapsed,
+        template_px: req.params.template_px,
+        search_px: req.params.search_px,
+        workspace_bytes: run.workspace_bytes,
+        run: report,
+        device_log: run.log,
+        telemetry: run.telemetry,
+    })
+}
+
+/// Everything a run on the simulated devices left behind, also when the
+/// runner ended with a failure code.
+pub struct DeviceRun {
+    /// The runner's result: the outcome and its work, or the code it stopped with.
+    pub result: std::result::Result<(Outcome, RelocReport), FailureCode>,
+    /// Device faults and runner events.
+    pub log: FailureLog,
+    /// Telemetry frames decoded from the downlink.
+    pub telemetry: Vec<DecodedFrame>,
+    /// Wall time of the runner call.
+    pub elapsed: Duration,
+    /// Workspace bytes allocated for the core.
+    pub workspace_bytes: usize,
+}
+
+/// [`relocalize_on_devices`], keeping the runner's log and telemetry whatever
+/// the result.
+///
+/// # Errors
+/// Only what stops the devices from being set up (image sizes that disagree
+/// with the rig, parameters that cannot size a workspace, invalid fault
+/// settings); everything after that is in [`DeviceRun::result`].
+pub fn run_on_devices(
+    req: &Request<'_>,
+    faults: &DeviceFaults,
+    limits: &DriveLimits,
+) -> Result<DeviceRun> {
+    let (w, h) = (req.rig.cam.width, req.rig.cam.height);
+    let n = (w as usize) * (h as usize);
+    if req.left.len() != n || req.right.len() != n {
+        return Err(Error::from(FailureCode::ImageSizeMismatch));
     }
-    let left = GrayView::new(req.left, w, h, w)?;
-    let right = GrayView::new(req.right, w, h, w)?;
-    let setup = Setup::new(
-        &map,
-        left,
-        right,
-        &req.rig,
-        &req.params,
-        &req.prior,
-        req.seed,
-    );
     // Check before allocating: a bad parameter must not size a huge workspace.
-    setup.validate()?;
-    let sizes = setup.sizes();
+    req.params.validate().map_err(FailureCode::from)?;
+    let mode = MatchPolicy::for_params(&req.params).search;
+    let sizes = WorkspaceSizes::for_params(&req.params, mode);
     let mut bytes = vec![0u8; sizes.bytes];
     let mut words = vec![0u32; sizes.words];
     let mut runs = vec![Run::default(); sizes.runs];
     let ws = Workspace::new(sizes, &mut bytes, &mut words, &mut runs)?;
-    let mut reloc = setup.build(ws)?;
-    let t0 = Instant::now();
-    let outcome = reloc.run_to_completion(0);
-    Ok(Report {
-        outcome,
-        elapsed: t0.elapsed(),
-        template_px: req.params.template_px,
-        search_px: req.params.search_px,
+
+    let clock = ManualClock::new(1_000);
+    let camera = FixedCamera::new(req.left.to_vec(), req.right.to_vec(), w, h)?
+        .with_clock(clock.clone())
+        .with_faults(FaultInjector::new(faults.camera, faults.seed)?);
+    let store = MemMapStore::new(req.map.to_vec())
+        .with_faults(FaultInjector::new(faults.store, faults.seed ^ 0x5107e)?);
+    let t0 = req.params.t0_m * req.params.t0_m;
+    let r0 = req.params.r0_deg.to_radians() * req.params.r0_deg.to_radians();
+    let prior = FixedPrior {
+        estimate: Some(PriorEstimate {
+            world_from_left: req.prior,
+            covariance: Covariance::Diagonal([t0, t0, t0, r0, r0, r0]),
+            timestamp_ticks: 0,
+        }),
+    };
+    let telemetry = FramedTelemetry::new(RecordingSink::new());
+    let mut runner = Runner::new(camera, clock, store, prior, telemetry, runner_config(w, h));
+    let (mut left, mut right, mut map) = (vec![0u8; n], vec![0u8; n], vec![0u8; req.map.len()]);
+    let bufs = Buffers {
+        left: &mut left,
+        right: &mut right,
+        map: &mut map,
+    };
+    let start = Instant::now();
+    let result = runner.relocalize(bufs, &req.rig, &req.params, ws, req.seed, limits);
+    let elapsed = start.elapsed();
+    Ok(DeviceRun {
+        result,
+        log: runner.log.clone(),
+        telemetry: runner.telemetry.writer().frames().frames,
+        elapsed,
         workspace_bytes: sizes.total_bytes(),
     })
 }

@@ -22,15 +22,14 @@ const STREAM_SEED: u64 = 4;
 
 /// What [`Relocalizer::step`] reports.
 ///
-/// `Done` carries the outcome by value: it is produced once per run (and again
-/// on later calls), while `Running` writes only the discriminant.
-#[allow(clippy::large_enum_variant)]
-#[derive(Clone, Debug)]
-pub enum StepResult {
+/// `Done` borrows the outcome kept by the engine (no copy of it per call);
+/// clone it, or read it later with [`Relocalizer::outcome`].
+#[derive(Clone, Copy, Debug)]
+pub enum StepResult<'o> {
     /// More work remains; call `step` again.
     Running,
     /// Finished; the outcome is final and further calls return it again.
-    Done(Outcome),
+    Done(&'o Outcome),
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -171,10 +170,14 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
     }
 
     /// Do one unit of work (one attempt or one GetTransform) at caller time `now`.
-    pub fn step(&mut self, now: u64) -> StepResult {
-        if let Some(o) = &self.done {
-            return StepResult::Done(o.clone());
+    pub fn step(&mut self, now: u64) -> StepResult<'_> {
+        if self.done.is_none() {
+            self.work_one(now);
         }
+        self.status()
+    }
+
+    fn work_one(&mut self, now: u64) {
         let unit_cap = self.opts.budget.max_work_units.min(self.max_units);
         if self.stats.work_units >= unit_cap || now >= self.opts.budget.deadline_tick {
             self.finish_budget(now);
@@ -185,33 +188,47 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
                 Phase::Chunks => self.solve_chunk(now),
             }
         }
+    }
+
+    fn status(&self) -> StepResult<'_> {
         match &self.done {
-            Some(o) => StepResult::Done(o.clone()),
+            Some(o) => StepResult::Done(o),
             None => StepResult::Running,
         }
     }
 
     /// Do up to `units` units of work at caller time `now`.
-    pub fn step_n(&mut self, now: u64, units: u32) -> StepResult {
+    pub fn step_n(&mut self, now: u64, units: u32) -> StepResult<'_> {
         for _ in 0..units.max(1) {
-            if let StepResult::Done(o) = self.step(now) {
-                return StepResult::Done(o);
+            if self.done.is_some() {
+                break;
             }
+            self.work_one(now);
         }
-        StepResult::Running
+        self.status()
+    }
+
+    /// End the run now, at caller time `now`: the anytime result (the best pose
+    /// so far, [`FailureCode::RelocBudgetExhausted`]) unless it is already done.
+    /// A caller whose own tick or step budget ran out ends the run with this.
+    pub fn stop(&mut self, now: u64) -> &Outcome {
+        match self.done {
+            Some(ref o) => o,
+            None => self.finish_budget(now),
+        }
     }
 
     /// Run until done at a fixed caller time: a loop over [`Self::step`],
     /// bounded by [`Self::max_work_units`] + 1 calls.
     pub fn run_to_completion(&mut self, now: u64) -> Outcome {
         for _ in 0..=u64::from(self.max_units) {
-            if let StepResult::Done(o) = self.step(now) {
-                return o;
+            if self.done.is_some() {
+                break;
             }
+            self.work_one(now);
         }
-        // Unreachable by the bound above; kept total rather than panicking.
-        self.finish_budget(now);
-        self.outcome_or_prior()
+        // The bound above always ends the run; `stop` keeps this total.
+        self.stop(now).clone()
     }
 
     /// The final outcome, once done.
@@ -243,16 +260,6 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
     /// The solver.
     pub fn solver_ref(&self) -> &S {
         &self.solver
-    }
-
-    fn outcome_or_prior(&self) -> Outcome {
-        self.done.clone().unwrap_or_else(|| Outcome {
-            pose: self.prior,
-            failure: Some(FailureCode::RelocBudgetExhausted),
-            quality: self.quality.clone(),
-            stats: self.stats,
-            log: self.log.clone(),
-        })
     }
 
     fn seed_pose(&self, k: u16) -> Pose {
@@ -521,27 +528,27 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         self.anchor = sol.pose;
     }
 
-    fn finish_budget(&mut self, now: u64) {
+    fn finish_budget(&mut self, now: u64) -> &Outcome {
         // Anytime: the best seed so far beats the prior if seeding was cut short.
         if self.seeding {
             if let Some((sol, pairs)) = self.best_seed.take() {
                 self.record_fit(&sol, pairs);
             }
         }
-        self.finish(Some(FailureCode::RelocBudgetExhausted), now);
+        self.finish(Some(FailureCode::RelocBudgetExhausted), now)
     }
 
-    fn finish(&mut self, failure: Option<FailureCode>, now: u64) {
+    fn finish(&mut self, failure: Option<FailureCode>, now: u64) -> &Outcome {
         if let Some(code) = failure {
             self.log.record(code, now, self.stats.work_units);
         }
-        self.done = Some(Outcome {
+        self.done.insert(Outcome {
             pose: self.anchor,
             failure,
             quality: self.quality.clone(),
             stats: self.stats,
             log: self.log.clone(),
-        });
+        })
     }
 }
 
@@ -744,7 +751,7 @@ mod tests {
         let mut last = (0u16, 0u16);
         let out = loop {
             match r.step(0) {
-                StepResult::Done(o) => break o,
+                StepResult::Done(o) => break o.clone(),
                 StepResult::Running => {
                     let s = r.stats();
                     if (s.stalls, s.reseeds) != last {
@@ -1095,7 +1102,7 @@ mod tests {
             0 => r.run_to_completion(0),
             n => loop {
                 if let StepResult::Done(o) = r.step_n(0, n) {
-                    break o;
+                    break o.clone();
                 }
             },
         };
@@ -1177,7 +1184,7 @@ mod tests {
             let mut calls = 0u64;
             let out = loop {
                 calls += 1;
-                if let StepResult::Done(o) = r.step(0) { break o; }
+                if let StepResult::Done(o) = r.step(0) { break o.clone(); }
             };
             let s = out.stats;
             proptest::prop_assert!(out.failure != Some(FailureCode::RelocBudgetExhausted));

@@ -387,7 +387,7 @@ mod tests {
         loop {
             now += 1;
             if let StepResult::Done(o) = r.step_n(now, chunk) {
-                return o;
+                return o.clone();
             }
         }
     }

@@ -1,0 +1,213 @@
+//! The flight path end to end: the HAL runner acquires a simulated stereo pair,
+//! prior and map product through the devices, builds the engine with the core's
+//! one constructor and drives it. Device faults must end in their failure codes
+//! with bounded work, and the outcome must not depend on the step granularity.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+#[path = "../../core/testkit/testkit.rs"]
+mod testkit;
+
+use std::sync::OnceLock;
+use vtsm_core::geom::{Pose, Vec3};
+use vtsm_core::map::MapView;
+use vtsm_core::reloc::Outcome;
+use vtsm_core::FailureCode;
+use vtsm_hal::runner::DriveLimits;
+use vtsm_hal::telemetry::{parse_outcome, FrameKind};
+use vtsm_sim::devices::FaultConfig;
+use vtsm_sim::locate::{run_on_devices, DeviceFaults, DeviceRun, Request};
+
+struct Scene {
+    map: Vec<u8>,
+    left: Vec<u8>,
+    right: Vec<u8>,
+    truth: Pose,
+}
+
+fn scene() -> &'static Scene {
+    static S: OnceLock<Scene> = OnceLock::new();
+    S.get_or_init(|| {
+        let map = testkit::build_map(1);
+        let view = MapView::new_checked(&map).unwrap();
+        let rig = testkit::rig();
+        let truth = testkit::camera_pose(0.6, 0.2);
+        let left = testkit::render_full(&view, &rig.cam, &truth, 0.85, 20.0);
+        let right =
+            testkit::render_full(&view, &rig.cam, &rig.world_from_right(&truth), 0.85, 20.0);
+        Scene {
+            map,
+            left,
+            right,
+            truth,
+        }
+    })
+}
+
+fn request(map: &[u8]) -> Request<'_> {
+    let s = scene();
+    let prior = Pose::new(
+        s.truth.rotation(),
+        s.truth.translation() + Vec3::new(0.09, -0.08, 0.02),
+    );
+    Request {
+        map,
+        left: &s.left,
+        right: &s.right,
+        rig: testkit::rig(),
+        prior,
+        params: vtsm_core::config::Params {
+            // Short failing runs are not under test here: only how they end.
+            attempts_per_iter: 300,
+            ..testkit::test_params()
+        },
+        seed: 42,
+    }
+}
+
+fn run(faults: DeviceFaults, limits: DriveLimits) -> DeviceRun {
+    run_on_devices(&request(&scene().map), &faults, &limits).unwrap()
+}
+
+fn all(timeout_pct: u8, truncate_pct: u8, corrupt_pct: u8) -> FaultConfig {
+    FaultConfig {
+        timeout_pct,
+        truncate_pct,
+        corrupt_pct,
+    }
+}
+
+fn bits(o: &Outcome) -> (Vec<u32>, u16, u32, u32) {
+    let pose = o
+        .pose
+        .t()
+        .into_iter()
+        .chain(o.pose.q())
+        .map(f32::to_bits)
+        .collect();
+    (
+        pose,
+        o.quality.inliers,
+        o.stats.attempts,
+        o.stats.work_units,
+    )
+}
+
+/// Verifies: VTSM-HAL-024
+#[test]
+fn runner_relocalizes_and_step_granularity_does_not_change_the_outcome() {
+    let limits = |units| DriveLimits {
+        units_per_step: units,
+        ..DriveLimits::UNLIMITED
+    };
+    let whole = run(DeviceFaults::default(), limits(u32::MAX));
+    let (o, rep) = whole.result.as_ref().unwrap();
+    let (et, _) = o.pose.error_to(&scene().truth);
+    println!(
+        "runner: {:?} err {et:.4} m, {} steps",
+        o.failure, rep.drive.steps
+    );
+    assert_eq!(o.failure, None);
+    assert!(et < 0.05, "error {et} m");
+    assert_eq!(rep.capture.attempts, 1);
+    assert!(rep.drive.done);
+    // The outcome went down as telemetry, bit for bit.
+    let sent = whole
+        .telemetry
+        .iter()
+        .find(|f| f.kind == FrameKind::Outcome as u8)
+        .and_then(|f| parse_outcome(&f.payload))
+        .unwrap();
+    assert_eq!(sent.attempts, o.stats.attempts);
+    assert_eq!(sent.t.map(f32::to_bits), o.pose.t().map(f32::to_bits));
+    for units in [1, 7] {
+        let stepped = run(DeviceFaults::default(), limits(units));
+        let (s, srep) = stepped.result.as_ref().unwrap();
+        assert_eq!(bits(s), bits(o), "{units} units per step");
+        assert_eq!(s.stats, o.stats);
+        assert_eq!(s.quality, o.quality);
+        assert!(srep.drive.steps >= o.stats.work_units / units);
+    }
+}
+
+/// Verifies: VTSM-HAL-024
+#[test]
+fn camera_timeouts_and_truncated_frames_end_in_their_codes_with_bounded_work() {
+    for (faults, per_attempt) in [
+        (all(100, 0, 0), FailureCode::HalCameraTimeout),
+        (all(0, 100, 0), FailureCode::HalCameraFrameTruncated),
+    ] {
+        let r = run(
+            DeviceFaults {
+                camera: faults,
+                ..DeviceFaults::default()
+            },
+            DriveLimits::UNLIMITED,
+        );
+        assert_eq!(r.result.err(), Some(FailureCode::HalCameraRetriesExhausted));
+        // One logged fault per capture attempt, then the cap; nothing else ran.
+        let attempts = u16::from(vtsm_sim::locate::runner_config(640, 480).attempts);
+        assert_eq!(r.log.count(per_attempt), attempts);
+        assert_eq!(r.log.count(FailureCode::HalCameraRetriesExhausted), 1);
+        assert!(r
+            .telemetry
+            .iter()
+            .all(|f| f.kind != FrameKind::Outcome as u8));
+        assert!(r
+            .telemetry
+            .iter()
+            .any(|f| f.kind == FrameKind::FailureCounters as u8));
+    }
+}
+
+/// Verifies: VTSM-HAL-024
+#[test]
+fn corrupted_map_reads_end_in_the_map_check_code_after_bounded_rereads() {
+    let r = run(
+        DeviceFaults {
+            store: all(0, 0, 100),
+            seed: 3,
+            ..DeviceFaults::default()
+        },
+        DriveLimits::UNLIMITED,
+    );
+    let code = r.result.err().unwrap();
+    println!("corrupted map: {code:?}");
+    assert_eq!(
+        code.code() >> 8,
+        FailureCode::MapCrcMismatch.code() >> 8,
+        "a map-product code"
+    );
+    let passes = u16::from(vtsm_sim::locate::runner_config(640, 480).product_attempts);
+    assert!(r.log.count(code) >= 1 && r.log.count(code) <= passes);
+    // A product that is only timing out is retried per chunk, then given up.
+    let r = run(
+        DeviceFaults {
+            store: all(100, 0, 0),
+            ..DeviceFaults::default()
+        },
+        DriveLimits::UNLIMITED,
+    );
+    assert_eq!(
+        r.result.err(),
+        Some(FailureCode::HalStorageRetriesExhausted)
+    );
+}
+
+/// Verifies: VTSM-HAL-024
+#[test]
+fn a_spent_step_budget_returns_the_anytime_result() {
+    let r = run(
+        DeviceFaults::default(),
+        DriveLimits {
+            units_per_step: 5,
+            max_steps: 20,
+            budget_ticks: u64::MAX,
+        },
+    );
+    let (o, rep) = r.result.unwrap();
+    assert_eq!(o.failure, Some(FailureCode::RelocBudgetExhausted));
+    assert_eq!(rep.drive.steps, 20);
+    assert!(!rep.drive.done);
+    assert!(o.stats.work_units <= 100, "{} units", o.stats.work_units);
+}
