@@ -159,35 +159,51 @@ fn accept(m: &ncc::Match, policy: &MatchPolicy) -> Result<(), FailureCode> {
     }
 }
 
-impl Attempt for Pipeline<'_, '_> {
-    fn attempt(
+/// Template origins of one attempt: the ℓ×ℓ windows of the virtual left and
+/// right images that were rendered.
+#[derive(Clone, Copy)]
+struct Templates {
+    left: Rect,
+    right: Rect,
+}
+
+/// Search windows of one attempt in the real left and right images.
+#[derive(Clone, Copy)]
+struct Windows {
+    left: Rect,
+    right: Rect,
+}
+
+impl Pipeline<'_, '_> {
+    /// Synthesize (§III-C): render the ℓ×ℓ left and right templates centred
+    /// on the vertex's projections, reject a vertex hidden in the virtual
+    /// view, and form both template masks.
+    fn synthesize(
         &mut self,
-        ctx: &AttemptContext,
-        rng: &mut crate::rng::Rng,
+        vp_left: &Pose,
+        s: &Sample,
         stats: &mut PipelineStats,
-    ) -> Result<Correspondence, FailureCode> {
+    ) -> Result<Templates, FailureCode> {
         let l = self.template_px;
         let cam = self.rig.cam;
-        let vp_left = ctx.world_from_viewpoint;
-        let s = self.sample(&vp_left.inverse(), rng, stats)?;
-
-        // Synthesize: left and right templates centred on the vertex's projections.
         let ws = &mut self.ws;
         let n = l * l;
-        let rect_l = template_rect(s.left, l);
-        let rect_r = template_rect(s.right, l);
-        let vp_right = self.rig.world_from_right(&vp_left);
+        let t = Templates {
+            left: template_rect(s.left, l),
+            right: template_rect(s.right, l),
+        };
+        let vp_right = self.rig.world_from_right(vp_left);
         for (pose, rect, inten, depth, mdepth) in [
             (
-                &vp_left,
-                rect_l,
+                vp_left,
+                t.left,
                 &mut *ws.inten_l,
                 &mut *ws.depth_l,
                 &mut *ws.mdepth_l,
             ),
             (
                 &vp_right,
-                rect_r,
+                t.right,
                 &mut *ws.inten_r,
                 &mut *ws.depth_r,
                 &mut *ws.mdepth_r,
@@ -222,8 +238,14 @@ impl Attempt for Pipeline<'_, '_> {
         };
         raster::template_mask(dl, ml, l, l, ws.mask_l);
         raster::template_mask(dr, mr, l, l, ws.mask_r);
+        Ok(t)
+    }
 
-        // Match: search windows from the projected uncertainty around the prediction.
+    /// Search windows (§III-D): the projected (t̃, r̃) uncertainty around each
+    /// predicted pixel plus the policy margin, capped at `search_px`, clipped
+    /// to the image.
+    fn search_windows(&self, ctx: &AttemptContext, s: &Sample) -> Windows {
+        let (l, cam) = (self.template_px, self.rig.cam);
         let f = cam.fx.max(cam.fy);
         let r_px = f * (2.0 * ctx.t_m / s.cam.z.max(0.1) + 2.0 * ctx.r_rad);
         let r_px = if r_px.is_finite() {
@@ -231,10 +253,25 @@ impl Attempt for Pipeline<'_, '_> {
         } else {
             0
         };
-        let cap = self.search_px;
         let (w, h) = (cam.width as usize, cam.height as usize);
-        let search_l = search_rect(s.left, l, r_px, cap, w, h);
-        let search_r = search_rect(s.right, l, r_px, cap, w, h);
+        Windows {
+            left: search_rect(s.left, l, r_px, self.search_px, w, h),
+            right: search_rect(s.right, l, r_px, self.search_px, w, h),
+        }
+    }
+
+    /// Match (§III-D): try the policy's variants in order; the first whose
+    /// left and right searches are both accepted gives the vertex's pixel in
+    /// each real image. Otherwise the last rejection's code.
+    fn match_pair(
+        &mut self,
+        s: &Sample,
+        t: Templates,
+        win: Windows,
+        stats: &mut PipelineStats,
+    ) -> Result<([f32; 2], [f32; 2]), FailureCode> {
+        let l = self.template_px;
+        let ws = &mut self.ws;
         fn view(b: &[u8], l: usize) -> Result<GrayView<'_>, FailureCode> {
             GrayView::new(b, l, l, l)
         }
@@ -268,6 +305,7 @@ impl Attempt for Pipeline<'_, '_> {
                 (0.0, 0.0)
             };
             let idx = v.index();
+            let policy = &self.policy;
             let mut one = |t, m, img, search| -> Result<ncc::Match, FailureCode> {
                 if let Some(c) = stats.matches.get_mut(idx) {
                     *c = c.saturating_add(1);
@@ -278,22 +316,22 @@ impl Attempt for Pipeline<'_, '_> {
                     img,
                     search,
                     v.filter,
-                    self.policy.search,
+                    policy.search,
                     &mut ws.scratch,
                 )?;
                 stats.ncc_positions = stats.ncc_positions.saturating_add(ms.positions_scored);
                 stats.ncc_macs = stats.ncc_macs.saturating_add(ms.macs);
-                accept(&m, &self.policy)?;
+                accept(&m, policy)?;
                 Ok(m)
             };
-            let ml = match one(tl, tml, self.left, search_l) {
+            let ml = match one(tl, tml, self.left, win.left) {
                 Ok(m) => m,
                 Err(e) => {
                     last = e;
                     continue;
                 }
             };
-            let mr = match one(tr, tmr, self.right, search_r) {
+            let mr = match one(tr, tmr, self.right, win.right) {
                 Ok(m) => m,
                 Err(e) => {
                     last = e;
@@ -305,30 +343,57 @@ impl Attempt for Pipeline<'_, '_> {
             }
             // The vertex sits at (projection − template origin) inside the template.
             let pl = [
-                ml.sub_x + (s.left[0] - rect_l.x as f32 - ox),
-                ml.sub_y + (s.left[1] - rect_l.y as f32 - oy),
+                ml.sub_x + (s.left[0] - t.left.x as f32 - ox),
+                ml.sub_y + (s.left[1] - t.left.y as f32 - oy),
             ];
             let pr = [
-                mr.sub_x + (s.right[0] - rect_r.x as f32 - ox),
-                mr.sub_y + (s.right[1] - rect_r.y as f32 - oy),
+                mr.sub_x + (s.right[0] - t.right.x as f32 - ox),
+                mr.sub_y + (s.right[1] - t.right.y as f32 - oy),
             ];
-            // Valid + Stereo.
-            let p = stereo::triangulate(
-                &self.rig,
-                pl,
-                pr,
-                self.epsilon_px,
-                self.policy.sigma_d_px,
-                self.policy.min_disparity_px,
-            )?;
-            stats.triangulations = stats.triangulations.saturating_add(1);
-            return Ok(Correspondence {
-                world: s.world,
-                cam: p.p_cam,
-                sigma_m: p.sigma_z_m,
-            });
+            return Ok((pl, pr));
         }
         Err(last)
+    }
+
+    /// Valid + Stereo (§III-D): check the rows agree within ε and triangulate
+    /// the pixel pair into the left camera frame.
+    fn stereo(
+        &self,
+        s: &Sample,
+        (pl, pr): ([f32; 2], [f32; 2]),
+        stats: &mut PipelineStats,
+    ) -> Result<Correspondence, FailureCode> {
+        let p = stereo::triangulate(
+            &self.rig,
+            pl,
+            pr,
+            self.epsilon_px,
+            self.policy.sigma_d_px,
+            self.policy.min_disparity_px,
+        )?;
+        stats.triangulations = stats.triangulations.saturating_add(1);
+        Ok(Correspondence {
+            world: s.world,
+            cam: p.p_cam,
+            sigma_m: p.sigma_z_m,
+        })
+    }
+}
+
+impl Attempt for Pipeline<'_, '_> {
+    /// SamplePoint → Synthesize → search window → Match → Valid + Stereo.
+    fn attempt(
+        &mut self,
+        ctx: &AttemptContext,
+        rng: &mut crate::rng::Rng,
+        stats: &mut PipelineStats,
+    ) -> Result<Correspondence, FailureCode> {
+        let vp_left = ctx.world_from_viewpoint;
+        let sample = self.sample(&vp_left.inverse(), rng, stats)?;
+        let templates = self.synthesize(&vp_left, &sample, stats)?;
+        let windows = self.search_windows(ctx, &sample);
+        let pixels = self.match_pair(&sample, templates, windows, stats)?;
+        self.stereo(&sample, pixels, stats)
     }
 }
 
