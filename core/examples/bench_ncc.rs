@@ -1,13 +1,18 @@
 //! NCC speed: ms per match and multiply-accumulates per match for 256-in-800
-//! and 128-in-800, exhaustive and coarse-to-fine, on a deterministic textured
-//! image (multi-octave value noise) with a template cut from it under gain,
-//! offset and noise.
+//! and 128-in-800 (exhaustive and coarse-to-fine) and for the small searches the
+//! engine runs at the demo and test profiles, 64-in-200 and 32-in-96
+//! (coarse-to-fine, default `SearchConfig`), on a deterministic textured image
+//! (multi-octave value noise) with a template cut from it under gain, offset and
+//! noise. The small cases search the whole of a crop of the 800² image.
 //!
 //! ```text
-//! cargo run --release -p vtsm-core --example bench_ncc -- [--repeat N] [--out DIR] [--no-exhaustive]
+//! cargo run --release -p vtsm-core --example bench_ncc -- [--repeat N] [--out DIR] [--no-exhaustive] [--only L]
 //! ```
-//! `--out DIR` also writes `image.pgm`, `t256.pgm` and `t128.pgm` so that
-//! `sim/bench/opencv_ncc.py DIR` can time OpenCV on the very same pixels.
+//! `--out DIR` also writes `image.pgm`, `t256.pgm`, `t128.pgm`, `image200.pgm`,
+//! `t64.pgm`, `image96.pgm` and `t32.pgm` so that `sim/bench/opencv_ncc.py DIR`
+//! can time OpenCV on the very same pixels. Each timed sample of a small case
+//! runs several matches (`inner`) so that a sample lasts about a millisecond.
+//! `--only L` runs only the case with template side L (for instruction counts).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::time::Instant;
@@ -77,11 +82,15 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+/// Template side, image side, crop origin in the 800² image, template offset in the crop.
+type Case = (usize, usize, (usize, usize), (usize, usize));
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let mut repeat = 21usize;
     let mut out: Option<std::path::PathBuf> = None;
     let mut exhaustive = true;
+    let mut only: Option<usize> = None;
     let mut i = 1;
     while i < args.len() {
         match args[i].as_str() {
@@ -94,29 +103,65 @@ fn main() {
                 i += 1;
             }
             "--no-exhaustive" => exhaustive = false,
+            "--only" => {
+                only = Some(args[i + 1].parse().unwrap());
+                i += 1;
+            }
             a => panic!("unknown argument {a}"),
         }
         i += 1;
     }
     let (w, h) = (800usize, 800usize);
     let img = textured(w, h, 7);
-    let image = GrayView::new(&img, w, h, w).unwrap();
     if let Some(dir) = &out {
         std::fs::create_dir_all(dir).unwrap();
         write_pgm(&dir.join("image.pgm"), &img, w, h);
     }
     println!("# {w}x{h} image, single thread, gray filter; ms = wall-clock median over runs, cpu_ms = thread CPU time / runs");
-    for (l, tx, ty) in [(256usize, 331usize, 217usize), (128, 509, 402)] {
-        let tpl = cut(&img, w, tx, ty, l, l as u64);
+    let cases: [Case; 4] = [
+        (256, 800, (0, 0), (331, 217)),
+        (128, 800, (0, 0), (509, 402)),
+        (64, 200, (150, 260), (71, 53)),
+        (32, 96, (420, 130), (37, 29)),
+    ];
+    for (l, side, (cx, cy), (tx, ty)) in cases {
+        if only.is_some_and(|o| o != l) {
+            continue;
+        }
+        let crop: Vec<u8> = if side == w {
+            img.clone()
+        } else {
+            (0..side)
+                .flat_map(|r| {
+                    img[(cy + r) * w + cx..(cy + r) * w + cx + side]
+                        .iter()
+                        .copied()
+                })
+                .collect()
+        };
+        if let Some(dir) = &out {
+            if side != w {
+                write_pgm(&dir.join(format!("image{side}.pgm")), &crop, side, side);
+            }
+        }
+        let image = GrayView::new(&crop, side, side, side).unwrap();
+        let (w, h) = (side, side);
+        let tpl = cut(&crop, w, tx, ty, l, l as u64);
         if let Some(dir) = &out {
             write_pgm(&dir.join(format!("t{l}.pgm")), &tpl, l, l);
         }
         let template = GrayView::new(&tpl, l, l, l).unwrap();
         let search = Rect::new(0, 0, w as u32, h as u32);
-        let modes: &[Search] = if exhaustive {
+        let modes: &[Search] = if exhaustive && side == 800 {
             &[Search::Exhaustive, Search::CoarseToFine]
         } else {
             &[Search::CoarseToFine]
+        };
+        // Matches per timed sample: about a millisecond each.
+        let inner = match side {
+            96 => 50,
+            200 => 10,
+            _ => 1,
         };
         for &mode in modes {
             let sz = ScratchSizes::new(l, l, w, h, mode);
@@ -140,21 +185,23 @@ fn main() {
             let cpu0 = thread_cpu_ns();
             for _ in 0..n {
                 let t0 = Instant::now();
-                let r = ncc::match_template(
-                    template,
-                    None,
-                    image,
-                    search,
-                    Filter::Gray,
-                    mode,
-                    &mut scratch,
-                )
-                .unwrap();
-                times.push(t0.elapsed().as_secs_f64() * 1e3);
-                last = Some(r);
+                for _ in 0..inner {
+                    let r = ncc::match_template(
+                        template,
+                        None,
+                        image,
+                        search,
+                        Filter::Gray,
+                        mode,
+                        &mut scratch,
+                    )
+                    .unwrap();
+                    last = Some(r);
+                }
+                times.push(t0.elapsed().as_secs_f64() * 1e3 / inner as f64);
             }
             let cpu_ms = match (cpu0, thread_cpu_ns()) {
-                (Some(a), Some(b)) => (b - a) as f64 * 1e-6 / n as f64,
+                (Some(a), Some(b)) => (b - a) as f64 * 1e-6 / (n * inner) as f64,
                 _ => f64::NAN,
             };
             let (m, st) = last.unwrap();

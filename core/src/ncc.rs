@@ -51,8 +51,11 @@ pub const WIDE_WINDOW_RATIO: usize = 4;
 pub const MAX_CLIMB_STEPS: usize = 4;
 /// Fewest kept template pixels a (masked) template may have at any level.
 pub const MIN_MASK_PX: u32 = 16;
-/// Lanes of the correlation kernel's accumulator (a multiple of every SIMD width in use).
-const LANES: usize = 16;
+/// Template bytes per step of the correlation kernel (one 128-bit vector).
+const KERNEL_CHUNK: usize = 16;
+/// Neighbouring x positions the correlation kernel scores per pass over the
+/// template rows.
+const KERNEL_BLOCK: usize = 4;
 
 /// Image domain in which template and window are correlated (paper §III-D).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -586,33 +589,57 @@ impl Win<'_> {
     }
 }
 
-/// Σ t·f of the template at `(px, py)` of the window; exact (< 2³², see numeric.md).
+/// Σ t·f of one `C`-byte chunk, written as one reduction: LLVM's SLP vectorizer
+/// turns this shape (and not a per-lane accumulator array) into widening
+/// multiply-adds (`pmaddwd` on x86-64, see `fsw-docs/budgets/ncc.md`).
+#[inline(always)]
+fn chunk_dot<const C: usize>(t: &[u8; C], f: &[u8; C]) -> u32 {
+    t.iter().zip(f).fold(0u32, |s, (&a, &b)| {
+        s.wrapping_add(u32::from(a) * u32::from(b))
+    })
+}
+
+/// Σ t·f of the template at the `B` neighbouring positions `(px + b, py)` of the
+/// window, `b < B`; exact (each true sum < 2³², see numeric.md; u32 wrapping
+/// makes the order of the additions irrelevant). Every position must be a valid
+/// top-left position (`px + B − 1 + t.w ≤ win.w`, `py + t.h ≤ win.h`).
 ///
-/// Fixed 16-lane blocks with one accumulator array carried across rows: this is
-/// the shape LLVM turns into widening SIMD multiply-adds on every target.
-fn dot_at(t: &Tpl, win: &Win, px: usize, py: usize) -> u32 {
-    let mut acc = [0u32; LANES];
-    let mut tail = 0u32;
+/// Blocked by template row: each row's index arithmetic and bounds checks are
+/// paid once for `B` positions, and the row (≤ 256 bytes) is read `B` times
+/// while it sits in L1. The chunk loop runs inside the position loop on purpose:
+/// with the chunk outside (one template load feeding `B` reductions in one basic
+/// block) the SLP vectorizer emits `pmaddwd` in a non-LTO build but falls back to
+/// scalar multiplies after the workspace's fat-LTO pre-link pipeline, measured
+/// 2–4× slower (`fsw-docs/budgets/ncc.md`).
+fn dot_block<const B: usize>(t: &Tpl, win: &Win, px: usize, py: usize) -> [u32; B] {
+    const C: usize = KERNEL_CHUNK;
+    let mut s = [0u32; B];
     for (r, trow) in t.px.chunks_exact(t.w).take(t.h).enumerate() {
         let start = (py + r) * win.w + px;
-        let Some(frow) = win.px.get(start..start + t.w) else {
+        let Some(frow) = win.px.get(start..start + t.w + B - 1) else {
             continue;
         };
-        let tc = trow.chunks_exact(LANES);
-        let fc = frow.chunks_exact(LANES);
-        for (&p, &q) in tc.remainder().iter().zip(fc.remainder()) {
-            tail = tail.wrapping_add(u32::from(p) * u32::from(q));
-        }
-        for (a, b) in tc.zip(fc) {
-            let (Ok(a), Ok(b)) = (<&[u8; LANES]>::try_from(a), <&[u8; LANES]>::try_from(b)) else {
+        let tc = trow.chunks_exact(C);
+        let rem = tc.remainder();
+        for (b, sb) in s.iter_mut().enumerate() {
+            let Some(fb) = frow.get(b..b + t.w) else {
                 continue;
             };
-            for ((c, &p), &q) in acc.iter_mut().zip(a.iter()).zip(b.iter()) {
-                *c = c.wrapping_add(u32::from(p) * u32::from(q));
+            let fc = fb.chunks_exact(C);
+            let frem = fc.remainder();
+            let mut acc = *sb;
+            for (tcc, fcc) in tc.clone().zip(fc) {
+                if let (Ok(tt), Ok(ff)) = (<&[u8; C]>::try_from(tcc), <&[u8; C]>::try_from(fcc)) {
+                    acc = acc.wrapping_add(chunk_dot(tt, ff));
+                }
             }
+            for (&p, &q) in rem.iter().zip(frem) {
+                acc = acc.wrapping_add(u32::from(p) * u32::from(q));
+            }
+            *sb = acc;
         }
     }
-    acc.iter().fold(tail, |s, v| s.wrapping_add(*v))
+    s
 }
 
 /// Integral images (sum and sum of squares) of a rectangle of a window level.
@@ -643,8 +670,7 @@ impl<'s> Integral<'s> {
             .split_at_mut_checked(n)
             .ok_or(FailureCode::NccScratchTooSmall)?;
         let sq = rest.get_mut(..n).ok_or(FailureCode::NccScratchTooSmall)?;
-        fill_table(win, x0, y0, rw, rh, sum, false);
-        fill_table(win, x0, y0, rw, rh, sq, true);
+        fill_tables(win, x0, y0, rw, rh, sum, sq);
         Ok(Self { sum, sq, w1 })
     }
 
@@ -668,28 +694,52 @@ impl<'s> Integral<'s> {
     }
 }
 
-fn fill_table(win: &Win, x0: usize, y0: usize, rw: usize, rh: usize, tab: &mut [u32], sq: bool) {
+/// Fill the sum and sum-of-squares tables (`(rw + 1) × (rh + 1)` each) in one
+/// pass over the window pixels.
+fn fill_tables(
+    win: &Win,
+    x0: usize,
+    y0: usize,
+    rw: usize,
+    rh: usize,
+    sum: &mut [u32],
+    sq: &mut [u32],
+) {
     let w1 = rw + 1;
-    if let Some(first) = tab.get_mut(..w1) {
-        first.fill(0);
+    for tab in [&mut *sum, &mut *sq] {
+        if let Some(first) = tab.get_mut(..w1) {
+            first.fill(0);
+        }
     }
     for r in 0..rh {
-        let (head, tail) = tab.split_at_mut((r + 1) * w1);
-        let (Some(prev), Some(cur)) = (head.get(r * w1..), tail.get_mut(..w1)) else {
+        let (sum_head, sum_tail) = sum.split_at_mut((r + 1) * w1);
+        let (sq_head, sq_tail) = sq.split_at_mut((r + 1) * w1);
+        let (Some(ps), Some(cs), Some(pq), Some(cq)) = (
+            sum_head.get(r * w1..),
+            sum_tail.get_mut(..w1),
+            sq_head.get(r * w1..),
+            sq_tail.get_mut(..w1),
+        ) else {
             return;
         };
         let start = (y0 + r) * win.w + x0;
         let Some(frow) = win.px.get(start..start + rw) else {
             return;
         };
-        let mut run = 0u32;
-        if let Some(c0) = cur.first_mut() {
-            *c0 = 0;
-        }
-        for ((c, &p), &f) in cur.iter_mut().skip(1).zip(prev.iter().skip(1)).zip(frow) {
+        let (Some((cs0, cs)), Some((cq0, cq))) = (cs.split_first_mut(), cq.split_first_mut())
+        else {
+            return;
+        };
+        *cs0 = 0;
+        *cq0 = 0;
+        let (mut run_s, mut run_q) = (0u32, 0u32);
+        let prev = ps.iter().skip(1).zip(pq.iter().skip(1));
+        for (((s, q), (&p_s, &p_q)), &f) in cs.iter_mut().zip(cq.iter_mut()).zip(prev).zip(frow) {
             let v = u32::from(f);
-            run = run.wrapping_add(if sq { v * v } else { v });
-            *c = p.wrapping_add(run);
+            run_s = run_s.wrapping_add(v);
+            run_q = run_q.wrapping_add(v * v);
+            *s = p_s.wrapping_add(run_s);
+            *q = p_q.wrapping_add(run_q);
         }
     }
 }
@@ -708,39 +758,64 @@ fn eval_positions<F: FnMut(usize, usize, Score)>(
     let rw = x1 - x0 + t.w;
     let rh = y1 - y0 + t.h;
     let integ = Integral::build(win, x0, y0, rw, rh, buf)?;
+    // (Σf, var_f) of the window at region coordinates (rx, ry).
+    let window_terms = |rx: usize, ry: usize| -> (i64, i64) {
+        let (sf, sff) = match t.runs {
+            None => integ.rect(rx, ry, t.w, t.h),
+            Some(runs) => runs.iter().fold((0u32, 0u32), |(s, q), run| {
+                let (a, b) = integ.rect(
+                    rx + usize::from(run.x0),
+                    ry + usize::from(run.row),
+                    usize::from(run.x1 - run.x0),
+                    1,
+                );
+                (s.wrapping_add(a), q.wrapping_add(b))
+            }),
+        };
+        let (sf, sff) = (i64::from(sf), i64::from(sff));
+        (sf, t.n * sff - sf * sf)
+    };
     for y in y0..=y1 {
-        for x in x0..=x1 {
-            let (rx, ry) = (x - x0, y - y0);
-            let (sf, sff) = match t.runs {
-                None => integ.rect(rx, ry, t.w, t.h),
-                Some(runs) => runs.iter().fold((0u32, 0u32), |(s, q), run| {
-                    let (a, b) = integ.rect(
-                        rx + usize::from(run.x0),
-                        ry + usize::from(run.row),
-                        usize::from(run.x1 - run.x0),
-                        1,
-                    );
-                    (s.wrapping_add(a), q.wrapping_add(b))
-                }),
-            };
-            let (sf, sff) = (i64::from(sf), i64::from(sff));
-            let var_f = t.n * sff - sf * sf;
-            if var_f <= 0 {
-                stats.flat_positions += 1;
-                continue;
+        // Runs of KERNEL_BLOCK consecutive x share one pass over the template; the
+        // positions are still handed to `sink` (and counted) one by one in raster
+        // order, exactly as a position-by-position scan does.
+        for xb in (x0..=x1).step_by(KERNEL_BLOCK) {
+            let n = (x1 - xb + 1).min(KERNEL_BLOCK);
+            let mut terms = [(0i64, 0i64); KERNEL_BLOCK];
+            for (i, v) in terms.iter_mut().enumerate().take(n) {
+                *v = window_terms(xb + i - x0, y - y0);
             }
-            let sft = i64::from(dot_at(t, win, x, y));
-            stats.positions_scored += 1;
-            stats.macs += (t.w * t.h) as u64;
-            sink(
-                x,
-                y,
-                Score {
-                    num: t.n * sft - sf * t.st,
-                    var_f,
-                    var_t: t.var_t,
-                },
-            );
+            let mut dots = [0u32; KERNEL_BLOCK];
+            if n == KERNEL_BLOCK {
+                if terms.iter().any(|&(_, var_f)| var_f > 0) {
+                    dots = dot_block::<KERNEL_BLOCK>(t, win, xb, y);
+                }
+            } else {
+                for (i, (d, &(_, var_f))) in dots.iter_mut().zip(&terms).enumerate().take(n) {
+                    if var_f > 0 {
+                        let [v] = dot_block::<1>(t, win, xb + i, y);
+                        *d = v;
+                    }
+                }
+            }
+            for (i, (&(sf, var_f), &dot)) in terms.iter().zip(&dots).enumerate().take(n) {
+                if var_f <= 0 {
+                    stats.flat_positions += 1;
+                    continue;
+                }
+                let sft = i64::from(dot);
+                stats.positions_scored += 1;
+                stats.macs += (t.w * t.h) as u64;
+                sink(
+                    xb + i,
+                    y,
+                    Score {
+                        num: t.n * sft - sf * t.st,
+                        var_f,
+                        var_t: t.var_t,
+                    },
+                );
+            }
         }
     }
     Ok(())
@@ -797,32 +872,46 @@ impl TopK {
         {
             return;
         }
-        let mut out = [Cand::default(); MAX_CANDIDATES];
+        // Drop the entries near `c` (all worse than it), keeping the order, then
+        // insert `c` before the first remaining entry it beats; in place, over
+        // the `len` used entries only.
+        let (radius, len) = (self.radius, self.len.min(MAX_CANDIDATES));
+        let near = |e: &Cand| e.x.abs_diff(c.x) <= radius && e.y.abs_diff(c.y) <= radius;
         let mut n = 0;
-        let mut placed = false;
-        for e in cur.iter().filter(|e| !self.near(e, &c)) {
-            if !placed && cmp_scores(&c.s, &e.s) == Ordering::Greater {
-                if let Some(o) = out.get_mut(n) {
-                    *o = c;
-                    n += 1;
-                }
-                placed = true;
+        for i in 0..len {
+            let Some(e) = self.items.get(i).copied() else {
+                break;
+            };
+            if near(&e) {
+                continue;
             }
-            if n < self.cap {
-                if let Some(o) = out.get_mut(n) {
-                    *o = *e;
-                    n += 1;
+            if let Some(o) = self.items.get_mut(n) {
+                *o = e;
+            }
+            n += 1;
+        }
+        let kept = self.items.get(..n).unwrap_or(&[]);
+        let pos = kept
+            .iter()
+            .position(|e| cmp_scores(&c.s, &e.s) == Ordering::Greater)
+            .unwrap_or(n);
+        if pos >= self.cap {
+            self.len = n.min(self.cap);
+            return;
+        }
+        // Shift `pos..` one to the right, losing the last entry when full.
+        let end = (n + 1).min(self.cap);
+        for i in (pos + 1..end).rev() {
+            if let (Some(prev), Some(_)) = (self.items.get(i - 1).copied(), self.items.get(i)) {
+                if let Some(d) = self.items.get_mut(i) {
+                    *d = prev;
                 }
             }
         }
-        if !placed && n < self.cap {
-            if let Some(o) = out.get_mut(n) {
-                *o = c;
-                n += 1;
-            }
+        if let Some(slot) = self.items.get_mut(pos) {
+            *slot = c;
         }
-        self.items = out;
-        self.len = n.min(self.cap);
+        self.len = end;
     }
 }
 
@@ -1465,6 +1554,149 @@ mod tests {
             f,
             &mut b.scratch(),
         )
+    }
+
+    /// Plain scalar Σ t·f at (px, py), u64 so it cannot wrap (the reference).
+    fn ref_dot(t: &[u8], tw: usize, th: usize, win: &[u8], ww: usize, px: usize, py: usize) -> u64 {
+        let mut s = 0u64;
+        for r in 0..th {
+            for c in 0..tw {
+                s += u64::from(t[r * tw + c]) * u64::from(win[(py + r) * ww + px + c]);
+            }
+        }
+        s
+    }
+
+    /// The blocked kernel equals the scalar reference at every position of every
+    /// block, for widths that are and are not multiples of the chunk and block,
+    /// with masked (zeroed) template pixels and at the largest template.
+    #[test]
+    fn blocked_kernel_equals_scalar_reference() {
+        let mut rng = Rng::new(31);
+        for case in 0..400 {
+            let (tw, th) = if case == 0 {
+                (MAX_TEMPLATE_PX, MAX_TEMPLATE_PX)
+            } else {
+                (1 + rng.below(70) as usize, 1 + rng.below(40) as usize)
+            };
+            let (ww, wh) = (
+                tw + KERNEL_BLOCK - 1 + rng.below(20) as usize,
+                th + rng.below(10) as usize,
+            );
+            let win: Vec<u8> = if case % 7 == 0 {
+                vec![255; ww * wh]
+            } else {
+                random_px(ww * wh, &mut rng)
+            };
+            let mut px = if case % 7 == 0 {
+                vec![255; tw * th]
+            } else {
+                random_px(tw * th, &mut rng)
+            };
+            if case % 3 == 1 {
+                for p in px.iter_mut() {
+                    if rng.below(3) == 0 {
+                        *p = 0;
+                    }
+                }
+            }
+            let t = Tpl {
+                px: &px,
+                runs: None,
+                w: tw,
+                h: th,
+                n: 1,
+                st: 0,
+                var_t: 1,
+            };
+            let w = Win {
+                px: &win,
+                w: ww,
+                h: wh,
+            };
+            for _ in 0..4 {
+                let x = rng.below((ww + 2 - tw - KERNEL_BLOCK) as u32) as usize;
+                let y = rng.below((wh - th + 1) as u32) as usize;
+                let got = dot_block::<KERNEL_BLOCK>(&t, &w, x, y);
+                for (b, &g) in got.iter().enumerate() {
+                    let want = ref_dot(&px, tw, th, &win, ww, x + b, y);
+                    assert!(want < 1 << 32, "case {case}: reference {want} exceeds u32");
+                    assert_eq!(
+                        u64::from(g),
+                        want,
+                        "case {case}: {tw}x{th} at ({}, {y})",
+                        x + b
+                    );
+                }
+                let [one] = dot_block::<1>(&t, &w, x, y);
+                assert_eq!(
+                    u64::from(one),
+                    ref_dot(&px, tw, th, &win, ww, x, y),
+                    "case {case}"
+                );
+            }
+        }
+    }
+
+    /// The in-place `TopK::offer` keeps exactly the list the copying version
+    /// (the one before the in-place rewrite, kept here as the reference) keeps.
+    #[test]
+    fn top_k_offer_equals_copying_reference() {
+        fn ref_offer(items: &mut Vec<Cand>, cap: usize, radius: usize, c: Cand) {
+            let near =
+                |a: &Cand, b: &Cand| a.x.abs_diff(b.x) <= radius && a.y.abs_diff(b.y) <= radius;
+            if items.len() == cap && cmp_scores(&c.s, &items[cap - 1].s) != Ordering::Greater {
+                return;
+            }
+            if items
+                .iter()
+                .any(|e| near(e, &c) && cmp_scores(&c.s, &e.s) != Ordering::Greater)
+            {
+                return;
+            }
+            let mut out = Vec::new();
+            let mut placed = false;
+            for e in items.iter().filter(|e| !near(e, &c)) {
+                if !placed && cmp_scores(&c.s, &e.s) == Ordering::Greater {
+                    out.push(c);
+                    placed = true;
+                }
+                if out.len() < cap {
+                    out.push(*e);
+                }
+            }
+            if !placed && out.len() < cap {
+                out.push(c);
+            }
+            out.truncate(cap);
+            *items = out;
+        }
+        let mut rng = Rng::new(32);
+        for case in 0..300 {
+            let cap = 1 + rng.below(MAX_CANDIDATES as u32) as usize;
+            let radius = rng.below(4) as usize;
+            let mut top = TopK::new(cap, radius);
+            let mut want = Vec::new();
+            for _ in 0..400 {
+                // Few distinct values, so ties and near duplicates are common.
+                let c = Cand {
+                    x: rng.below(30) as usize,
+                    y: rng.below(30) as usize,
+                    s: Score {
+                        num: i64::from(rng.below(40)) - 10,
+                        var_f: 1 + i64::from(rng.below(5)),
+                        var_t: 7,
+                    },
+                };
+                top.offer(c);
+                ref_offer(&mut want, cap, radius, c);
+                let got: Vec<(usize, usize, Score)> =
+                    top.as_slice().iter().map(|e| (e.x, e.y, e.s)).collect();
+                let exp: Vec<(usize, usize, Score)> =
+                    want.iter().map(|e| (e.x, e.y, e.s)).collect();
+                assert_eq!(got, exp, "case {case}");
+            }
+        }
     }
 
     /// Verifies: VTSM-NCC-001
