@@ -98,3 +98,60 @@ fn budget_measured_rows_are_a_real_run() {
     assert!(v("attempts") <= u64::from(s.rounds) * cfg::MAX_ATTEMPTS_PER_ITER as u64);
     assert!(v("engine wall time (one thread)") > 0);
 }
+
+/// The checked-in budget snapshot (`fsw-docs/budgets/budget.snapshot.json`,
+/// written by `vtsm budget --write fsw-docs/budgets/`) must agree with the
+/// code: every row present on both sides, static sizes and bounds exactly,
+/// measured counters within their stated tolerance. A change that moves memory
+/// or work fails here until the snapshot is renewed on purpose.
+///
+/// Verifies: VTSM-CLI-024
+#[test]
+fn budget_snapshot_matches_the_code() {
+    use vtsm_sim::cli::budget::{in_snapshot, profile_rows, tolerance};
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../fsw-docs/budgets/budget.snapshot.json"
+    );
+    let text = std::fs::read_to_string(path).unwrap();
+    let snap: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let mut now = rows();
+    now.extend(profile_rows());
+    now.extend(measured_rows(1).unwrap());
+    let now: Vec<&Row> = now.iter().filter(|r| in_snapshot(r)).collect();
+    let key = |s: &str, i: &str| format!("{s} / {i}");
+    let mut problems = Vec::new();
+    for r in &now {
+        let old = snap
+            .iter()
+            .find(|v| v["section"] == r.section && v["item"] == r.item.as_str());
+        match old.and_then(|v| v["value"].as_u64()) {
+            None => problems.push(format!("new row {}", key(r.section, &r.item))),
+            Some(old) => {
+                let tol = tolerance(r) * old as f64;
+                if (r.value as f64 - old as f64).abs() > tol {
+                    problems.push(format!(
+                        "{}: {} in the code, {old} in the snapshot (tolerance {:.0} %)",
+                        key(r.section, &r.item),
+                        r.value,
+                        tolerance(r) * 100.0
+                    ));
+                }
+            }
+        }
+    }
+    for v in &snap {
+        let (s, i) = (v["section"].as_str().unwrap(), v["item"].as_str().unwrap());
+        if !now.iter().any(|r| r.section == s && r.item == i) {
+            problems.push(format!("row gone from the code: {}", key(s, i)));
+        }
+    }
+    assert!(
+        problems.is_empty(),
+        "budget snapshot out of date (renew with `vtsm budget --write fsw-docs/budgets/`):\n{}",
+        problems.join("\n")
+    );
+}

@@ -17,7 +17,13 @@ use vtsm_core::config as cfg;
 use vtsm_core::reloc::workspace::{
     WorkspaceSizes, PAPER_WORKSPACE, PAPER_WORKSPACE_BYTES, TEST_WORKSPACE, TEST_WORKSPACE_BYTES,
 };
-use vtsm_core::reloc::{Outcome, Pipeline, RansacSolver, Relocalizer};
+use vtsm_core::reloc::{MatchPolicy, Outcome, Pipeline, RansacSolver, Relocalizer};
+
+/// RAM of the flight envelope the budgets are held against (10 MB).
+pub const ENVELOPE_RAM_BYTES: u64 = 10_000_000;
+/// Instructions of the flight envelope: 30 minutes of one 200 MHz core at one
+/// instruction per cycle.
+pub const ENVELOPE_INSTRUCTIONS: u64 = 200_000_000 * 30 * 60;
 
 /// Arguments of `vtsm budget`.
 #[derive(Debug, Clone, clap::Args)]
@@ -31,6 +37,11 @@ pub struct Args {
     /// Seed of the measured test-profile scene, prior and relocalization.
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub seed: u64,
+    /// Write the budget into DIR: `budget.md` (the table, for reading) and
+    /// `budget.snapshot.json` (one JSON object per row, compared by the
+    /// snapshot test). Existing files there are replaced.
+    #[arg(long, value_name = "DIR")]
+    pub write: Option<std::path::PathBuf>,
 }
 
 /// One line of the budget.
@@ -136,6 +147,45 @@ pub fn rows() -> Vec<Row> {
     ]
 }
 
+/// Per-profile rows: the parameters' template and window, the workspace they
+/// size, the stereo pair held in RAM, the engine state, the sum against the
+/// RAM envelope, and the structural bound on work units.
+pub fn profile_rows() -> Vec<Row> {
+    let mut out = Vec::new();
+    for profile in [Profile::Test, Profile::Demo, Profile::Paper] {
+        let (w, h) = profile.image_size();
+        let p = locate::params_for_width(w);
+        let ws = WorkspaceSizes::for_params(&p, MatchPolicy::for_params(&p).search);
+        let pair = 2 * (w as usize) * (h as usize);
+        let engine = size_of::<Relocalizer<Pipeline<'static, 'static>, RansacSolver>>();
+        let ram = ws.total_bytes() + pair + engine;
+        let name = profile.name();
+        let r = |item: &str, v: usize, unit| row("profile", format!("{name}: {item}"), v, unit);
+        out.extend([
+            r("image width", w as usize, "px"),
+            r("image height", h as usize, "px"),
+            r("template side ℓ", usize::from(p.template_px), "px"),
+            r("search window cap", usize::from(p.search_px), "px"),
+            r("pipeline workspace", ws.total_bytes(), "bytes"),
+            r("stereo pair in RAM", pair, "bytes"),
+            r("engine state", engine, "bytes"),
+            r("RAM: workspace + pair + engine", ram, "bytes"),
+            r(
+                "RAM margin against the 10 MB envelope (‰ of envelope left, 0 if over)",
+                (1000u64.saturating_sub(ram as u64 * 1000 / ENVELOPE_RAM_BYTES)) as usize,
+                "‰",
+            ),
+            r(
+                "work units, structural bound (attempts + solves + RANSAC chunks)",
+                Relocalizer::<Pipeline<'static, 'static>, RansacSolver>::max_work_units(&p)
+                    as usize,
+                "count",
+            ),
+        ]);
+    }
+    out
+}
+
 fn workspace_item(scale: &str, w: &WorkspaceSizes) -> String {
     format!(
         "pipeline workspace, {scale} (ℓ {}, W {}, coarse-to-fine)",
@@ -227,8 +277,14 @@ pub fn measured_rows(seed: u64) -> crate::Result<Vec<Row>> {
 /// Run the command; returns the exit code.
 pub fn run(args: &Args) -> crate::Result<u8> {
     let mut rows = rows();
+    rows.extend(profile_rows());
     if !args.no_run {
         rows.extend(measured_rows(args.seed)?);
+    }
+    if let Some(dir) = &args.write {
+        write(dir, &rows)?;
+        println!("wrote {} rows to {}", rows.len(), dir.display());
+        return Ok(0);
     }
     if args.json {
         for r in &rows {
@@ -245,4 +301,55 @@ pub fn run(args: &Args) -> crate::Result<u8> {
         }
     }
     Ok(0)
+}
+
+/// Rows whose value is not a deterministic function of the code and seed
+/// (wall time): left out of the snapshot.
+pub fn in_snapshot(r: &Row) -> bool {
+    r.unit != "µs"
+}
+
+/// Relative tolerance of a row in the snapshot comparison: static sizes and
+/// bounds must match exactly; counters of the measured relocalization may
+/// move by 2 % before the snapshot must be renewed on purpose.
+pub fn tolerance(r: &Row) -> f64 {
+    if r.section == "measured" {
+        0.02
+    } else {
+        0.0
+    }
+}
+
+/// One snapshot line for `r`.
+pub fn snapshot_line(r: &Row) -> String {
+    serde_json::json!({
+        "section": r.section, "item": r.item, "value": r.value, "unit": r.unit
+    })
+    .to_string()
+}
+
+fn write(dir: &std::path::Path, rows: &[Row]) -> crate::Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| crate::Error::file(dir, e.to_string()))?;
+    let mut md = String::from(
+        "# Budget (generated)\n\nWritten by `vtsm budget --write fsw-docs/budgets/`; do not edit: \
+         `tests/tests/e2e_budget.rs` compares `budget.snapshot.json` with the code \
+         (static rows exactly, measured counters within 2 %).\n\n\
+         | section | item | value | unit |\n|---|---|---:|---|\n",
+    );
+    for r in rows {
+        md.push_str(&format!(
+            "| {} | {} | {} | {} |\n",
+            r.section, r.item, r.value, r.unit
+        ));
+    }
+    let snap: String = rows
+        .iter()
+        .filter(|r| in_snapshot(r))
+        .map(|r| snapshot_line(r) + "\n")
+        .collect();
+    for (name, text) in [("budget.md", md), ("budget.snapshot.json", snap)] {
+        let path = dir.join(name);
+        crate::io::write_atomic(&path, text.as_bytes(), true)?;
+    }
+    Ok(())
 }
