@@ -179,6 +179,12 @@ failure_codes! {
         "No drawn mask vertex projected inside both images from the viewpoint; the attempt is skipped.";
     RelocSampleOccluded = 0x0809, Info, Same, "RELOC_SAMPLE_OCCLUDED",
         "The sampled vertex is hidden behind other surface in the virtual view; the attempt is skipped.";
+    RelocFrameNoTexture = 0x080A, Fatal, NewInput, "RELOC_FRAME_NO_TEXTURE",
+        "A stereo image is black, saturated or flat on almost every sampled pixel, so nothing can be matched; relocalization does not start.";
+    RelocStereoIdentical = 0x080B, Fatal, NewInput, "RELOC_STEREO_IDENTICAL",
+        "The left and right images are identical on every sampled row (one sensor delivered twice); relocalization does not start.";
+    RelocNoEvidence = 0x080C, Fatal, NewInput, "RELOC_NO_EVIDENCE",
+        "No correspondence was accepted in the first Options::no_evidence_attempts attempts; the frame does not show the map here, and the run stops early.";
     // 0x09xx hardware
     HalCameraTimeout = 0x0901, Degraded, Same, "HAL_CAMERA_TIMEOUT",
         "The stereo camera did not deliver a frame within its timeout; capture again.";

@@ -303,7 +303,10 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             }
             Err(code) => self.log.record(code, now, index),
         }
-        if self.pairs.len() >= usize::from(self.params.n_corr) {
+        let cap = self.opts.no_evidence_attempts;
+        if cap > 0 && self.stats.correspondences == 0 && self.stats.attempts >= cap {
+            self.finish(Some(FailureCode::RelocNoEvidence), now);
+        } else if self.pairs.len() >= usize::from(self.params.n_corr) {
             self.phase = Phase::Solve;
         } else if self.round_attempts >= self.params.attempts_per_iter {
             self.log
@@ -974,7 +977,11 @@ mod tests {
         let p = small_params();
         let attempt = FakeAttempt::new(|_, _| Some(FailureCode::NccLowScore));
         let solver = FakeSolver::new(|_, _, _| Err(FailureCode::PoseDegenerate));
-        let mut r = Relocalizer::new(attempt, solver, &p, &opts(&p), &at_x(0.0), 1).unwrap();
+        let o = Options {
+            no_evidence_attempts: 0,
+            ..opts(&p)
+        };
+        let mut r = Relocalizer::new(attempt, solver, &p, &o, &at_x(0.0), 1).unwrap();
         let out = r.run_to_completion(0);
         let rounds = u32::from(p.max_reseed) + 1;
         assert_eq!(out.stats.attempts, rounds * p.attempts_per_iter);
@@ -988,6 +995,37 @@ mod tests {
             out.stats.attempts
         );
         assert_eq!(out.failure, Some(FailureCode::RelocReseedCapReached));
+    }
+
+    /// Verifies: VTSM-RELOC-021
+    #[test]
+    fn no_evidence_stops_early_with_its_own_code() {
+        let p = small_params();
+        for cap in [1u32, 37, 200] {
+            let attempt = FakeAttempt::new(|_, _| Some(FailureCode::NccLowScore));
+            let solver = FakeSolver::new(|_, _, _| Err(FailureCode::PoseDegenerate));
+            let o = Options {
+                no_evidence_attempts: cap,
+                ..opts(&p)
+            };
+            let mut r = Relocalizer::new(attempt, solver, &p, &o, &at_x(0.0), 1).unwrap();
+            let out = r.run_to_completion(0);
+            assert_eq!(out.failure, Some(FailureCode::RelocNoEvidence), "cap {cap}");
+            assert_eq!(out.stats.attempts, cap);
+            assert_eq!(out.log.count(FailureCode::RelocNoEvidence), 1);
+            assert_eq!(out.pose, at_x(0.0));
+        }
+        // One correspondence early on is evidence: the run goes on to its caps.
+        let attempt = FakeAttempt::new(|i, _| (i != 3).then_some(FailureCode::NccLowScore));
+        let solver = FakeSolver::new(|_, _, _| Err(FailureCode::PoseDegenerate));
+        let o = Options {
+            no_evidence_attempts: 10,
+            ..opts(&p)
+        };
+        let mut r = Relocalizer::new(attempt, solver, &p, &o, &at_x(0.0), 1).unwrap();
+        let out = r.run_to_completion(0);
+        assert_eq!(out.failure, Some(FailureCode::RelocReseedCapReached));
+        assert!(out.stats.attempts > 10);
     }
 
     /// Verifies: VTSM-RELOC-012

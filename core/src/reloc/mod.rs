@@ -22,6 +22,7 @@
 mod engine;
 pub mod pipeline;
 pub mod policy;
+pub mod preflight;
 mod setup;
 pub mod solver;
 pub mod viewpoint;
@@ -180,16 +181,27 @@ pub struct Options {
     pub seed_r_deg: f32,
     /// Work / tick budget.
     pub budget: Budget,
+    /// Stop with [`FailureCode::RelocNoEvidence`] when this many attempts
+    /// since the start have produced no correspondence at all (0 = never): the
+    /// fast "no fix" for a frame that does not show the map from the prior.
+    pub no_evidence_attempts: u32,
 }
 
 impl Options {
-    /// Defaults for `params`: at least 30 % of N_corr as inliers, seeds within 0.5 m / 1.5°.
+    /// Defaults for `params`: at least 30 % of N_corr as inliers, seeds within
+    /// 0.5 m / 1.5°, and no evidence after max(4·N_corr, 200) attempts.
+    ///
+    /// The no-evidence cap is far above what a frame of the depot needs: on
+    /// the simulated and the other renderer's pairs a correspondence comes
+    /// every 2–3 attempts even under a 6 h lighting change, so 200 attempts
+    /// without any is a frame that does not show the map here.
     pub fn for_params(params: &Params) -> Self {
         Self {
             min_inliers: ((u32::from(params.n_corr) * 3).div_ceil(10)).max(3) as u16,
             seed_t_m: 0.5,
             seed_r_deg: params.r0_deg,
             budget: Budget::UNLIMITED,
+            no_evidence_attempts: (4 * u32::from(params.n_corr)).max(200),
         }
     }
 

@@ -545,11 +545,13 @@ mod tests {
         let map = MapView::new_checked(&bytes).unwrap();
         let rig = rig();
         let p = test_params();
-        let img = vec![0u8; 640 * 480];
+        let left = render_full(&map, &rig.cam, &truth, 0.85, 20.0);
+        let right = render_full(&map, &rig.cam, &rig.world_from_right(&truth), 0.85, 20.0);
         let small = vec![0u8; 320 * 240];
-        let lv = GrayView::new(&img, 640, 480, 640).unwrap();
+        let lv = GrayView::new(&left, 640, 480, 640).unwrap();
+        let rv = GrayView::new(&right, 640, 480, 640).unwrap();
         let sv = GrayView::new(&small, 320, 240, 320).unwrap();
-        let good = Setup::new(&map, lv, lv, &rig, &p, &truth, 1);
+        let good = Setup::new(&map, lv, rv, &rig, &p, &truth, 1);
         assert_eq!(good.sizes(), TEST_WORKSPACE);
         assert_eq!(good.validate(), Ok(()));
         let build = |s: &Setup, sizes: WorkspaceSizes| {

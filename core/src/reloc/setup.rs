@@ -83,12 +83,15 @@ impl<'a> Setup<'a> {
     }
 
     /// Check every input once: params, policy, options, prior, image sizes
-    /// against the rig, and that the map has a sampling mask.
+    /// against the rig, that the map has a sampling mask, and the
+    /// [`preflight`](super::preflight) (texture in both images, two different
+    /// images, a mask vertex in view from the prior).
     ///
     /// # Errors
     /// [`FailureCode::ConfigParamOutOfRange`] (params, policy or options),
     /// [`FailureCode::RelocPriorInvalid`], [`FailureCode::ImageSizeMismatch`],
-    /// [`FailureCode::RelocNoVisibleMaskVertex`] (empty mask).
+    /// [`FailureCode::RelocNoVisibleMaskVertex`] (empty mask or none in view),
+    /// [`FailureCode::RelocFrameNoTexture`], [`FailureCode::RelocStereoIdentical`].
     pub fn validate(&self) -> Result<(), FailureCode> {
         self.params.validate()?;
         self.policy.validate()?;
@@ -104,6 +107,14 @@ impl<'a> Setup<'a> {
         if self.map.mask_vertex_count() == 0 {
             return Err(FailureCode::RelocNoVisibleMaskVertex);
         }
+        super::preflight::check(
+            self.map,
+            &self.left,
+            &self.right,
+            &self.rig,
+            &self.prior,
+            usize::from(self.params.template_px),
+        )?;
         Ok(())
     }
 

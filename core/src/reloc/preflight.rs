@@ -1,0 +1,195 @@
+//! Preflight: the fast "no fix". Before any template is rendered, decide from
+//! cheap evidence whether a relocalization can possibly succeed, so a hopeless
+//! input ends in a specific failure code after a bounded pass over the inputs
+//! instead of minutes of Stall and Reseed.
+//!
+//! Checks (each bounded by the inputs' sizes, which `config` caps):
+//! * each image shows texture on at least [`MIN_TEXTURE_PERMILLE`] ‰ of the
+//!   pixels of [`PREFLIGHT_ROWS`] evenly spaced rows (black, saturated and flat
+//!   frames fail with [`FailureCode::RelocFrameNoTexture`]);
+//! * the two images differ on at least one sampled row
+//!   ([`FailureCode::RelocStereoIdentical`]: one sensor delivered twice);
+//! * the images are larger than a template, and at least one mask vertex
+//!   projects in front of the prior's left camera inside its image
+//!   ([`FailureCode::RelocNoVisibleMaskVertex`]: facing the sky, far away,
+//!   wrong intrinsics).
+
+use crate::failure::FailureCode;
+use crate::geom::{Pose, StereoRig};
+use crate::image::GrayView;
+use crate::map::MapView;
+
+/// Rows of each image sampled by the texture and identity checks.
+pub const PREFLIGHT_ROWS: usize = 64;
+/// Smallest share of textured pixels (‰) a usable image shows on the sampled rows.
+pub const MIN_TEXTURE_PERMILLE: u32 = 20;
+/// A pixel is textured when it is not 0 or 255 and differs from its right or
+/// lower neighbour by at least this many gray levels.
+pub const TEXTURE_STEP: u8 = 2;
+
+/// What the preflight measured.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Preflight {
+    /// Textured share of the sampled pixels of the left image, ‰.
+    pub left_texture_permille: u32,
+    /// Textured share of the sampled pixels of the right image, ‰.
+    pub right_texture_permille: u32,
+    /// Mask vertices in front of the prior's left camera and inside its image.
+    pub visible_mask_vertices: u32,
+    /// Pixels and vertices read (the work of the preflight).
+    pub reads: u64,
+}
+
+/// Evenly spaced row indices `0..h` (at most [`PREFLIGHT_ROWS`], each once).
+fn sampled_rows(h: usize) -> impl Iterator<Item = usize> {
+    let n = h.min(PREFLIGHT_ROWS);
+    (0..n).map(move |k| if n > 1 { k * (h - 1) / (n - 1) } else { 0 })
+}
+
+/// Textured share (‰) of the sampled rows of `img`, and the pixels read.
+fn texture_permille(img: &GrayView) -> (u32, u64) {
+    let (w, h) = (img.width(), img.height());
+    let (mut textured, mut total) = (0u64, 0u64);
+    for y in sampled_rows(h) {
+        let (Some(row), below) = (img.row(y), img.row((y + 1).min(h.saturating_sub(1)))) else {
+            continue;
+        };
+        let below = below.unwrap_or(row);
+        for (x, &p) in row.iter().enumerate().take(w) {
+            total += 1;
+            if p == 0 || p == 255 {
+                continue;
+            }
+            let right = row.get(x + 1).copied().unwrap_or(p);
+            let down = below.get(x).copied().unwrap_or(p);
+            if p.abs_diff(right) >= TEXTURE_STEP || p.abs_diff(down) >= TEXTURE_STEP {
+                textured += 1;
+            }
+        }
+    }
+    let permille = if total == 0 {
+        0
+    } else {
+        (textured * 1000 / total) as u32
+    };
+    (permille, 2 * total)
+}
+
+/// Whether `a` and `b` are identical on every sampled row.
+fn identical_rows(a: &GrayView, b: &GrayView) -> bool {
+    sampled_rows(a.height()).all(|y| a.row(y) == b.row(y))
+}
+
+/// Run the preflight on a stereo pair of `rig`'s size, the map and the prior.
+///
+/// # Errors
+/// [`FailureCode::RelocFrameNoTexture`], [`FailureCode::RelocStereoIdentical`]
+/// or [`FailureCode::RelocNoVisibleMaskVertex`], as described in the module docs.
+pub fn check(
+    map: &MapView,
+    left: &GrayView,
+    right: &GrayView,
+    rig: &StereoRig,
+    prior: &Pose,
+    template_px: usize,
+) -> Result<Preflight, FailureCode> {
+    let mut out = Preflight::default();
+    let (tl, nl) = texture_permille(left);
+    let (tr, nr) = texture_permille(right);
+    out.left_texture_permille = tl;
+    out.right_texture_permille = tr;
+    out.reads = nl + nr;
+    if tl < MIN_TEXTURE_PERMILLE || tr < MIN_TEXTURE_PERMILLE {
+        return Err(FailureCode::RelocFrameNoTexture);
+    }
+    if identical_rows(left, right) {
+        return Err(FailureCode::RelocStereoIdentical);
+    }
+    let cam = &rig.cam;
+    if (cam.width as usize) <= template_px || (cam.height as usize) <= template_px {
+        return Err(FailureCode::RelocNoVisibleMaskVertex);
+    }
+    let cam_from_world = prior.inverse();
+    for k in 0..map.mask_vertex_count() {
+        let Some(world) = map.mask_vertex(k).and_then(|i| map.vertex(i)) else {
+            continue;
+        };
+        out.reads += 1;
+        let p = cam_from_world.transform_point(&world);
+        if let Some((l, _)) = rig.project_stereo(&p) {
+            if cam.contains(l[0], l[1], 0.0) {
+                out.visible_mask_vertices += 1;
+                // One is enough to know the run can start.
+                break;
+            }
+        }
+    }
+    if out.visible_mask_vertices == 0 {
+        return Err(FailureCode::RelocNoVisibleMaskVertex);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use crate::geom::Vec3;
+    use crate::rng::Rng;
+    use crate::testkit::{build_map, camera_pose, render_full, rig};
+    use nalgebra::UnitQuaternion;
+    use std::vec;
+
+    /// Verifies: VTSM-RELOC-021
+    #[test]
+    fn hopeless_inputs_get_their_own_code_and_good_ones_pass() {
+        let bytes = build_map(1);
+        let map = MapView::new_checked(&bytes).unwrap();
+        let rig = rig();
+        let truth = camera_pose(0.6, 0.2);
+        let left = render_full(&map, &rig.cam, &truth, 0.85, 20.0);
+        let right = render_full(&map, &rig.cam, &rig.world_from_right(&truth), 0.85, 20.0);
+        fn view(b: &[u8]) -> GrayView<'_> {
+            GrayView::new(b, 640, 480, 640).unwrap()
+        }
+        let (lv, rv) = (view(&left), view(&right));
+        let ok = check(&map, &lv, &rv, &rig, &truth, 64).unwrap();
+        assert!(ok.left_texture_permille > 500, "{ok:?}");
+        assert!(ok.visible_mask_vertices > 0 && ok.reads > 0);
+
+        let black = vec![0u8; 640 * 480];
+        let white = vec![255u8; 640 * 480];
+        let flat = vec![117u8; 640 * 480];
+        for bad in [&black, &white, &flat] {
+            let e = check(&map, &view(bad), &rv, &rig, &truth, 64).err();
+            assert_eq!(e, Some(FailureCode::RelocFrameNoTexture));
+            let e = check(&map, &lv, &view(bad), &rig, &truth, 64).err();
+            assert_eq!(e, Some(FailureCode::RelocFrameNoTexture));
+        }
+        // Pure noise is textured: it passes here and is left to the engine.
+        let mut rng = Rng::new(5);
+        let noise: std::vec::Vec<u8> = (0..640 * 480).map(|_| rng.below(256) as u8).collect();
+        assert!(check(&map, &view(&noise), &rv, &rig, &truth, 64).is_ok());
+
+        let e = check(&map, &lv, &lv, &rig, &truth, 64).err();
+        assert_eq!(e, Some(FailureCode::RelocStereoIdentical));
+
+        let sky = Pose::new(
+            UnitQuaternion::from_axis_angle(&Vec3::x_axis(), core::f32::consts::PI)
+                * truth.rotation(),
+            truth.translation(),
+        );
+        let far = Pose::new(
+            truth.rotation(),
+            truth.translation() + Vec3::new(100.0, 0.0, 0.0),
+        );
+        for prior in [sky, far] {
+            let e = check(&map, &lv, &rv, &rig, &prior, 64).err();
+            assert_eq!(e, Some(FailureCode::RelocNoVisibleMaskVertex));
+        }
+        // Templates as large as the image can never be placed.
+        let e = check(&map, &lv, &rv, &rig, &truth, 480).err();
+        assert_eq!(e, Some(FailureCode::RelocNoVisibleMaskVertex));
+    }
+}
