@@ -422,8 +422,8 @@ proptest! {
             prop_assert_eq!(depth[k], 0x1234_5678);
             prop_assert_eq!(mdepth[k], 0x9abc_def0);
         }
-        for k in 0..n {
-            prop_assert!(depth[k] == DEPTH_NONE || depth[k] <= DEPTH_MAX);
+        for d in &depth[..n] {
+            prop_assert!(*d == DEPTH_NONE || *d <= DEPTH_MAX);
         }
     }
 }
