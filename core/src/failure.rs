@@ -112,15 +112,23 @@ failure_codes! {
         "Map sections disagree (tile bounds, texture size, section layout); the map is not used.";
     MapEncodeBufferTooSmall = 0x0309, Fatal, Never, "MAP_ENCODE_BUFFER_TOO_SMALL",
         "The output buffer given to the map encoder is too small; nothing was written past it.";
+    MapTileSizeOutOfRange = 0x030A, Fatal, Never, "MAP_TILE_SIZE_OUT_OF_RANGE",
+        "The tile size is not a positive finite number, or so small that the tile grid over the map exceeds MAX_MAP_TILES; nothing is encoded.";
+    MapNoSurface = 0x030B, Fatal, NewInput, "MAP_NO_SURFACE",
+        "Every triangle of the map has zero area, so there is no surface to render; the map is not used.";
+    MapUvOutOfRange = 0x030C, Fatal, NewInput, "MAP_UV_OUT_OF_RANGE",
+        "A texture coordinate lies beyond map::MAX_UV_PX texture pixels; the map is not used.";
     // 0x04xx raster
     RasterWindowInvalid = 0x0401, Degraded, Same, "RASTER_WINDOW_INVALID",
         "The render window is empty, larger than the template cap or outside the guard band; nothing is drawn.";
     RasterBufferTooSmall = 0x0402, Fatal, Never, "RASTER_BUFFER_TOO_SMALL",
         "A render target buffer is smaller than the window; nothing is drawn.";
     RasterPoseInvalid = 0x0403, Degraded, Same, "RASTER_POSE_INVALID",
-        "The virtual camera pose or intrinsics are not finite; the template is skipped.";
+        "The virtual camera pose is not finite; the template is skipped.";
     RasterNothingVisible = 0x0404, Info, Same, "RASTER_NOTHING_VISIBLE",
         "No mesh triangle covers the window; the sample is skipped and another is drawn.";
+    RasterCameraInvalid = 0x0405, Fatal, Never, "RASTER_CAMERA_INVALID",
+        "The camera given to the renderer fails Camera::check (size above MAX_IMAGE_DIM, focal length or principal point out of range); nothing is drawn.";
     // 0x05xx ncc
     NccTemplateFlat = 0x0501, Info, Same, "NCC_TEMPLATE_FLAT",
         "The template has zero variance under its mask; it cannot be matched and is skipped.";

@@ -151,9 +151,32 @@ pub struct Camera {
     pub height: u32,
 }
 
+/// Largest accepted focal length, pixels (a 1° horizontal field of view at
+/// `MAX_IMAGE_DIM` pixels needs about 4.7·10⁵).
+pub const MAX_FOCAL_PX: f32 = 1.0e6;
+/// Largest accepted distance of the principal point from pixel (0, 0) along
+/// either axis, pixels (the render-window origin bound, 2·`MAX_IMAGE_DIM`).
+pub const MAX_PRINCIPAL_PX: f32 = 2.0 * crate::config::MAX_IMAGE_DIM as f32;
+
+/// Whether `f` is an accepted focal length: finite, positive, at most [`MAX_FOCAL_PX`].
+pub fn focal_px_ok(f: f32) -> bool {
+    // NaN fails both comparisons.
+    f > 0.0 && f <= MAX_FOCAL_PX
+}
+
+/// Whether `c` is an accepted principal-point coordinate: within ±[`MAX_PRINCIPAL_PX`].
+pub fn principal_px_ok(c: f32) -> bool {
+    // NaN fails the comparison.
+    c.abs() <= MAX_PRINCIPAL_PX
+}
+
+/// Whether `d` is an accepted image width or height: `1..=MAX_IMAGE_DIM`.
+pub fn image_dim_ok(d: u32) -> bool {
+    d > 0 && d as usize <= crate::config::MAX_IMAGE_DIM
+}
+
 impl Camera {
-    /// A checked camera: finite positive focal lengths, finite principal point,
-    /// size within `config::MAX_IMAGE_DIM`.
+    /// A checked camera: see [`Camera::check`].
     ///
     /// # Errors
     /// [`FailureCode::StereoRigInvalid`].
@@ -165,27 +188,39 @@ impl Camera {
         width: u32,
         height: u32,
     ) -> Result<Self, FailureCode> {
-        let dims_ok = width > 0
-            && height > 0
-            && width as usize <= crate::config::MAX_IMAGE_DIM
-            && height as usize <= crate::config::MAX_IMAGE_DIM;
-        let intrinsics_ok = fx.is_finite()
-            && fy.is_finite()
-            && fx > 0.0
-            && fy > 0.0
-            && cx.is_finite()
-            && cy.is_finite();
-        if !intrinsics_ok || !dims_ok {
-            return Err(FailureCode::StereoRigInvalid);
-        }
-        Ok(Self {
+        let cam = Self {
             fx,
             fy,
             cx,
             cy,
             width,
             height,
-        })
+        };
+        cam.check()?;
+        Ok(cam)
+    }
+
+    /// The checks of [`Camera::new`], for a camera built as a struct literal (its
+    /// fields are public): focal lengths in (0, [`MAX_FOCAL_PX`]], principal
+    /// point within ±[`MAX_PRINCIPAL_PX`], width and height in `1..=MAX_IMAGE_DIM`
+    /// ([`focal_px_ok`], [`principal_px_ok`], [`image_dim_ok`]). Every value then
+    /// is finite, and pixel coordinates of the image fit the rasterizer's
+    /// fixed-point range.
+    ///
+    /// # Errors
+    /// [`FailureCode::StereoRigInvalid`].
+    pub fn check(&self) -> Result<(), FailureCode> {
+        let ok = focal_px_ok(self.fx)
+            && focal_px_ok(self.fy)
+            && principal_px_ok(self.cx)
+            && principal_px_ok(self.cy)
+            && image_dim_ok(self.width)
+            && image_dim_ok(self.height);
+        if ok {
+            Ok(())
+        } else {
+            Err(FailureCode::StereoRigInvalid)
+        }
     }
 
     /// A camera with square pixels and the principal point at the image centre,
@@ -342,6 +377,14 @@ mod tests {
         assert!(Camera::new(0.0, 1.0, 0.0, 0.0, 10, 10).is_err());
         assert!(Camera::new(1.0, f32::NAN, 0.0, 0.0, 10, 10).is_err());
         assert!(Camera::new(1.0, 1.0, 0.0, 0.0, 0, 10).is_err());
+        assert!(Camera::new(1.0e7, 1.0, 0.0, 0.0, 10, 10).is_err());
+        assert!(Camera::new(1.0, 1.0, 0.0, 1.0e5, 10, 10).is_err());
+        assert!(Camera::new(1.0, 1.0, 0.0, 0.0, 10, 8193).is_err());
+        assert!(Camera::new(MAX_FOCAL_PX, 1.0, -MAX_PRINCIPAL_PX, 0.0, 8192, 1).is_ok());
+        let mut lit = Camera::new(500.0, 500.0, 320.0, 240.0, 640, 480).unwrap();
+        assert!(lit.check().is_ok());
+        lit.width = u32::MAX;
+        assert_eq!(lit.check(), Err(FailureCode::StereoRigInvalid));
         assert!(StereoRig::new(Camera::from_hfov(10, 10, 60.0).unwrap(), 0.0).is_err());
         assert!(Pose::from_t_q([0.0; 3], [1.0, 0.0, 0.0, 0.0]).is_ok());
         assert!(Pose::from_t_q([f32::NAN, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]).is_err());

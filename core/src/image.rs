@@ -132,6 +132,12 @@ impl<'a, P: Copy> ImageView<'a, P> {
         self.stride
     }
 
+    /// The borrowed pixel buffer, as given to [`ImageView::new`] (at least
+    /// `(height − 1) · stride + width` pixels).
+    pub fn data(&self) -> &'a [P] {
+        self.data
+    }
+
     /// The whole image as a rectangle at the origin.
     pub fn rect(&self) -> Rect {
         Rect::new(0, 0, self.width as u32, self.height as u32)

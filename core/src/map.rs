@@ -55,6 +55,11 @@ pub const UV_BYTES: usize = 24;
 pub const MASK_VERTEX_BYTES: usize = 4;
 /// Triangle flag: the triangle belongs to the sampling mask M̂.
 pub const FLAG_MASK: u32 = 1;
+/// Largest magnitude of a texture coordinate in the product, texture pixels
+/// (2^20 = 64 · `MAX_TEXTURE_DIM`). Coordinates beyond the texture sample its edge
+/// texels, so nothing farther is needed; the rasterizer clamps interpolated
+/// coordinates to the same range.
+pub const MAX_UV_PX: f32 = (1u32 << 20) as f32;
 
 const SECTIONS: usize = 6;
 const SEC_TILES: usize = 0;
@@ -149,6 +154,17 @@ fn wr_vec3(b: &mut [u8], off: usize, v: &Vec3) -> Result<(), FailureCode> {
 
 fn vec_finite(v: &Vec3) -> bool {
     v.x.is_finite() && v.y.is_finite() && v.z.is_finite()
+}
+
+/// Whether a texture coordinate (texture pixels) is within ±[`MAX_UV_PX`] (NaN is not).
+fn uv_in_range(c: f32) -> bool {
+    c.abs() <= MAX_UV_PX
+}
+
+/// Whether the triangle `a b c` has non-zero area (f32 cross product of its edges;
+/// an infinite one counts, a NaN one does not).
+fn has_area(a: &Vec3, b: &Vec3, c: &Vec3) -> bool {
+    (b - a).cross(&(c - a)).norm_squared() > 0.0
 }
 
 fn inside(p: &Vec3, min: &Vec3, max: &Vec3) -> bool {
@@ -267,8 +283,10 @@ impl<'a> MapView<'a> {
     /// layout implied by the counts ([`FailureCode::MapInconsistent`]), total length
     /// ([`FailureCode::MapTruncated`] if short, [`FailureCode::MapInconsistent`] if
     /// trailing bytes), section CRCs, then content: finite vertices, UVs and
-    /// bounds ([`FailureCode::MapNonFinite`]), vertex and triangle indices
-    /// ([`FailureCode::MapIndexOutOfRange`]), tile runs covering the triangles in
+    /// bounds ([`FailureCode::MapNonFinite`]), UVs within ±[`MAX_UV_PX`]
+    /// ([`FailureCode::MapUvOutOfRange`]), vertex and triangle indices
+    /// ([`FailureCode::MapIndexOutOfRange`]), at least one triangle of non-zero
+    /// area ([`FailureCode::MapNoSurface`]), tile runs covering the triangles in
     /// order, boxes bounding their triangles, vertices inside the header bounds,
     /// triangle flags, strictly increasing mask vertices ([`FailureCode::MapInconsistent`]).
     ///
@@ -380,6 +398,8 @@ impl<'a> MapView<'a> {
             }
         }
         let tri_off = self.layout.off(SEC_TRIANGLES);
+        // Whether some triangle has non-zero area (checked until one has).
+        let mut surface = false;
         for i in 0..self.triangle_count as usize {
             let flags =
                 rd_u32(self.bytes, tri_off + i * TRIANGLE_BYTES + 12).ok_or(F::MapTruncated)?;
@@ -393,6 +413,18 @@ impl<'a> MapView<'a> {
             if !t.uv.iter().flatten().all(|c| c.is_finite()) {
                 return Err(F::MapNonFinite);
             }
+            if !t.uv.iter().flatten().all(|c| uv_in_range(*c)) {
+                return Err(F::MapUvOutOfRange);
+            }
+            if !surface {
+                let w = self
+                    .triangle_vertices(i as u32)
+                    .ok_or(F::MapIndexOutOfRange)?;
+                surface = has_area(&w[0], &w[1], &w[2]);
+            }
+        }
+        if !surface {
+            return Err(F::MapNoSurface);
         }
         let mut next = 0u32;
         for k in 0..self.tile_count {
@@ -534,13 +566,8 @@ impl<'a> MapView<'a> {
 
     /// The texture's texels, row-major with stride = width (`width · height` bytes).
     pub fn texture_bytes(&self) -> &'a [u8] {
-        let s = self
-            .layout
-            .sec
-            .get(SEC_TEXTURE)
-            .copied()
-            .unwrap_or_default();
-        self.bytes.get(s.off..s.off + s.len).unwrap_or(&[])
+        // The view was made from exactly the texture section (stride = width).
+        self.texture.data()
     }
 
     /// Number of vertices of the sampling mask M̂.
@@ -621,8 +648,8 @@ fn plan(src: &MapSource) -> Result<Plan, FailureCode> {
     if tw > MAX_TEXTURE_DIM || th > MAX_TEXTURE_DIM {
         return Err(F::MapCountOutOfRange);
     }
-    if !src.tile_size_m.is_finite() || src.tile_size_m <= 0.0 {
-        return Err(F::MapInconsistent);
+    if !(src.tile_size_m.is_finite() && src.tile_size_m > 0.0) {
+        return Err(F::MapTileSizeOutOfRange);
     }
     let mut min = Vec3::repeat(f32::INFINITY);
     let mut max = Vec3::repeat(f32::NEG_INFINITY);
@@ -635,6 +662,8 @@ fn plan(src: &MapSource) -> Result<Plan, FailureCode> {
         max = max.sup(&p);
     }
     let mut mask_tris = 0usize;
+    let mut surface = false;
+    let (tw_f, th_f) = (tw as f32, th as f32);
     for ((t, uv), m) in src.triangles.iter().zip(src.uvs).zip(src.mask) {
         if t.iter().any(|v| *v as usize >= nv) {
             return Err(F::MapIndexOutOfRange);
@@ -642,19 +671,41 @@ fn plan(src: &MapSource) -> Result<Plan, FailureCode> {
         if !uv.iter().flatten().all(|c| c.is_finite()) {
             return Err(F::MapNonFinite);
         }
+        // The texture-pixel coordinates `encode` writes (same expressions).
+        if !uv
+            .iter()
+            .all(|st| uv_in_range(st[0] * tw_f - 0.5) && uv_in_range((1.0 - st[1]) * th_f - 0.5))
+        {
+            return Err(F::MapUvOutOfRange);
+        }
+        if !surface {
+            let (a, b, c) = (
+                vertex_of(src, t[0])?,
+                vertex_of(src, t[1])?,
+                vertex_of(src, t[2])?,
+            );
+            surface = has_area(&a, &b, &c);
+        }
         mask_tris += usize::from(*m);
     }
+    if !surface {
+        return Err(F::MapNoSurface);
+    }
     let cells = |lo: f32, hi: f32| -> Result<u32, FailureCode> {
-        let n = libm::floorf((hi - lo) / src.tile_size_m) + 1.0;
-        if !(n.is_finite() && n <= MAX_MAP_TILES as f32) {
+        let extent = hi - lo;
+        if !extent.is_finite() {
             return Err(F::MapCountOutOfRange);
+        }
+        let n = libm::floorf(extent / src.tile_size_m) + 1.0;
+        if !(n.is_finite() && n <= MAX_MAP_TILES as f32) {
+            return Err(F::MapTileSizeOutOfRange);
         }
         Ok((n as u32).max(1))
     };
     let (tiles_x, tiles_y) = (cells(min.x, max.x)?, cells(min.y, max.y)?);
     let tiles = tiles_x as usize * tiles_y as usize;
     if tiles > MAX_MAP_TILES {
-        return Err(F::MapCountOutOfRange);
+        return Err(F::MapTileSizeOutOfRange);
     }
     let masks_max = nv.min(3 * mask_tris);
     Ok(Plan {
@@ -685,9 +736,13 @@ pub fn encoded_len(src: &MapSource) -> Result<usize, FailureCode> {
 /// cell); UVs are converted from OBJ convention to texture pixels (see [`Triangle`]).
 ///
 /// # Errors
-/// [`FailureCode::MapCountOutOfRange`] (counts, texture size or tile grid above
-/// the caps), [`FailureCode::MapInconsistent`] (slice lengths disagree, bad tile
-/// size), [`FailureCode::MapNonFinite`], [`FailureCode::MapIndexOutOfRange`],
+/// [`FailureCode::MapCountOutOfRange`] (counts or texture size above the caps,
+/// vertex extent beyond f32), [`FailureCode::MapTileSizeOutOfRange`] (tile size
+/// not positive and finite, or a tile grid above `MAX_MAP_TILES`),
+/// [`FailureCode::MapInconsistent`] (slice lengths disagree),
+/// [`FailureCode::MapNonFinite`], [`FailureCode::MapUvOutOfRange`] (a UV beyond
+/// ±[`MAX_UV_PX`] texture pixels once converted), [`FailureCode::MapNoSurface`]
+/// (every triangle has zero area), [`FailureCode::MapIndexOutOfRange`],
 /// [`FailureCode::MapEncodeBufferTooSmall`]. Nothing is written on a check failure
 /// other than the buffer-size one, which writes nothing either.
 pub fn encode(src: &MapSource, out: &mut [u8]) -> Result<usize, FailureCode> {

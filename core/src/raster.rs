@@ -313,7 +313,7 @@ const SEG: i64 = 1 << SEG_SHIFT;
 const LINEAR_MAX_DZ_INV: i64 = 64;
 /// Texture coordinates are clamped to ±2^20 texture pixels before fixed-point
 /// conversion (beyond the texture they sample the edge texel anyway).
-const UV_LIMIT: f32 = (1u32 << 20) as f32;
+const UV_LIMIT: f32 = crate::map::MAX_UV_PX;
 
 /// Exact depth and texture coordinates at one pixel; `None` where the triangle's
 /// plane is beyond `RASTER_FAR_M` or behind the camera (possible only outside
@@ -656,7 +656,11 @@ fn fill_polygon<S: PixelSink>(
             ne += 1;
         }
     }
-    let edges = edges.get(..ne).unwrap_or(&[]);
+    // `ne` never exceeds the array; were it to, an empty edge list would fill the
+    // whole bounding box, so draw nothing instead.
+    let Some(edges) = edges.get(..ne) else {
+        return;
+    };
     let (wx, wy, w) = (frame.wx, frame.wy, frame.w);
     for py in y_lo..=y_hi {
         let mut xl = x_lo;
@@ -987,13 +991,11 @@ fn check_inputs(cam: &Camera, world_from_cam: &Pose, window: Rect) -> Result<(),
     if !window_ok {
         return Err(FailureCode::RasterWindowInvalid);
     }
-    let cam_ok = cam.fx.is_finite()
-        && cam.fy.is_finite()
-        && cam.fx > 0.0
-        && cam.fy > 0.0
-        && cam.cx.is_finite()
-        && cam.cy.is_finite();
-    if !cam_ok || !world_from_cam.is_finite() {
+    // `Camera`'s fields are public, so a camera may not have passed `Camera::new`;
+    // its checks bound the image size and intrinsics that `Frame` turns into
+    // fixed-point limits (see `fill_polygon`'s overflow budget).
+    cam.check().map_err(|_| FailureCode::RasterCameraInvalid)?;
+    if !world_from_cam.is_finite() {
         return Err(FailureCode::RasterPoseInvalid);
     }
     Ok(())
@@ -1117,7 +1119,9 @@ fn lerp8(a: u32, b: u32, f: u32) -> u32 {
 /// # Errors
 /// [`FailureCode::RasterWindowInvalid`] (empty, above [`MAX_RENDER_PX`], origin
 /// beyond ±2·`MAX_IMAGE_DIM`), [`FailureCode::RasterBufferTooSmall`],
-/// [`FailureCode::RasterPoseInvalid`] (non-finite pose or intrinsics),
+/// [`FailureCode::RasterCameraInvalid`] (`cam` fails [`Camera::check`], e.g. a
+/// struct literal with a size above `MAX_IMAGE_DIM` or a NaN focal length),
+/// [`FailureCode::RasterPoseInvalid`] (non-finite pose),
 /// [`FailureCode::RasterNothingVisible`] (no pixel written; buffers are cleared).
 pub fn render_window(
     map: &MapView,
@@ -1172,10 +1176,13 @@ pub fn render_window(
 /// [`MAX_RENDER_PX`] `u32` on the stack. Invalid sizes (`w`, `h` outside
 /// `1..=MAX_RENDER_PX` or a slice shorter than `w·h`) write nothing and return 0.
 pub fn template_mask(depth: &[u32], mask_depth: &[u32], w: usize, h: usize, out: &mut [u8]) -> u32 {
+    // Sizes first: w·h is formed only for sizes within the cap (no overflow).
+    if !((1..=MAX_RENDER_PX).contains(&w) && (1..=MAX_RENDER_PX).contains(&h)) {
+        return 0;
+    }
     let n = w * h;
-    let ok = (1..=MAX_RENDER_PX).contains(&w) && (1..=MAX_RENDER_PX).contains(&h);
-    let (true, Some(depth), Some(mdepth), Some(out)) =
-        (ok, depth.get(..n), mask_depth.get(..n), out.get_mut(..n))
+    let (Some(depth), Some(mdepth), Some(out)) =
+        (depth.get(..n), mask_depth.get(..n), out.get_mut(..n))
     else {
         return 0;
     };

@@ -175,7 +175,96 @@ fn map_build_bad_input_exits_2_and_writes_nothing() {
     assert!(no_temp_files(&d));
 }
 
-/// Verifies: VTSM-CLI-009, VTSM-CLI-013
+/// Run `vtsm map build` with `extra` arguments: exit 2, one stderr line holding
+/// every string of `want`, no output and no temporary file.
+fn build_refused(d: &Path, mesh: &Path, extra: &[&str], want: &[&str]) {
+    let out = d.join("d.vmap");
+    let mut a = vec!["map", "build", "--mesh", s(mesh), "--out", s(&out)];
+    a.extend_from_slice(extra);
+    let o = vtsm(&a);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{a:?}: {err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    for w in want {
+        assert!(err.contains(w), "{w}: {err}");
+    }
+    assert!(!out.exists());
+    assert!(no_temp_files(d));
+}
+
+/// Verifies: VTSM-CLI-024, VTSM-CLI-011
+#[test]
+fn map_build_refuses_flat_meshes_stray_mask_triangles_and_tiny_tiles() {
+    let d = dir("refuse");
+    let (mesh, mask) = scene(&d);
+    // Every vertex on one line: all eight triangles have zero area.
+    let good = std::fs::read_to_string(&mesh).unwrap();
+    let mut flat = String::new();
+    let mut k = 0;
+    for line in good.lines() {
+        if line.starts_with("v ") {
+            flat += &format!("v {k} 0 0\n");
+            k += 1;
+        } else {
+            flat += line;
+            flat += "\n";
+        }
+    }
+    let flat_obj = d.join("flat.obj");
+    std::fs::write(&flat_obj, flat).unwrap();
+    build_refused(
+        &d,
+        &flat_obj,
+        &[],
+        &["flat.obj", "zero area", "MAP_NO_SURFACE"],
+    );
+    // A mask triangle that is not in the mesh: the third one, (1,1)-(2,1)-(0,2)
+    // uses mesh vertices but is not a mesh triangle; the fourth has a vertex the
+    // mesh lacks.
+    let stray = d.join("stray.obj");
+    let text = std::fs::read_to_string(&mask).unwrap();
+    std::fs::write(&stray, format!("{text}v 0 2 0\nf 1 4 6\n")).unwrap();
+    build_refused(
+        &d,
+        &mesh,
+        &["--mask", s(&stray)],
+        &["stray.obj", "mask triangle 3", "not a triangle of the mesh"],
+    );
+    let stray2 = d.join("stray2.obj");
+    std::fs::write(&stray2, format!("{text}v 7 7 7\nf 1 4 6\n")).unwrap();
+    build_refused(
+        &d,
+        &mesh,
+        &["--mask", s(&stray2)],
+        &["stray2.obj", "mask triangle 3", "vertex 6 at (7, 7, 7)"],
+    );
+    // A tile size so small that the grid is above MAX_MAP_TILES: named, with its code.
+    build_refused(
+        &d,
+        &mesh,
+        &["--tile-size-m", "1e-9"],
+        &[
+            "tile size 0.000000001 m",
+            "MAP_TILE_SIZE_OUT_OF_RANGE",
+            "--tile-size-m",
+        ],
+    );
+    // The unchanged mask and a normal tile size still build.
+    let out = d.join("d.vmap");
+    let o = vtsm(&[
+        "map",
+        "build",
+        "--mesh",
+        s(&mesh),
+        "--mask",
+        s(&mask),
+        "--out",
+        s(&out),
+    ]);
+    assert_eq!(o.status.code(), Some(0));
+}
+
+/// Verifies: VTSM-CLI-009, VTSM-CLI-013, VTSM-CLI-024
 #[test]
 fn relocalize_rejects_bad_inputs_before_writing_anything() {
     let d = dir("reloc");
@@ -207,6 +296,19 @@ fn relocalize_rejects_bad_inputs_before_writing_anything() {
         r#"{"world_from_left":{"t":[1,1,2],"q":[1,0.1,0,0]}}"#,
     )
     .unwrap();
+    let huge_fx = d.join("huge_fx.json");
+    std::fs::write(
+        &huge_fx,
+        r#"{"width":32,"height":24,"fx":1e300,"fy":30,"cx":15.5,"cy":11.5,"baseline_m":0.4}"#,
+    )
+    .unwrap();
+    // A product edited on purpose and resealed (valid CRCs) with a UV of 1e30.
+    let mut far_uv = std::fs::read(&map).unwrap();
+    let uv_off = u32::from_le_bytes(far_uv[76 + 36..76 + 40].try_into().unwrap()) as usize;
+    far_uv[uv_off + 4..uv_off + 8].copy_from_slice(&1.0e30f32.to_le_bytes());
+    vtsm_core::map::reseal(&mut far_uv).unwrap();
+    let far_uv_map = d.join("far_uv.vmap");
+    std::fs::write(&far_uv_map, far_uv).unwrap();
     let mut corrupt = std::fs::read(&map).unwrap();
     let last = corrupt.len() - 1;
     corrupt[last] ^= 0x55;
@@ -234,8 +336,25 @@ fn relocalize_rejects_bad_inputs_before_writing_anything() {
         .map(|a| a.to_string())
         .collect()
     };
+    let with_calib = |c: &Path| -> Vec<String> {
+        let mut a = base(&left, &right, &prior, &map);
+        a[4] = s(c).to_string();
+        a
+    };
+    let with_mask = {
+        let mut a = base(&left, &right, &prior, &map);
+        a.extend(["--mask".to_string(), s(&mesh).to_string()]);
+        a
+    };
     let cases = [
         (base(&left, &small, &prior, &map), "small.png", "32x23"),
+        (with_calib(&huge_fx), "huge_fx.json", "`fx`: 1e300 px"),
+        (with_mask, "m.obj", "--mask needs --mesh"),
+        (
+            base(&left, &right, &prior, &far_uv_map),
+            "far_uv.vmap",
+            "MAP_UV_OUT_OF_RANGE",
+        ),
         (base(&left, &right, &tilted, &map), "tilted.json", "norm"),
         (
             base(&left, &right, &prior, &bad_map),

@@ -72,6 +72,30 @@ fn bad_calib_values_are_rejected_with_field_and_line() {
         assert!(e.msg.contains(what), "{to}: {e}");
         assert_eq!(e.to_string().lines().count(), 1);
     }
+    // Finite but outside the core camera's range: named, with a short number.
+    for (from, to, line, field) in [
+        ("\"fx\": 500.5", "\"fx\": 1e300", 4, "`fx`"),
+        ("\"fy\": 501.0", "\"fy\": 2e6", 5, "`fy`"),
+        ("\"fx\": 500.5", "\"fx\": 1e-60", 4, "`fx`"),
+        ("\"cy\": 239.5", "\"cy\": -1e5", 7, "`cy`"),
+        (
+            "\"baseline_m\": 0.4",
+            "\"baseline_m\": 1e300",
+            8,
+            "`baseline_m`",
+        ),
+    ] {
+        let text = CALIB.replace(from, to);
+        let e = json::parse_calib(text.as_bytes(), p()).unwrap_err();
+        let shown = e.to_string();
+        assert_eq!(e.line, Some(line), "{to}: {shown}");
+        assert!(
+            shown.starts_with("calib.json:") && shown.contains(field),
+            "{shown}"
+        );
+        assert!(shown.len() < 160, "{shown}");
+        assert_eq!(shown.lines().count(), 1);
+    }
     let missing = CALIB.replace("  \"cy\": 239.5,\n", "");
     let e = json::parse_calib(missing.as_bytes(), p()).unwrap_err();
     assert!(e.msg.contains("missing field `cy`"), "{e}");

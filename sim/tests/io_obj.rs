@@ -289,20 +289,30 @@ fn mask_matches_triangles_in_any_corner_order_and_vertex_numbering() {
         let t = m.triangles[k];
         mask_tris.push([n - 1 - t[1], n - 1 - t[2], n - 1 - t[0]]);
     }
-    // plus one triangle that is not in the mesh
-    mask_tris.push([0, 1, n - 1]);
-    let raw = mesh::RawMesh {
+    let mut raw = mesh::RawMesh {
         vertices: mask_vertices,
         triangles: mask_tris,
         ..Default::default()
     };
     let stats = m.apply_mask(&raw, Path::new("k.obj")).unwrap();
-    assert_eq!(stats.mask_triangles, chosen.len() + 1);
+    assert_eq!(stats.mask_triangles, chosen.len());
     assert_eq!(stats.matched, chosen.len());
     assert_eq!(stats.marked, chosen.len());
     for (k, &flag) in m.mask.iter().enumerate() {
         assert_eq!(flag, k % 3 == 0, "triangle {k}");
     }
+    // Plus one triangle that is not in the mesh (its vertices are): refused,
+    // naming the mask file and the triangle, and the mesh's mask is unchanged.
+    raw.triangles.push([0, 1, n - 1]);
+    let before = m.mask.clone();
+    let e = m.apply_mask(&raw, Path::new("k.obj")).unwrap_err();
+    assert_eq!(e.file.as_deref(), Some(Path::new("k.obj")));
+    let want = format!("mask triangle {} ", chosen.len() + 1);
+    assert!(
+        e.msg.contains(&want) && e.msg.contains("not a triangle of the mesh"),
+        "{e}"
+    );
+    assert_eq!(m.mask, before);
     // A mask with no triangle of the mesh is an error naming the mask file.
     let far = mesh::RawMesh {
         vertices: vec![[9.0, 9.0, 9.0], [9.5, 9.0, 9.0], [9.0, 9.5, 9.0]],

@@ -105,7 +105,7 @@ fn budget_measured_rows_are_a_real_run() {
 /// measured counters within their stated tolerance. A change that moves memory
 /// or work fails here until the snapshot is renewed on purpose.
 ///
-/// Verifies: VTSM-CLI-024
+/// Verifies: VTSM-CLI-025
 #[test]
 fn budget_snapshot_matches_the_code() {
     use vtsm_sim::cli::budget::{in_snapshot, profile_rows, tolerance};

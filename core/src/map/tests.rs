@@ -278,7 +278,7 @@ fn each_kind_of_inconsistency_has_its_own_code() {
     }
 }
 
-/// Verifies: VTSM-MAP-004
+/// Verifies: VTSM-MAP-004, VTSM-MAP-008
 #[test]
 fn encoder_rejects_bad_sources_and_small_buffers() {
     let mesh = Mesh::grid(3, 0.5);
@@ -310,15 +310,114 @@ fn encoder_rejects_bad_sources_and_small_buffers() {
         Err(FailureCode::MapInconsistent)
     );
     let m = Mesh::grid(3, 0.5);
-    assert_eq!(
-        encoded_len(&m.source(0.0)),
-        Err(FailureCode::MapInconsistent)
-    );
-    assert_eq!(
-        encoded_len(&m.source(1.0e-6)),
-        Err(FailureCode::MapCountOutOfRange)
-    );
+    for bad in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+        assert_eq!(
+            encoded_len(&m.source(bad)),
+            Err(FailureCode::MapTileSizeOutOfRange),
+            "{bad}"
+        );
+    }
+    // A tile size so small that the grid exceeds MAX_MAP_TILES has its own code.
+    for tiny in [1.0e-6, 1.0e-9, f32::MIN_POSITIVE] {
+        assert_eq!(
+            encoded_len(&m.source(tiny)),
+            Err(FailureCode::MapTileSizeOutOfRange),
+            "{tiny}"
+        );
+    }
     // encoded_len bounds the exact product length.
     let n = encode(&src, &mut vec![0u8; need]).unwrap();
     assert!(n <= need);
+}
+
+/// Verifies: VTSM-MAP-008
+#[test]
+fn encoder_rejects_a_mesh_of_only_degenerate_triangles() {
+    let mut m = Mesh::grid(3, 0.5);
+    // Collapse every triangle: all corners of each on one line (x axis) or one point.
+    for (k, v) in m.vertices.iter_mut().enumerate() {
+        *v = [k as f32 * 0.1, 0.0, 0.0];
+    }
+    assert_eq!(encoded_len(&m.source(1.0)), Err(FailureCode::MapNoSurface));
+    let mut out = vec![0u8; 1 << 16];
+    assert_eq!(
+        encode(&m.source(1.0), &mut out),
+        Err(FailureCode::MapNoSurface)
+    );
+    assert!(out.iter().all(|b| *b == 0));
+    // One triangle with area is enough (degenerate ones are allowed among others).
+    let mut m = Mesh::grid(3, 0.5);
+    for t in m.triangles.iter_mut().skip(1) {
+        *t = [t[0], t[0], t[1]];
+    }
+    assert!(encoded_len(&m.source(1.0)).is_ok());
+}
+
+/// Verifies: VTSM-MAP-008
+#[test]
+fn encoder_rejects_absurd_texture_coordinates() {
+    for bad in [1.0e30, -1.0e30, 1.0e5] {
+        let mut m = Mesh::grid(3, 0.5);
+        m.uvs[4][2][1] = bad;
+        assert_eq!(
+            encoded_len(&m.source(1.0)),
+            Err(FailureCode::MapUvOutOfRange),
+            "{bad}"
+        );
+    }
+    // Beyond the texture but within MAX_UV_PX: accepted (it samples the edge).
+    let mut m = Mesh::grid(3, 0.5);
+    m.uvs[4][2][1] = 100.0;
+    assert!(encoded_len(&m.source(1.0)).is_ok());
+}
+
+/// Verifies: VTSM-MAP-008
+#[test]
+fn resealed_products_with_absurd_uvs_or_no_surface_are_rejected() {
+    let good = Mesh::grid(4, 0.5).encode(1.0);
+    let uv = section_off(&good, SEC_UVS);
+    let vert = section_off(&good, SEC_VERTICES);
+    let nv = rd_u32(&good, 16).unwrap() as usize;
+    let edit = |f: &dyn Fn(&mut Vec<u8>)| {
+        let mut b = good.clone();
+        f(&mut b);
+        reseal(&mut b).unwrap();
+        MapView::new_checked(&b).err()
+    };
+    for (v, code) in [
+        (1.0e30, FailureCode::MapUvOutOfRange),
+        (-1.0e30, FailureCode::MapUvOutOfRange),
+        (MAX_UV_PX * 2.0, FailureCode::MapUvOutOfRange),
+        (f32::NAN, FailureCode::MapNonFinite),
+        (f32::INFINITY, FailureCode::MapNonFinite),
+        (f32::NEG_INFINITY, FailureCode::MapNonFinite),
+    ] {
+        for corner in [0, 5] {
+            let got = edit(&|b| wr_f32(b, uv + UV_BYTES * 7 + 4 * corner, v).unwrap());
+            assert_eq!(got, Some(code), "uv {v} at {corner}");
+        }
+    }
+    assert_eq!(
+        edit(&|b| wr_f32(b, uv + 4, MAX_UV_PX).unwrap()),
+        None,
+        "the bound itself is accepted"
+    );
+    // Non-finite vertices: MapNonFinite.
+    for v in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+        assert_eq!(
+            edit(&|b| wr_f32(b, vert + VERTEX_BYTES * 3 + 4, v).unwrap()),
+            Some(FailureCode::MapNonFinite)
+        );
+    }
+    // Every vertex moved onto the first one: all triangles have zero area (the
+    // tiles and bounds still hold them).
+    let first: [u8; VERTEX_BYTES] = good[vert..vert + VERTEX_BYTES].try_into().unwrap();
+    assert_eq!(
+        edit(&|b| {
+            for i in 0..nv {
+                b[vert + i * VERTEX_BYTES..vert + (i + 1) * VERTEX_BYTES].copy_from_slice(&first);
+            }
+        }),
+        Some(FailureCode::MapNoSurface)
+    );
 }

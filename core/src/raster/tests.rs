@@ -192,7 +192,7 @@ fn rejects_invalid_windows_buffers_and_poses() {
     cam_bad.fx = f32::INFINITY;
     assert_eq!(
         render(&map, &cam_bad, &id, Rect::new(0, 0, 8, 8)).result,
-        Err(FailureCode::RasterPoseInvalid)
+        Err(FailureCode::RasterCameraInvalid)
     );
     // Looking away: nothing visible.
     let away = look_at([0.0, 0.0, 0.0], [1.0, 0.0, -5.0]);
@@ -230,6 +230,13 @@ proptest! {
         }
         let mut s = Scene::new();
         s.tri(v, [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], true);
+        // A map needs one triangle of non-zero area: this one lies behind the
+        // camera, in a tile of its own, which the frustum test culls.
+        s.tri(
+            [[5.0e6, 0.0, -10.0], [5.0e6 + 1.0, 0.0, -10.0], [5.0e6, 1.0, -10.0]],
+            [[0.0; 2]; 3],
+            true,
+        );
         let bytes = s.bytes(1.0e6);
         let map = MapView::new_checked(&bytes).unwrap();
         let cam = camera(128, 96, 90.0);
@@ -264,6 +271,159 @@ proptest! {
         if let Ok(st) = r {
             prop_assert_eq!(st.pixels_written as usize, cov.iter().filter(|c| **c == 1).count());
             prop_assert!(st.triangles_tested <= 1 && st.tiles_visible <= st.tiles_tested);
+        }
+    }
+}
+
+/// Camera fields as a struct literal may hold them: anything, including NaN,
+/// infinities and sizes far above `MAX_IMAGE_DIM`.
+fn any_f32() -> impl Strategy<Value = f32> {
+    prop_oneof![
+        any::<f32>(),
+        -1.0e30f32..1.0e30,
+        -2.0e4f32..2.0e4,
+        1.0e-30f32..2.0e6,
+        Just(f32::NAN),
+        Just(f32::INFINITY),
+        Just(f32::MAX),
+        Just(f32::MIN_POSITIVE),
+    ]
+}
+
+fn any_dim() -> impl Strategy<Value = u32> {
+    prop_oneof![
+        any::<u32>(),
+        1u32..=MAX_IMAGE_DIM as u32,
+        Just(u32::MAX),
+        Just(MAX_IMAGE_DIM as u32 + 1)
+    ]
+}
+
+/// Verifies: VTSM-RAST-001
+#[test]
+fn rejects_a_struct_literal_camera_that_fails_camera_checks() {
+    let s = Scene::terrain(8, -4.0, 8.0, |_, _| 0.0);
+    let bytes = s.bytes(1.0);
+    let map = MapView::new_checked(&bytes).unwrap();
+    let pose = look_at([0.0, -3.0, 4.0], [0.0, 0.0, 0.0]);
+    let good = camera(64, 64, 50.0);
+    assert!(render(&map, &good, &pose, Rect::new(0, 0, 64, 64))
+        .result
+        .is_ok());
+    let huge = |f: fn(&mut Camera)| {
+        let mut c = good;
+        f(&mut c);
+        c
+    };
+    for cam in [
+        huge(|c| c.width = u32::MAX),
+        huge(|c| c.height = u32::MAX),
+        huge(|c| {
+            c.width = 1 << 20;
+            c.height = 1 << 20;
+        }),
+        huge(|c| c.width = MAX_IMAGE_DIM as u32 + 1),
+        huge(|c| c.width = 0),
+        huge(|c| c.fx = f32::NAN),
+        huge(|c| c.fy = -1.0),
+        huge(|c| c.fx = 1.0e30),
+        huge(|c| c.cx = f32::INFINITY),
+        huge(|c| c.cy = -1.0e30),
+    ] {
+        assert!(cam.check().is_err());
+        assert_eq!(
+            render(&map, &cam, &pose, Rect::new(0, 0, 64, 64)).result,
+            Err(FailureCode::RasterCameraInvalid),
+            "{cam:?}"
+        );
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
+    /// Arbitrary camera fields, windows and poses (huge, tiny, non-finite): no
+    /// panic (the test profile has overflow checks on), an invalid camera is
+    /// rejected with its code, and nothing is written past the window.
+    /// Verifies: VTSM-RAST-001, VTSM-RAST-002
+    #[test]
+    fn any_camera_window_and_pose_renders_or_fails_without_panic(
+        f in proptest::array::uniform4(any_f32()),
+        dims in proptest::array::uniform2(any_dim()),
+        valid_cam in any::<bool>(),
+        win in (any::<i32>(), any::<i32>(), any::<u32>(), any::<u32>()),
+        small_win in (-20_000i32..20_000, -20_000i32..20_000, 1u32..=MAX_RENDER_PX as u32, 1u32..=MAX_RENDER_PX as u32),
+        use_small in any::<bool>(),
+        t in proptest::array::uniform3(any_f32()),
+        q in proptest::array::uniform4(-1.0f32..1.0),
+    ) {
+        let s = Scene::terrain(6, -3.0, 6.0, |x, y| 0.3 * libm::sinf(x) * libm::cosf(y));
+        let bytes = s.bytes(1.0);
+        let map = MapView::new_checked(&bytes).unwrap();
+        let mut cam = Camera { fx: f[0], fy: f[1], cx: f[2], cy: f[3], width: dims[0], height: dims[1] };
+        if valid_cam {
+            // The same values brought into Camera::check's range: extreme but valid.
+            let fit = |v: f32, lo: f32, hi: f32| if v.is_nan() { hi } else { v.clamp(lo, hi) };
+            cam.fx = fit(cam.fx, f32::MIN_POSITIVE, crate::geom::MAX_FOCAL_PX);
+            cam.fy = fit(cam.fy, f32::MIN_POSITIVE, crate::geom::MAX_FOCAL_PX);
+            let c = crate::geom::MAX_PRINCIPAL_PX;
+            cam.cx = fit(cam.cx, -c, c);
+            cam.cy = fit(cam.cy, -c, c);
+            cam.width = cam.width.clamp(1, MAX_IMAGE_DIM as u32);
+            cam.height = cam.height.clamp(1, MAX_IMAGE_DIM as u32);
+            prop_assert!(cam.check().is_ok(), "{:?}", cam);
+        }
+        let win = if use_small {
+            Rect::new(small_win.0, small_win.1, small_win.2, small_win.3)
+        } else {
+            Rect::new(win.0, win.1, win.2, win.3)
+        };
+        let rot = nalgebra::Quaternion::new(q[0], q[1], q[2], q[3] + 1.0e-3);
+        let pose = Pose::new(UnitQuaternion::new_normalize(rot), Vec3::new(t[0], t[1], t[2]));
+        const N: usize = MAX_RENDER_PX * MAX_RENDER_PX;
+        const MARGIN: usize = 11;
+        let mut inten = vec![0xA5u8; N + MARGIN];
+        let mut depth = vec![0x1234_5678u32; N + MARGIN];
+        let mut mdepth = vec![0x9abc_def0u32; N + MARGIN];
+        let r = {
+            let mut t = Target {
+                intensity: &mut inten,
+                depth: &mut depth,
+                mask_depth: &mut mdepth,
+            };
+            render_window(&map, &cam, &pose, win, &mut t)
+        };
+        if cam.check().is_err() {
+            // The window is checked first.
+            prop_assert!(
+                matches!(r, Err(FailureCode::RasterCameraInvalid | FailureCode::RasterWindowInvalid)),
+                "{:?}",
+                r
+            );
+        }
+        prop_assert!(
+            matches!(
+                r,
+                Ok(_)
+                    | Err(FailureCode::RasterNothingVisible)
+                    | Err(FailureCode::RasterCameraInvalid)
+                    | Err(FailureCode::RasterPoseInvalid)
+                    | Err(FailureCode::RasterWindowInvalid)
+            ),
+            "{:?}",
+            r
+        );
+        let n = if r.is_ok() || r == Err(FailureCode::RasterNothingVisible) {
+            win.w as usize * win.h as usize
+        } else {
+            0
+        };
+        for k in n..N + MARGIN {
+            prop_assert_eq!(inten[k], 0xA5);
+            prop_assert_eq!(depth[k], 0x1234_5678);
+            prop_assert_eq!(mdepth[k], 0x9abc_def0);
+        }
+        for d in &depth[..n] {
+            prop_assert!(*d == DEPTH_NONE || *d <= DEPTH_MAX);
         }
     }
 }
@@ -874,6 +1034,15 @@ fn template_mask_rejects_bad_sizes() {
     assert_eq!(template_mask(&d, &d, 5, 4, &mut out), 0);
     assert_eq!(template_mask(&d, &d[..15], 4, 4, &mut out), 0);
     assert_eq!(template_mask(&d, &d, 257, 1, &mut out), 0);
+    // Sizes whose product overflows usize (any target) are refused, not multiplied.
+    for (w, h) in [
+        (usize::MAX, 2),
+        (2, usize::MAX),
+        (usize::MAX, usize::MAX),
+        (1 << (usize::BITS / 2), 1 << (usize::BITS / 2)),
+    ] {
+        assert_eq!(template_mask(&d, &d, w, h, &mut out), 0);
+    }
     assert!(out.iter().all(|v| *v == 9));
     // All-mask input keeps everything.
     assert_eq!(template_mask(&d, &d, 4, 4, &mut out), 16);

@@ -41,7 +41,8 @@ pub fn build(args: &Args) -> crate::Result<(Vec<u8>, String)> {
         return Err(crate::Error::msg(format!(
             "--tile-size-m {} must be a positive number",
             args.tile_size_m
-        )));
+        ))
+        .with_code(vtsm_core::FailureCode::MapTileSizeOutOfRange));
     }
     let mut m = mesh::load_mesh(&args.mesh)?;
     let mask_note = match &args.mask {

@@ -89,11 +89,28 @@ impl Inputs {
     }
 }
 
+/// Argument combinations the parser lets through: clap does not enforce
+/// `--mask`'s `requires = "mesh"` when `--map` (which conflicts with `--mesh`)
+/// is given, and a map product already carries its mask.
+///
+/// # Errors
+/// `--mask` without `--mesh`.
+pub fn check_args(args: &Args) -> Result<()> {
+    if let (Some(k), None) = (&args.mask, &args.mesh) {
+        return Err(Error::file(
+            k,
+            "--mask needs --mesh (a map product from --map already holds its mask)",
+        ));
+    }
+    Ok(())
+}
+
 /// Load and validate every input named by `args`.
 ///
 /// # Errors
 /// The first bad input, as a one-line error naming its file.
 pub fn load_inputs(args: &Args) -> Result<Inputs> {
+    check_args(args)?;
     let calib = json::read_calib(&args.calib)?;
     let rig = calib.rig().map_err(|c| {
         Error::file(&args.calib, format!("rejected: {}", c.description())).with_code(c)
@@ -233,6 +250,7 @@ pub fn outcome_result(o: &Outcome) -> ResultFile {
 
 /// Run the command; returns the exit code.
 pub fn run(args: &Args) -> Result<u8> {
+    check_args(args)?;
     if let Some(out) = &args.out {
         io::check_output(out, args.force)?;
     }

@@ -10,7 +10,7 @@ use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 use vtsm_core::config::MAX_IMAGE_DIM;
-use vtsm_core::geom::{Camera, Pose, StereoRig};
+use vtsm_core::geom::{self, Camera, Pose, StereoRig};
 use vtsm_core::FailureCode;
 
 /// Largest accepted deviation of a quaternion's norm from 1.
@@ -55,37 +55,72 @@ impl Calib {
         StereoRig::new(cam, self.baseline_m as f32)
     }
 
-    /// Check every field; returns the name of the bad field and why.
+    /// Check every field against the ranges of the core's [`Camera::check`]
+    /// (width and height in 1..=`MAX_IMAGE_DIM`, focal lengths in
+    /// (0, `MAX_FOCAL_PX`], principal point within ±`MAX_PRINCIPAL_PX` pixels) and
+    /// a finite positive baseline; returns the name of the bad field and why.
     pub fn validate(&self) -> std::result::Result<(), (&'static str, String)> {
         let dim = |name: &'static str, v: u32| {
-            if v == 0 || v as usize > MAX_IMAGE_DIM {
-                Err((name, format!("{v} is outside 1..={MAX_IMAGE_DIM}")))
-            } else {
+            if geom::image_dim_ok(v) {
                 Ok(())
+            } else {
+                Err((name, format!("{v} is outside 1..={MAX_IMAGE_DIM}")))
             }
         };
         dim("width", self.width)?;
         dim("height", self.height)?;
-        let positive = |name: &'static str, v: f64| {
-            if !(v.is_finite() && v > 0.0 && v < f64::from(f32::MAX)) {
-                Err((name, format!("{v} must be a finite positive number")))
-            } else {
+        // The core works in f32: a value is judged as the core will see it.
+        let focal = |name: &'static str, v: f64| {
+            if geom::focal_px_ok(v as f32) {
                 Ok(())
+            } else {
+                Err((
+                    name,
+                    format!(
+                        "{} px is outside the accepted focal length range (0, {}] px",
+                        short_number(v),
+                        short_number(f64::from(geom::MAX_FOCAL_PX))
+                    ),
+                ))
             }
         };
-        positive("fx", self.fx)?;
-        positive("fy", self.fy)?;
-        positive("baseline_m", self.baseline_m)?;
-        let finite = |name: &'static str, v: f64| {
-            if !(v.is_finite() && v.abs() < f64::from(f32::MAX)) {
-                Err((name, format!("{v} must be finite")))
-            } else {
+        focal("fx", self.fx)?;
+        focal("fy", self.fy)?;
+        let principal = |name: &'static str, v: f64| {
+            if geom::principal_px_ok(v as f32) {
                 Ok(())
+            } else {
+                Err((
+                    name,
+                    format!(
+                        "{} px is outside the accepted principal point range ±{} px",
+                        short_number(v),
+                        short_number(f64::from(geom::MAX_PRINCIPAL_PX))
+                    ),
+                ))
             }
         };
-        finite("cx", self.cx)?;
-        finite("cy", self.cy)?;
+        principal("cx", self.cx)?;
+        principal("cy", self.cy)?;
+        let b = self.baseline_m;
+        if !(b.is_finite() && b > 0.0 && b < f64::from(f32::MAX) && (b as f32) > 0.0) {
+            return Err((
+                "baseline_m",
+                format!("{} must be a finite positive number", short_number(b)),
+            ));
+        }
         Ok(())
+    }
+}
+
+/// A number for an error message: as written when short, else in scientific
+/// notation (so `1e300` is not echoed as 301 digits).
+pub fn short_number(v: f64) -> String {
+    let plain = format!("{v}");
+    if plain.len() <= 16 {
+        plain
+    } else {
+        format!("{v:e}")
     }
 }
 

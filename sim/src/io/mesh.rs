@@ -23,10 +23,12 @@
 
 use crate::error::{Error, Result};
 use crate::io::image::Gray8;
+use crate::io::json::short_number;
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
-use vtsm_core::config::MAX_IMAGE_DIM;
+use vtsm_core::config::{MAX_IMAGE_DIM, MAX_MAP_TILES};
 use vtsm_core::map::{self, MapSource};
+use vtsm_core::FailureCode;
 
 /// Side, in texels, of the atlas cell synthesised for each triangle of a
 /// vertex-coloured mesh.
@@ -215,7 +217,8 @@ impl MeshData {
     /// (same three vertex positions within [`MASK_MATCH_TOL_M`], any order).
     ///
     /// # Errors
-    /// When no triangle of `mask` is found in the mesh (`path` names the mask file).
+    /// When a triangle of `mask` is not found in the mesh, or `mask` has no
+    /// triangle (`path` names the mask file; the message names the triangle).
     pub fn apply_mask(&mut self, mask: &RawMesh, path: &Path) -> Result<MaskStats> {
         let index = VertexIndex::new(&self.vertices);
         // Canonical id of each mesh vertex: the lowest-numbered vertex at the same place,
@@ -242,32 +245,63 @@ impl MeshData {
         // key -> whether some mesh triangle has it
         let mut wanted: BTreeMap<[u32; 3], bool> =
             mask_keys.iter().flatten().map(|k| (*k, false)).collect();
+        let ids = |k: u32| canon.get(k as usize).copied();
+        let mesh_keys: Vec<Option<[u32; 3]>> =
+            self.triangles.iter().map(|t| key_of(t, &ids)).collect();
+        for key in mesh_keys.iter().flatten() {
+            if let Some(seen) = wanted.get_mut(key) {
+                *seen = true;
+            }
+        }
+        // Every mask triangle must be a mesh triangle: a stray one means the mask
+        // was made from another mesh (or edited), and silently sampling a subset
+        // of what was asked would hide that.
+        for (k, (t, key)) in mask.triangles.iter().zip(&mask_keys).enumerate() {
+            let found = key.is_some_and(|key| wanted.get(&key).copied().unwrap_or(false));
+            if found {
+                continue;
+            }
+            let why = t
+                .iter()
+                .find_map(|&v| {
+                    let p = mask.vertices.get(v as usize)?;
+                    index.find(p).is_none().then(|| {
+                        format!(
+                            "its vertex {} at ({}, {}, {}) is not a mesh vertex",
+                            v + 1,
+                            p[0],
+                            p[1],
+                            p[2]
+                        )
+                    })
+                })
+                .unwrap_or_else(|| "no mesh triangle has these three vertices".to_string());
+            return Err(Error::file(
+                path,
+                format!(
+                    "mask triangle {} (mask vertices {}, {}, {}) is not a triangle of the mesh: {why}",
+                    k + 1,
+                    t[0] + 1,
+                    t[1] + 1,
+                    t[2] + 1
+                ),
+            ));
+        }
+        if mask.triangles.is_empty() {
+            return Err(Error::file(path, "the mask has no triangles"));
+        }
+        // Everything is checked before any flag changes, so a refused mask leaves
+        // M̂ as it was.
         let mut marked = 0usize;
-        for (t, m) in self.triangles.iter().zip(self.mask.iter_mut()) {
-            let ids = |k: u32| canon.get(k as usize).copied();
-            *m = match key_of(t, &ids).and_then(|k| wanted.get_mut(&k)) {
-                Some(seen) => {
-                    *seen = true;
-                    marked += 1;
-                    true
-                }
-                None => false,
-            };
+        for (key, m) in mesh_keys.iter().zip(self.mask.iter_mut()) {
+            *m = key.is_some_and(|k| wanted.contains_key(&k));
+            marked += usize::from(*m);
         }
         let matched = mask_keys
             .iter()
             .flatten()
             .filter(|k| wanted.get(*k).copied().unwrap_or(false))
             .count();
-        if marked == 0 {
-            return Err(Error::file(
-                path,
-                format!(
-                    "none of the mask's {} triangles coincides with a mesh triangle",
-                    mask.triangles.len()
-                ),
-            ));
-        }
         Ok(MaskStats {
             mask_triangles: mask.triangles.len(),
             matched,
@@ -300,9 +334,56 @@ impl MeshData {
         if !(tile_size_m.is_finite() && tile_size_m > 0.0) {
             return Err(Error::msg(format!(
                 "tile size {tile_size_m} m is not a positive number"
-            )));
+            ))
+            .with_code(FailureCode::MapTileSizeOutOfRange));
         }
-        encode_with_core(self, tile_size_m)
+        encode_with_core(self, tile_size_m).map_err(|e| match e.code {
+            Some(code) => self.explain(code, tile_size_m).unwrap_or(e),
+            None => e,
+        })
+    }
+
+    /// A message in the mesh's terms for the core encoder's failures that
+    /// depend on a parameter or on the geometry as a whole.
+    fn explain(&self, code: FailureCode, tile_size_m: f32) -> Option<Error> {
+        let tag = format!("({}, 0x{:04x})", code.name(), code.code());
+        let msg = match code {
+            FailureCode::MapNoSurface => format!(
+                "every one of the {} triangles has zero area: the mesh has no surface to render {tag}",
+                self.triangles.len()
+            ),
+            FailureCode::MapTileSizeOutOfRange => {
+                let (lo, hi) = self.bounds()?;
+                // f32, as the core's encoder computes the grid.
+                let (ex, ey) = (hi[0] - lo[0], hi[1] - lo[1]);
+                let cells = |e: f32| f64::from((e / tile_size_m).floor() + 1.0);
+                format!(
+                    "tile size {tile_size_m} m gives a {} x {} tile grid over the mesh's \
+                     {} x {} m extent, above the cap of {MAX_MAP_TILES} tiles; use a larger \
+                     --tile-size-m {tag}",
+                    short_number(cells(ex)),
+                    short_number(cells(ey)),
+                    short_number(f64::from(ex)),
+                    short_number(f64::from(ey))
+                )
+            }
+            FailureCode::MapUvOutOfRange => {
+                let (tw, th) = (self.texture.width as f32, self.texture.height as f32);
+                let k = self.uvs.iter().position(|t| {
+                    !t.iter().all(|st| {
+                        (st[0] * tw - 0.5).abs() <= map::MAX_UV_PX
+                            && ((1.0 - st[1]) * th - 0.5).abs() <= map::MAX_UV_PX
+                    })
+                })?;
+                format!(
+                    "texture coordinates of triangle {} lie beyond {} texture pixels {tag}",
+                    k + 1,
+                    map::MAX_UV_PX
+                )
+            }
+            _ => return None,
+        };
+        Some(Error::msg(msg).with_code(code))
     }
 }
 
