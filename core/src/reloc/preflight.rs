@@ -68,11 +68,7 @@ fn texture_permille(img: &GrayView) -> (u32, u64) {
             }
         }
     }
-    let permille = if total == 0 {
-        0
-    } else {
-        (textured * 1000 / total) as u32
-    };
+    let permille = (textured * 1000).checked_div(total).unwrap_or(0) as u32;
     (permille, 2 * total)
 }
 
