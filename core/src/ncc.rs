@@ -382,6 +382,55 @@ const fn max_usize(a: usize, b: usize) -> usize {
     }
 }
 
+/// Refinement radius and number of candidates refined at level `k` below the
+/// coarsest level `lc` (`k < lc`) with the clamped configuration `c`.
+const fn refine_plan(
+    tw: usize,
+    th: usize,
+    k: usize,
+    lc: usize,
+    c: &SearchConfig,
+) -> (usize, usize) {
+    let (r, keep) = if k == 0 {
+        let m = if tw < th { tw } else { th };
+        let n = if m < c.verify_all_below_px {
+            c.candidates
+        } else {
+            c.final_candidates
+        };
+        (c.final_refine_radius_px, n)
+    } else {
+        (c.refine_radius_px, c.candidates)
+    };
+    let r = if k + 1 == lc {
+        max_usize(r, c.first_refine_radius_px)
+    } else {
+        r
+    };
+    (r, keep)
+}
+
+/// Whether refinement level `k` (`k < lc`) builds the integral tables of its whole
+/// window once and serves every refinement region (and, at level 0, the sub-pixel
+/// probe) from them: when the whole level has no more table entries than its
+/// refinement regions would have (one region per refined candidate, re-centring
+/// steps not counted). Otherwise each region builds its own tables. Either way the
+/// window sums are the same integers.
+const fn whole_level_tables(
+    tw: usize,
+    th: usize,
+    ww: usize,
+    wh: usize,
+    k: usize,
+    lc: usize,
+    c: &SearchConfig,
+) -> bool {
+    let (r, keep) = refine_plan(tw, th, k, lc, c);
+    let whole = ((ww >> k) + 1) * ((wh >> k) + 1);
+    let region = ((tw >> k) + 2 * r + 1) * ((th >> k) + 2 * r + 1);
+    whole <= keep * region
+}
+
 impl ScratchSizes {
     /// Sizes for a `tw × th` template in a `ww × wh` window with `mode` and the
     /// default [`SearchConfig`] (the same for every filter).
@@ -420,10 +469,19 @@ impl ScratchSizes {
         let lc = levels - 1;
         let coarse = ((ww >> lc) + 1) * ((wh >> lc) + 1);
         let refine = (tw + 2 * MAX_REFINE_RADIUS_PX + 1) * (th + 2 * MAX_REFINE_RADIUS_PX + 1);
+        let mut tables = max_usize(coarse, refine);
+        let c = cfg.clamped();
+        let mut k = 0;
+        while k < lc {
+            if whole_level_tables(tw, th, ww, wh, k, lc, &c) {
+                tables = max_usize(tables, ((ww >> k) + 1) * ((wh >> k) + 1));
+            }
+            k += 1;
+        }
         Self {
             window,
             template,
-            integral: 2 * max_usize(coarse, refine),
+            integral: 2 * tables,
             runs,
         }
     }
@@ -648,6 +706,9 @@ struct Integral<'s> {
     sq: &'s [u32],
     /// Row length of the tables (region width + 1).
     w1: usize,
+    /// Window-level coordinates of the rectangle's top-left pixel.
+    x0: usize,
+    y0: usize,
 }
 
 impl<'s> Integral<'s> {
@@ -671,7 +732,30 @@ impl<'s> Integral<'s> {
             .ok_or(FailureCode::NccScratchTooSmall)?;
         let sq = rest.get_mut(..n).ok_or(FailureCode::NccScratchTooSmall)?;
         fill_tables(win, x0, y0, rw, rh, sum, sq);
-        Ok(Self { sum, sq, w1 })
+        Ok(Self {
+            sum,
+            sq,
+            w1,
+            x0,
+            y0,
+        })
+    }
+
+    /// The tables of a whole `w × h` window level already built in `buf`.
+    fn view(w: usize, h: usize, buf: &'s [u32]) -> Result<Self, FailureCode> {
+        let w1 = w + 1;
+        let n = w1 * (h + 1);
+        let (sum, rest) = buf
+            .split_at_checked(n)
+            .ok_or(FailureCode::NccScratchTooSmall)?;
+        let sq = rest.get(..n).ok_or(FailureCode::NccScratchTooSmall)?;
+        Ok(Self {
+            sum,
+            sq,
+            w1,
+            x0: 0,
+            y0: 0,
+        })
     }
 
     /// (Σf, Σf²) over `w × h` pixels at region coordinates `(x, y)`.
@@ -691,6 +775,46 @@ impl<'s> Integral<'s> {
             .wrapping_sub(g(self.sq, i01))
             .wrapping_add(g(self.sq, i00));
         (s, q)
+    }
+}
+
+/// The integral-table scratch of one search: either the tables of a whole window
+/// level, built once and shared by every evaluation at that level, or nothing
+/// kept, each evaluation building the tables of its own region.
+struct Tables<'b> {
+    buf: &'b mut [u32],
+    /// Level, width and height of the whole-level tables held in `buf`.
+    whole: Option<(usize, usize, usize)>,
+}
+
+impl<'b> Tables<'b> {
+    fn new(buf: &'b mut [u32]) -> Self {
+        Self { buf, whole: None }
+    }
+
+    /// Start level `k` of window `win`: build its whole-level tables when `whole`.
+    fn level(&mut self, k: usize, win: &Win, whole: bool) -> Result<(), FailureCode> {
+        self.whole = None;
+        if whole {
+            Integral::build(win, 0, 0, win.w, win.h, self.buf)?;
+            self.whole = Some((k, win.w, win.h));
+        }
+        Ok(())
+    }
+
+    /// Tables covering the `rw × rh` rectangle at `(x0, y0)` of level `k` of `win`.
+    fn region(
+        &mut self,
+        k: usize,
+        win: &Win,
+        (x0, y0, rw, rh): (usize, usize, usize, usize),
+    ) -> Result<Integral<'_>, FailureCode> {
+        match self.whole {
+            Some((lk, w, h)) if lk == k && w == win.w && h == win.h => {
+                Integral::view(w, h, self.buf)
+            }
+            _ => Integral::build(win, x0, y0, rw, rh, self.buf),
+        }
     }
 }
 
@@ -749,17 +873,18 @@ fn fill_tables(
 #[allow(clippy::too_many_arguments)]
 fn eval_positions<F: FnMut(usize, usize, Score)>(
     t: &Tpl,
-    win: &Win,
+    (k, win): (usize, &Win),
     (x0, y0, x1, y1): (usize, usize, usize, usize),
-    buf: &mut [u32],
+    tables: &mut Tables,
     stats: &mut MatchStats,
     mut sink: F,
 ) -> Result<(), FailureCode> {
     let rw = x1 - x0 + t.w;
     let rh = y1 - y0 + t.h;
-    let integ = Integral::build(win, x0, y0, rw, rh, buf)?;
-    // (Σf, var_f) of the window at region coordinates (rx, ry).
-    let window_terms = |rx: usize, ry: usize| -> (i64, i64) {
+    let integ = tables.region(k, win, (x0, y0, rw, rh))?;
+    // (Σf, var_f) of the window at window-level coordinates (x, y).
+    let window_terms = |x: usize, y: usize| -> (i64, i64) {
+        let (rx, ry) = (x - integ.x0, y - integ.y0);
         let (sf, sff) = match t.runs {
             None => integ.rect(rx, ry, t.w, t.h),
             Some(runs) => runs.iter().fold((0u32, 0u32), |(s, q), run| {
@@ -783,7 +908,7 @@ fn eval_positions<F: FnMut(usize, usize, Score)>(
             let n = (x1 - xb + 1).min(KERNEL_BLOCK);
             let mut terms = [(0i64, 0i64); KERNEL_BLOCK];
             for (i, v) in terms.iter_mut().enumerate().take(n) {
-                *v = window_terms(xb + i - x0, y - y0);
+                *v = window_terms(xb + i, y);
             }
             let mut dots = [0u32; KERNEL_BLOCK];
             if n == KERNEL_BLOCK {
@@ -1183,14 +1308,23 @@ pub fn match_template_with(
         return Err(FailureCode::NccScratchTooSmall);
     };
     let (lx, ly) = wc.last_pos(tc.w, tc.h);
+    let mut tables = Tables::new(integral);
+    tables.level(lc, &wc, true)?;
     let mut top = if lc == 0 {
         TopK::new(2, radius0)
     } else {
         TopK::new(cfg.candidates, cfg.nms_radius_px)
     };
-    eval_positions(&tc, &wc, (0, 0, lx, ly), integral, &mut stats, |x, y, s| {
-        top.offer(Cand { x, y, s });
-    })?;
+    eval_positions(
+        &tc,
+        (lc, &wc),
+        (0, 0, lx, ly),
+        &mut tables,
+        &mut stats,
+        |x, y, s| {
+            top.offer(Cand { x, y, s });
+        },
+    )?;
     stats.candidates = top.len as u8;
 
     for k in (0..lc).rev() {
@@ -1201,22 +1335,8 @@ pub fn match_template_with(
             return Err(FailureCode::NccScratchTooSmall);
         };
         let (lx, ly) = w.last_pos(t.w, t.h);
-        let (r, keep) = if k == 0 {
-            let all = tw.min(th) < cfg.verify_all_below_px;
-            let n = if all {
-                cfg.candidates
-            } else {
-                cfg.final_candidates
-            };
-            (cfg.final_refine_radius_px, n)
-        } else {
-            (cfg.refine_radius_px, cfg.candidates)
-        };
-        let r = if k + 1 == lc {
-            r.max(cfg.first_refine_radius_px)
-        } else {
-            r
-        };
+        let (r, keep) = refine_plan(tw, th, k, lc, &cfg);
+        tables.level(k, &w, whole_level_tables(tw, th, ww, wh, k, lc, &cfg))?;
         let mut next = TopK::new(MAX_CANDIDATES, 0);
         // Region centres already evaluated at this level: a climb that reaches one
         // stops, since the candidate that evaluated it carries that climb on (the
@@ -1242,7 +1362,7 @@ pub fn match_template_with(
                     (cx + r).min(lx),
                     (cy + r).min(ly),
                 );
-                eval_positions(&t, &w, bounds, integral, &mut stats, |x, y, s| {
+                eval_positions(&t, (k, &w), bounds, &mut tables, &mut stats, |x, y, s| {
                     best.offer(Cand { x, y, s });
                 })?;
                 let Some(b) = best.as_slice().first() else {
@@ -1292,18 +1412,25 @@ pub fn match_template_with(
         (win.y + 1).min(ly),
     );
     let mut sub_stats = MatchStats::default();
-    eval_positions(&t0, &w0, bounds, integral, &mut sub_stats, |x, y, s| {
-        let slot = match (x as isize - win.x as isize, y as isize - win.y as isize) {
-            (-1, 0) => nb.get_mut(0),
-            (1, 0) => nb.get_mut(1),
-            (0, -1) => nb.get_mut(2),
-            (0, 1) => nb.get_mut(3),
-            _ => None,
-        };
-        if let Some(v) = slot {
-            *v = Some(s.to_f64());
-        }
-    })?;
+    eval_positions(
+        &t0,
+        (0, &w0),
+        bounds,
+        &mut tables,
+        &mut sub_stats,
+        |x, y, s| {
+            let slot = match (x as isize - win.x as isize, y as isize - win.y as isize) {
+                (-1, 0) => nb.get_mut(0),
+                (1, 0) => nb.get_mut(1),
+                (0, -1) => nb.get_mut(2),
+                (0, 1) => nb.get_mut(3),
+                _ => None,
+            };
+            if let Some(v) = slot {
+                *v = Some(s.to_f64());
+            }
+        },
+    )?;
     stats.positions_scored += sub_stats.positions_scored;
     stats.flat_positions += sub_stats.flat_positions;
     stats.macs += sub_stats.macs;
