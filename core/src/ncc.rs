@@ -433,19 +433,48 @@ const fn whole_level_tables(
 
 impl ScratchSizes {
     /// Sizes for a `tw × th` template in a `ww × wh` window with `mode` and the
-    /// default [`SearchConfig`] (the same for every filter).
+    /// default [`SearchConfig`] of any filter (the largest of their sizes; the
+    /// derivative domains refine more candidates, so they may share whole-level
+    /// integral tables where gray does not).
     pub const fn new(tw: usize, th: usize, ww: usize, wh: usize, mode: Search) -> Self {
-        Self::with_config(
+        let g = Self::with_config(
             tw,
             th,
             ww,
             wh,
             mode,
             &SearchConfig::for_filter(Filter::Gray),
-        )
+        );
+        let s = Self::with_config(
+            tw,
+            th,
+            ww,
+            wh,
+            mode,
+            &SearchConfig::for_filter(Filter::Sobel),
+        );
+        let l = Self::with_config(
+            tw,
+            th,
+            ww,
+            wh,
+            mode,
+            &SearchConfig::for_filter(Filter::Laplacian),
+        );
+        Self {
+            window: max_usize(g.window, max_usize(s.window, l.window)),
+            template: max_usize(g.template, max_usize(s.template, l.template)),
+            integral: max_usize(g.integral, max_usize(s.integral, l.integral)),
+            runs: max_usize(g.runs, max_usize(s.runs, l.runs)),
+        }
     }
 
     /// Sizes for a `tw × th` template in a `ww × wh` window with `mode` and `cfg`.
+    ///
+    /// The integral buffer includes the whole-level tables of the refinement
+    /// levels that share them; a search whose buffer is shorter (down to
+    /// [`ScratchSizes::minimum`]) builds per-region tables there instead, with the
+    /// same results.
     pub const fn with_config(
         tw: usize,
         th: usize,
@@ -453,6 +482,32 @@ impl ScratchSizes {
         wh: usize,
         mode: Search,
         cfg: &SearchConfig,
+    ) -> Self {
+        Self::sized(tw, th, ww, wh, mode, cfg, true)
+    }
+
+    /// The smallest scratch a search with `cfg` accepts: as
+    /// [`ScratchSizes::with_config`] without the whole-level integral tables of
+    /// the refinement levels (each refinement region then builds its own).
+    pub const fn minimum(
+        tw: usize,
+        th: usize,
+        ww: usize,
+        wh: usize,
+        mode: Search,
+        cfg: &SearchConfig,
+    ) -> Self {
+        Self::sized(tw, th, ww, wh, mode, cfg, false)
+    }
+
+    const fn sized(
+        tw: usize,
+        th: usize,
+        ww: usize,
+        wh: usize,
+        mode: Search,
+        cfg: &SearchConfig,
+        whole_levels: bool,
     ) -> Self {
         let levels = match mode {
             Search::Exhaustive => 1,
@@ -473,7 +528,7 @@ impl ScratchSizes {
         let c = cfg.clamped();
         let mut k = 0;
         while k < lc {
-            if whole_level_tables(tw, th, ww, wh, k, lc, &c) {
+            if whole_levels && whole_level_tables(tw, th, ww, wh, k, lc, &c) {
                 tables = max_usize(tables, ((ww >> k) + 1) * ((wh >> k) + 1));
             }
             k += 1;
@@ -792,10 +847,12 @@ impl<'b> Tables<'b> {
         Self { buf, whole: None }
     }
 
-    /// Start level `k` of window `win`: build its whole-level tables when `whole`.
+    /// Start level `k` of window `win`: build its whole-level tables when `whole`
+    /// and they fit (a caller may size the scratch for another configuration; the
+    /// region tables give the same sums).
     fn level(&mut self, k: usize, win: &Win, whole: bool) -> Result<(), FailureCode> {
         self.whole = None;
-        if whole {
+        if whole && self.buf.len() >= 2 * (win.w + 1) * (win.h + 1) {
             Integral::build(win, 0, 0, win.w, win.h, self.buf)?;
             self.whole = Some((k, win.w, win.h));
         }
@@ -1010,8 +1067,10 @@ impl TopK {
             if near(&e) {
                 continue;
             }
-            if let Some(o) = self.items.get_mut(n) {
-                *o = e;
+            if n != i {
+                if let Some(o) = self.items.get_mut(n) {
+                    *o = e;
+                }
             }
             n += 1;
         }
@@ -1251,7 +1310,7 @@ pub fn match_template_with(
     if tw > ww || th > wh {
         return Err(FailureCode::NccTemplateLargerThanWindow);
     }
-    if !ScratchSizes::with_config(tw, th, ww, wh, mode, &cfg).fits(scratch) {
+    if !ScratchSizes::minimum(tw, th, ww, wh, mode, &cfg).fits(scratch) {
         return Err(FailureCode::NccScratchTooSmall);
     }
     let want = match mode {
@@ -1345,7 +1404,9 @@ pub fn match_template_with(
         let mut n_visited = 0;
         for c in top.as_slice().iter().take(keep) {
             let mut center = ((2 * c.x).min(lx), (2 * c.y).min(ly));
-            let mut best = TopK::new(1, 0);
+            // The region's argmax (ties keep the first offered): `TopK` with one
+            // entry and radius 0, without its 64-entry array.
+            let mut best: Option<Cand> = None;
             for _ in 0..=MAX_CLIMB_STEPS {
                 let seen = visited.get(..n_visited).unwrap_or(&[]);
                 if seen.contains(&center) {
@@ -1363,9 +1424,14 @@ pub fn match_template_with(
                     (cy + r).min(ly),
                 );
                 eval_positions(&t, (k, &w), bounds, &mut tables, &mut stats, |x, y, s| {
-                    best.offer(Cand { x, y, s });
+                    let better = best
+                        .as_ref()
+                        .is_none_or(|b| cmp_scores(&s, &b.s) == Ordering::Greater);
+                    if better {
+                        best = Some(Cand { x, y, s });
+                    }
                 })?;
-                let Some(b) = best.as_slice().first() else {
+                let Some(b) = best.as_ref() else {
                     break;
                 };
                 // Stop unless the peak sits on a border that is not the window's edge.
@@ -1378,8 +1444,8 @@ pub fn match_template_with(
                 }
                 center = (b.x, b.y);
             }
-            if let Some(b) = best.as_slice().first() {
-                next.offer(*b);
+            if let Some(b) = best {
+                next.offer(b);
             }
         }
         top = next;
