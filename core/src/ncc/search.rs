@@ -133,19 +133,22 @@ impl TopK {
                 }
             }
         }
-        if cur
-            .iter()
-            .any(|e| self.near(e, &c) && cmp_scores(&c.s, &e.s) != Ordering::Greater)
-        {
-            return;
+        let mut any_near = false;
+        for e in cur {
+            if self.near(e, &c) {
+                if cmp_scores(&c.s, &e.s) != Ordering::Greater {
+                    return;
+                }
+                any_near = true;
+            }
         }
         // Drop the entries near `c` (all worse than it), keeping the order, then
         // insert `c` before the first remaining entry it beats; in place, over
         // the `len` used entries only.
         let (radius, len) = (self.radius, self.len.min(MAX_CANDIDATES));
         let near = |e: &Cand| e.x.abs_diff(c.x) <= radius && e.y.abs_diff(c.y) <= radius;
-        let mut n = 0;
-        for i in 0..len {
+        let mut n = if any_near { 0 } else { len };
+        for i in (0..len).take(if any_near { len } else { 0 }) {
             let Some(e) = self.items.get(i).copied() else {
                 break;
             };
@@ -160,10 +163,9 @@ impl TopK {
             n += 1;
         }
         let kept = self.items.get(..n).unwrap_or(&[]);
-        let pos = kept
-            .iter()
-            .position(|e| cmp_scores(&c.s, &e.s) == Ordering::Greater)
-            .unwrap_or(n);
+        // The list is sorted best first, so "c beats e" is false up to some index
+        // and true from there on: a binary search finds the first entry c beats.
+        let pos = kept.partition_point(|e| cmp_scores(&c.s, &e.s) != Ordering::Greater);
         if pos >= self.cap {
             self.len = n.min(self.cap);
             return;
