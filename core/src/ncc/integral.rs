@@ -1,0 +1,250 @@
+//! Integral images of window levels (window sums and sums of squares) and the
+//! per-search table scratch.
+
+use super::pyramid::Win;
+use crate::failure::FailureCode;
+
+/// Integral images (sum and sum of squares) of a rectangle of a window level.
+pub(super) struct Integral<'s> {
+    pub(super) sum: &'s [u32],
+    pub(super) sq: &'s [u32],
+    /// Row length of the tables (region width + 1).
+    pub(super) w1: usize,
+    /// Window-level coordinates of the rectangle's top-left pixel.
+    pub(super) x0: usize,
+    pub(super) y0: usize,
+}
+
+impl<'s> Integral<'s> {
+    /// Build the tables of `rw × rh` pixels of `win` starting at `(x0, y0)` in `buf`.
+    ///
+    /// u32 wrapping: the tables themselves may wrap, but a window sum is a signed
+    /// combination of four entries, which is exact modulo 2³², and every true
+    /// window sum (≤ 65 536·255² < 2³²) is below 2³², so the result is exact.
+    pub(super) fn build(
+        win: &Win,
+        x0: usize,
+        y0: usize,
+        rw: usize,
+        rh: usize,
+        buf: &'s mut [u32],
+    ) -> Result<Self, FailureCode> {
+        let w1 = rw + 1;
+        let n = w1 * (rh + 1);
+        let (sum, rest) = buf
+            .split_at_mut_checked(n)
+            .ok_or(FailureCode::NccScratchTooSmall)?;
+        let sq = rest.get_mut(..n).ok_or(FailureCode::NccScratchTooSmall)?;
+        fill_tables(win, x0, y0, rw, rh, sum, sq);
+        Ok(Self {
+            sum,
+            sq,
+            w1,
+            x0,
+            y0,
+        })
+    }
+
+    /// The tables of a whole `w × h` window level already built in `buf`.
+    pub(super) fn view(w: usize, h: usize, buf: &'s [u32]) -> Result<Self, FailureCode> {
+        let w1 = w + 1;
+        let n = w1 * (h + 1);
+        let (sum, rest) = buf
+            .split_at_checked(n)
+            .ok_or(FailureCode::NccScratchTooSmall)?;
+        let sq = rest.get(..n).ok_or(FailureCode::NccScratchTooSmall)?;
+        Ok(Self {
+            sum,
+            sq,
+            w1,
+            x0: 0,
+            y0: 0,
+        })
+    }
+
+    /// (Σf, Σf²) over `w × h` pixels at region coordinates `(x, y)`.
+    #[inline]
+    pub(super) fn rect(&self, x: usize, y: usize, w: usize, h: usize) -> (u32, u32) {
+        let i00 = y * self.w1 + x;
+        let i01 = i00 + w;
+        let i10 = (y + h) * self.w1 + x;
+        let i11 = i10 + w;
+        let g = |t: &[u32], i: usize| t.get(i).copied().unwrap_or(0);
+        let s = g(self.sum, i11)
+            .wrapping_sub(g(self.sum, i10))
+            .wrapping_sub(g(self.sum, i01))
+            .wrapping_add(g(self.sum, i00));
+        let q = g(self.sq, i11)
+            .wrapping_sub(g(self.sq, i10))
+            .wrapping_sub(g(self.sq, i01))
+            .wrapping_add(g(self.sq, i00));
+        (s, q)
+    }
+}
+
+/// The integral-table scratch of one search: either the tables of a whole window
+/// level, built once and shared by every evaluation at that level, or nothing
+/// kept, each evaluation building the tables of its own region.
+pub(super) struct Tables<'b> {
+    pub(super) buf: &'b mut [u32],
+    /// Level, width and height of the whole-level tables held in `buf`.
+    pub(super) whole: Option<(usize, usize, usize)>,
+}
+
+impl<'b> Tables<'b> {
+    pub(super) fn new(buf: &'b mut [u32]) -> Self {
+        Self { buf, whole: None }
+    }
+
+    /// Start level `k` of window `win`: build its whole-level tables when `whole`
+    /// and they fit (a caller may size the scratch for another configuration; the
+    /// region tables give the same sums).
+    pub(super) fn level(&mut self, k: usize, win: &Win, whole: bool) -> Result<(), FailureCode> {
+        self.whole = None;
+        if whole && self.buf.len() >= 2 * (win.w + 1) * (win.h + 1) {
+            Integral::build(win, 0, 0, win.w, win.h, self.buf)?;
+            self.whole = Some((k, win.w, win.h));
+        }
+        Ok(())
+    }
+
+    /// Tables covering the `rw × rh` rectangle at `(x0, y0)` of level `k` of `win`.
+    pub(super) fn region(
+        &mut self,
+        k: usize,
+        win: &Win,
+        (x0, y0, rw, rh): (usize, usize, usize, usize),
+    ) -> Result<Integral<'_>, FailureCode> {
+        match self.whole {
+            Some((lk, w, h)) if lk == k && w == win.w && h == win.h => {
+                Integral::view(w, h, self.buf)
+            }
+            _ => Integral::build(win, x0, y0, rw, rh, self.buf),
+        }
+    }
+}
+
+/// Fill the sum and sum-of-squares tables (`(rw + 1) × (rh + 1)` each) in one
+/// pass over the window pixels.
+pub(super) fn fill_tables(
+    win: &Win,
+    x0: usize,
+    y0: usize,
+    rw: usize,
+    rh: usize,
+    sum: &mut [u32],
+    sq: &mut [u32],
+) {
+    let w1 = rw + 1;
+    for tab in [&mut *sum, &mut *sq] {
+        if let Some(first) = tab.get_mut(..w1) {
+            first.fill(0);
+        }
+    }
+    for r in 0..rh {
+        let (sum_head, sum_tail) = sum.split_at_mut((r + 1) * w1);
+        let (sq_head, sq_tail) = sq.split_at_mut((r + 1) * w1);
+        let (Some(ps), Some(cs), Some(pq), Some(cq)) = (
+            sum_head.get(r * w1..),
+            sum_tail.get_mut(..w1),
+            sq_head.get(r * w1..),
+            sq_tail.get_mut(..w1),
+        ) else {
+            return;
+        };
+        let start = (y0 + r) * win.w + x0;
+        let Some(frow) = win.px.get(start..start + rw) else {
+            return;
+        };
+        let (Some((cs0, cs)), Some((cq0, cq))) = (cs.split_first_mut(), cq.split_first_mut())
+        else {
+            return;
+        };
+        *cs0 = 0;
+        *cq0 = 0;
+        let (mut run_s, mut run_q) = (0u32, 0u32);
+        let prev = ps.iter().skip(1).zip(pq.iter().skip(1));
+        for (((s, q), (&p_s, &p_q)), &f) in cs.iter_mut().zip(cq.iter_mut()).zip(prev).zip(frow) {
+            let v = u32::from(f);
+            run_s = run_s.wrapping_add(v);
+            run_q = run_q.wrapping_add(v * v);
+            *s = p_s.wrapping_add(run_s);
+            *q = p_q.wrapping_add(run_q);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::super::test_util::*;
+    use super::super::*;
+    use super::*;
+    use crate::rng::Rng;
+    use std::vec;
+
+    /// Tables of a whole level and of a region of it give the same window sums.
+    #[test]
+    fn whole_level_tables_equal_region_tables() {
+        let mut rng = Rng::new(5);
+        let (w, h) = (37usize, 29usize);
+        let px = random_px(w * h, &mut rng);
+        let win = Win { px: &px, w, h };
+        let mut whole = vec![0u32; 2 * (w + 1) * (h + 1)];
+        let mut region = vec![0u32; 2 * (w + 1) * (h + 1)];
+        Integral::build(&win, 0, 0, w, h, &mut whole).unwrap();
+        let all = Integral::view(w, h, &whole).unwrap();
+        for (x0, y0, rw, rh) in [
+            (0, 0, w, h),
+            (3, 5, 20, 11),
+            (17, 2, 20, 27),
+            (36, 28, 1, 1),
+        ] {
+            let part = Integral::build(&win, x0, y0, rw, rh, &mut region).unwrap();
+            for (x, y, cw, ch) in [
+                (0, 0, rw, rh),
+                (0, 0, 1, 1),
+                (rw / 2, rh / 3, rw - rw / 2, rh - rh / 3),
+            ] {
+                assert_eq!(part.rect(x, y, cw, ch), all.rect(x0 + x, y0 + y, cw, ch));
+            }
+        }
+    }
+
+    /// A search in the minimum scratch (per-region tables everywhere) returns the
+    /// same match and statistics as one in the full scratch (whole-level tables).
+    #[test]
+    fn searches_are_identical_with_and_without_whole_level_tables() {
+        let mut rng = Rng::new(77);
+        for (tw, iw, filter) in [
+            (32usize, 96usize, Filter::Gray),
+            (48, 150, Filter::Sobel),
+            (33, 90, Filter::Laplacian),
+        ] {
+            let img = textured(iw, iw, &mut rng);
+            let t = crop(&img, iw, iw / 3, iw / 4, tw, tw);
+            let cfg = SearchConfig::for_filter(filter);
+            let full = ScratchSizes::with_config(tw, tw, iw, iw, Search::CoarseToFine, &cfg);
+            let min = ScratchSizes::minimum(tw, tw, iw, iw, Search::CoarseToFine, &cfg);
+            assert!(full.integral > min.integral, "{tw} in {iw}");
+            let mut results = vec![];
+            for n in [full.integral, min.integral] {
+                let mut b = Bufs::with_config(tw, tw, iw, iw, Search::CoarseToFine, &cfg);
+                b.i.truncate(n);
+                results.push(
+                    match_template(
+                        view(&t, tw, tw),
+                        None,
+                        view(&img, iw, iw),
+                        Rect::new(0, 0, iw as u32, iw as u32),
+                        filter,
+                        Search::CoarseToFine,
+                        &mut b.scratch(),
+                    )
+                    .unwrap(),
+                );
+            }
+            assert_eq!(results[0], results[1], "{tw} in {iw}");
+        }
+    }
+}

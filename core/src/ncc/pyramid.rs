@@ -1,0 +1,484 @@
+//! Pyramid levels: how many, the scratch they need, and building the template
+//! and window levels.
+
+use super::filter::{downsample, filter_region};
+use super::Scratch;
+use super::{
+    Filter, Run, ScratchSizes, Search, SearchConfig, MAX_LEVELS, MAX_REFINE_RADIUS_PX,
+    MIN_COARSE_PX, MIN_MASK_PX, WIDE_WINDOW_RATIO,
+};
+use crate::config::{MAX_SEARCH_PX, MAX_TEMPLATE_PX};
+use crate::failure::FailureCode;
+use crate::image::{GrayView, Rect};
+
+/// Pyramid levels the coarse-to-fine search uses for a `tw × th` template:
+/// halve while the shorter side stays at least [`MIN_COARSE_PX`], at most [`MAX_LEVELS`].
+pub const fn pyramid_levels(tw: usize, th: usize) -> usize {
+    pyramid_levels_min(tw, th, MIN_COARSE_PX)
+}
+
+/// Pyramid levels for a `tw × th` template when the coarsest template side should
+/// stay at least `min_coarse_px`: halve while it does, but always halve once when
+/// the shorter side is at least `2·MIN_COARSE_PX` (never more than [`pyramid_levels`]).
+pub const fn pyramid_levels_min(tw: usize, th: usize, min_coarse_px: usize) -> usize {
+    let m = if tw < th { tw } else { th };
+    let min = if min_coarse_px > MIN_COARSE_PX {
+        min_coarse_px
+    } else {
+        MIN_COARSE_PX
+    };
+    let mut levels = 1;
+    while levels < MAX_LEVELS && (m >> levels) >= min {
+        levels += 1;
+    }
+    if levels == 1 && (m >> 1) >= MIN_COARSE_PX && MAX_LEVELS > 1 {
+        levels = 2;
+    }
+    levels
+}
+
+/// Pyramid levels the coarse-to-fine search with `cfg` uses for a `tw × th`
+/// template in a `ww × wh` window.
+pub const fn search_levels(
+    tw: usize,
+    th: usize,
+    ww: usize,
+    wh: usize,
+    cfg: &SearchConfig,
+) -> usize {
+    let c = cfg.clamped();
+    let t = if tw < th { tw } else { th };
+    let w = if ww < wh { ww } else { wh };
+    let min = if w > WIDE_WINDOW_RATIO * t {
+        c.wide_min_coarse_px
+    } else {
+        c.min_coarse_px
+    };
+    pyramid_levels_min(tw, th, min)
+}
+
+/// Radius (full-resolution pixels, Chebyshev) of the main peak's neighbourhood,
+/// outside which the runner-up is sought: an eighth of the shorter template side, at least 2.
+pub const fn peak_radius_px(tw: usize, th: usize) -> usize {
+    let m = if tw < th { tw } else { th };
+    if m / 8 > 2 {
+        m / 8
+    } else {
+        2
+    }
+}
+
+pub(super) const fn max_usize(a: usize, b: usize) -> usize {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+/// Refinement radius and number of candidates refined at level `k` below the
+/// coarsest level `lc` (`k < lc`) with the clamped configuration `c`.
+pub(super) const fn refine_plan(
+    tw: usize,
+    th: usize,
+    k: usize,
+    lc: usize,
+    c: &SearchConfig,
+) -> (usize, usize) {
+    let (r, keep) = if k == 0 {
+        let m = if tw < th { tw } else { th };
+        let n = if m < c.verify_all_below_px {
+            c.candidates
+        } else {
+            c.final_candidates
+        };
+        (c.final_refine_radius_px, n)
+    } else {
+        (c.refine_radius_px, c.candidates)
+    };
+    let r = if k + 1 == lc {
+        max_usize(r, c.first_refine_radius_px)
+    } else {
+        r
+    };
+    (r, keep)
+}
+
+/// Whether refinement level `k` (`k < lc`) builds the integral tables of its whole
+/// window once and serves every refinement region (and, at level 0, the sub-pixel
+/// probe) from them: when the whole level has no more table entries than its
+/// refinement regions would have (one region per refined candidate, re-centring
+/// steps not counted). Otherwise each region builds its own tables. Either way the
+/// window sums are the same integers.
+pub(super) const fn whole_level_tables(
+    tw: usize,
+    th: usize,
+    ww: usize,
+    wh: usize,
+    k: usize,
+    lc: usize,
+    c: &SearchConfig,
+) -> bool {
+    let (r, keep) = refine_plan(tw, th, k, lc, c);
+    let whole = ((ww >> k) + 1) * ((wh >> k) + 1);
+    let region = ((tw >> k) + 2 * r + 1) * ((th >> k) + 2 * r + 1);
+    whole <= keep * region
+}
+
+impl ScratchSizes {
+    /// Sizes for a `tw × th` template in a `ww × wh` window with `mode` and the
+    /// default [`SearchConfig`] of any filter (the largest of their sizes; the
+    /// derivative domains refine more candidates, so they may share whole-level
+    /// integral tables where gray does not).
+    pub const fn new(tw: usize, th: usize, ww: usize, wh: usize, mode: Search) -> Self {
+        let g = Self::with_config(
+            tw,
+            th,
+            ww,
+            wh,
+            mode,
+            &SearchConfig::for_filter(Filter::Gray),
+        );
+        let s = Self::with_config(
+            tw,
+            th,
+            ww,
+            wh,
+            mode,
+            &SearchConfig::for_filter(Filter::Sobel),
+        );
+        let l = Self::with_config(
+            tw,
+            th,
+            ww,
+            wh,
+            mode,
+            &SearchConfig::for_filter(Filter::Laplacian),
+        );
+        Self {
+            window: max_usize(g.window, max_usize(s.window, l.window)),
+            template: max_usize(g.template, max_usize(s.template, l.template)),
+            integral: max_usize(g.integral, max_usize(s.integral, l.integral)),
+            runs: max_usize(g.runs, max_usize(s.runs, l.runs)),
+        }
+    }
+
+    /// Sizes for a `tw × th` template in a `ww × wh` window with `mode` and `cfg`.
+    ///
+    /// The integral buffer includes the whole-level tables of the refinement
+    /// levels that share them; a search whose buffer is shorter (down to
+    /// [`ScratchSizes::minimum`]) builds per-region tables there instead, with the
+    /// same results.
+    pub const fn with_config(
+        tw: usize,
+        th: usize,
+        ww: usize,
+        wh: usize,
+        mode: Search,
+        cfg: &SearchConfig,
+    ) -> Self {
+        Self::sized(tw, th, ww, wh, mode, cfg, true)
+    }
+
+    /// The smallest scratch a search with `cfg` accepts: as
+    /// [`ScratchSizes::with_config`] without the whole-level integral tables of
+    /// the refinement levels (each refinement region then builds its own).
+    pub const fn minimum(
+        tw: usize,
+        th: usize,
+        ww: usize,
+        wh: usize,
+        mode: Search,
+        cfg: &SearchConfig,
+    ) -> Self {
+        Self::sized(tw, th, ww, wh, mode, cfg, false)
+    }
+
+    const fn sized(
+        tw: usize,
+        th: usize,
+        ww: usize,
+        wh: usize,
+        mode: Search,
+        cfg: &SearchConfig,
+        whole_levels: bool,
+    ) -> Self {
+        let levels = match mode {
+            Search::Exhaustive => 1,
+            Search::CoarseToFine => search_levels(tw, th, ww, wh, cfg),
+        };
+        let (mut window, mut template, mut runs) = (0, 0, 0);
+        let mut k = 0;
+        while k < levels {
+            window += (ww >> k) * (wh >> k);
+            template += 2 * (tw >> k) * (th >> k);
+            runs += (th >> k) * (tw >> k).div_ceil(2);
+            k += 1;
+        }
+        let lc = levels - 1;
+        let coarse = ((ww >> lc) + 1) * ((wh >> lc) + 1);
+        let refine = (tw + 2 * MAX_REFINE_RADIUS_PX + 1) * (th + 2 * MAX_REFINE_RADIUS_PX + 1);
+        let mut tables = max_usize(coarse, refine);
+        let c = cfg.clamped();
+        let mut k = 0;
+        while k < lc {
+            if whole_levels && whole_level_tables(tw, th, ww, wh, k, lc, &c) {
+                tables = max_usize(tables, ((ww >> k) + 1) * ((wh >> k) + 1));
+            }
+            k += 1;
+        }
+        Self {
+            window,
+            template,
+            integral: 2 * tables,
+            runs,
+        }
+    }
+
+    /// Sizes for the largest template and window of `config` in `mode`.
+    pub const fn max(mode: Search) -> Self {
+        Self::new(
+            MAX_TEMPLATE_PX,
+            MAX_TEMPLATE_PX,
+            MAX_SEARCH_PX,
+            MAX_SEARCH_PX,
+            mode,
+        )
+    }
+
+    /// Whether every buffer of `s` is at least this large.
+    pub fn fits(&self, s: &Scratch) -> bool {
+        s.window.len() >= self.window
+            && s.template.len() >= self.template
+            && s.integral.len() >= self.integral
+            && s.runs.len() >= self.runs
+    }
+}
+
+/// One pyramid level of the template.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Tpl<'s> {
+    /// Pixels, zero where the mask drops them.
+    pub(super) px: &'s [u8],
+    /// Runs of kept pixels; `None` for an unmasked template.
+    pub(super) runs: Option<&'s [Run]>,
+    pub(super) w: usize,
+    pub(super) h: usize,
+    pub(super) n: i64,
+    pub(super) st: i64,
+    pub(super) var_t: i64,
+}
+
+/// One pyramid level of the window.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Win<'s> {
+    pub(super) px: &'s [u8],
+    pub(super) w: usize,
+    pub(super) h: usize,
+}
+
+impl Win<'_> {
+    /// Last valid top-left column and row for a `tw × th` template.
+    pub(super) fn last_pos(&self, tw: usize, th: usize) -> (usize, usize) {
+        (self.w.saturating_sub(tw), self.h.saturating_sub(th))
+    }
+}
+
+/// Build the template pyramid; returns the number of usable levels.
+pub(super) fn build_template_levels<'s>(
+    template: &GrayView,
+    mask: Option<&GrayView>,
+    filter: Filter,
+    want: usize,
+    mut tbuf: &'s mut [u8],
+    mut rbuf: &'s mut [Run],
+    levels: &mut [Option<Tpl<'s>>; MAX_LEVELS],
+) -> Result<usize, FailureCode> {
+    let (tw, th) = (template.width(), template.height());
+    let mut prev: Option<(&'s [u8], &'s [u8])> = None;
+    let mut used = 0;
+    for (k, slot) in levels.iter_mut().enumerate().take(want) {
+        let (w, h) = (tw >> k, th >> k);
+        let n_px = w * h;
+        let (px, rest) = core::mem::take(&mut tbuf)
+            .split_at_mut_checked(n_px)
+            .ok_or(FailureCode::NccScratchTooSmall)?;
+        let (mk, rest) = rest
+            .split_at_mut_checked(n_px)
+            .ok_or(FailureCode::NccScratchTooSmall)?;
+        tbuf = rest;
+        match prev {
+            None => {
+                filter_region(template, template.rect(), filter, px)?;
+                match mask {
+                    Some(m) => {
+                        for (y, mrow) in mk.chunks_exact_mut(w).enumerate() {
+                            let src = m.row(y).unwrap_or(&[]);
+                            for (d, &s) in mrow.iter_mut().zip(src) {
+                                *d = u8::from(s != 0);
+                            }
+                        }
+                    }
+                    None => mk.fill(1),
+                }
+            }
+            Some((ppx, pmk)) => {
+                downsample(&GrayView::new(ppx, 2 * w, 2 * h, 2 * w)?, px);
+                // A coarse pixel is kept only when all four children are kept.
+                for (y, mrow) in mk.chunks_exact_mut(w).enumerate() {
+                    let r0 = pmk.get(2 * y * 2 * w..(2 * y + 1) * 2 * w).unwrap_or(&[]);
+                    let r1 = pmk
+                        .get((2 * y + 1) * 2 * w..(2 * y + 2) * 2 * w)
+                        .unwrap_or(&[]);
+                    for ((d, a), b) in mrow
+                        .iter_mut()
+                        .zip(r0.chunks_exact(2))
+                        .zip(r1.chunks_exact(2))
+                    {
+                        *d = u8::from(a.iter().chain(b.iter()).all(|&v| v != 0));
+                    }
+                }
+            }
+        }
+        // Zero dropped pixels so the plain dot product is the masked Σ t·f.
+        let (mut n, mut st, mut stt) = (0u32, 0u64, 0u64);
+        for (p, &m) in px.iter_mut().zip(mk.iter()) {
+            if m == 0 {
+                *p = 0;
+            } else {
+                n += 1;
+                st += u64::from(*p);
+                stt += u64::from(*p) * u64::from(*p);
+            }
+        }
+        if n < MIN_MASK_PX {
+            if k == 0 {
+                return Err(FailureCode::NccMaskEmpty);
+            }
+            break;
+        }
+        let (n, st) = (i64::from(n), st as i64);
+        let var_t = n * stt as i64 - st * st;
+        if var_t <= 0 {
+            if k == 0 {
+                return Err(FailureCode::NccTemplateFlat);
+            }
+            break;
+        }
+        let runs = if mask.is_some() {
+            let mut count = 0;
+            for (y, mrow) in mk.chunks_exact(w).enumerate() {
+                let mut x = 0;
+                while x < w {
+                    if mrow.get(x).copied().unwrap_or(0) == 0 {
+                        x += 1;
+                        continue;
+                    }
+                    let x0 = x;
+                    while x < w && mrow.get(x).copied().unwrap_or(0) != 0 {
+                        x += 1;
+                    }
+                    let r = rbuf.get_mut(count).ok_or(FailureCode::NccScratchTooSmall)?;
+                    *r = Run {
+                        row: y as u16,
+                        x0: x0 as u16,
+                        x1: x as u16,
+                    };
+                    count += 1;
+                }
+            }
+            let (mine, rest) = core::mem::take(&mut rbuf)
+                .split_at_mut_checked(count)
+                .ok_or(FailureCode::NccScratchTooSmall)?;
+            rbuf = rest;
+            Some(&*mine)
+        } else {
+            None
+        };
+        let (px, mk): (&'s [u8], &'s [u8]) = (px, mk);
+        *slot = Some(Tpl {
+            px,
+            runs,
+            w,
+            h,
+            n,
+            st,
+            var_t,
+        });
+        prev = Some((px, mk));
+        used = k + 1;
+    }
+    Ok(used)
+}
+
+/// Build the window pyramid of `levels` levels: level 0 is `wr` of `image` after
+/// `filter`, each further level the 2× box downsample of the one above.
+pub(super) fn build_window_levels<'s>(
+    image: &GrayView,
+    wr: Rect,
+    filter: Filter,
+    levels: usize,
+    window: &'s mut [u8],
+    wins: &mut [Option<Win<'s>>; MAX_LEVELS],
+) -> Result<(), FailureCode> {
+    let (ww, wh) = (wr.w as usize, wr.h as usize);
+    let mut wbuf: &mut [u8] = window;
+    let mut prev: Option<Win> = None;
+    for (k, slot) in wins.iter_mut().enumerate().take(levels) {
+        let (w, h) = (ww >> k, wh >> k);
+        let (px, rest) = core::mem::take(&mut wbuf)
+            .split_at_mut_checked(w * h)
+            .ok_or(FailureCode::NccScratchTooSmall)?;
+        wbuf = rest;
+        match prev {
+            None => filter_region(image, wr, filter, px)?,
+            Some(p) => downsample(&GrayView::new(p.px, p.w, p.h, p.w)?, px),
+        }
+        let px: &[u8] = px;
+        let win = Win { px, w, h };
+        *slot = Some(win);
+        prev = Some(win);
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::*;
+
+    /// `ScratchSizes::new` covers every filter's default search, and the minimum
+    /// a search accepts never exceeds the recommended size.
+    #[test]
+    fn scratch_sizes_cover_every_default_and_exceed_the_minimum() {
+        for (tw, ww) in [
+            (32usize, 96usize),
+            (64, 200),
+            (64, 1024),
+            (128, 800),
+            (256, 800),
+            (256, 1024),
+        ] {
+            for mode in [Search::CoarseToFine, Search::Exhaustive] {
+                let n = ScratchSizes::new(tw, tw, ww, ww, mode);
+                for f in [Filter::Gray, Filter::Sobel, Filter::Laplacian] {
+                    let cfg = SearchConfig::for_filter(f);
+                    let s = ScratchSizes::with_config(tw, tw, ww, ww, mode, &cfg);
+                    let m = ScratchSizes::minimum(tw, tw, ww, ww, mode, &cfg);
+                    assert!(n.integral >= s.integral && s.integral >= m.integral);
+                    assert_eq!(
+                        (n.window, n.template, n.runs),
+                        (s.window, s.template, s.runs)
+                    );
+                    assert_eq!(
+                        (m.window, m.template, m.runs),
+                        (s.window, s.template, s.runs)
+                    );
+                }
+            }
+        }
+        assert_eq!(pyramid_levels(32, 32), 2);
+        assert_eq!(pyramid_levels(256, 256), 4);
+        assert_eq!(pyramid_levels_min(32, 32, 32), 2);
+        assert_eq!(pyramid_levels_min(31, 64, 32), 1);
+    }
+}

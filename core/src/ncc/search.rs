@@ -1,0 +1,500 @@
+//! Scoring positions and the coarse-to-fine search over the pyramid.
+
+use core::cmp::Ordering;
+
+use super::integral::Tables;
+use super::kernel::{dot_block, KERNEL_BLOCK};
+use super::pyramid::{refine_plan, whole_level_tables, Tpl, Win};
+use super::{
+    cmp_scores, peak_radius_px, FailureCode, MatchStats, Score, SearchConfig, MAX_CANDIDATES,
+    MAX_CLIMB_STEPS, MAX_LEVELS,
+};
+
+/// Score every position `(x, y)` with `x0 ≤ x ≤ x1`, `y0 ≤ y ≤ y1` (all valid
+/// top-left positions) and hand each non-flat one to `sink`.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn eval_positions<F: FnMut(usize, usize, Score)>(
+    t: &Tpl,
+    (k, win): (usize, &Win),
+    (x0, y0, x1, y1): (usize, usize, usize, usize),
+    tables: &mut Tables,
+    stats: &mut MatchStats,
+    mut sink: F,
+) -> Result<(), FailureCode> {
+    let rw = x1 - x0 + t.w;
+    let rh = y1 - y0 + t.h;
+    let integ = tables.region(k, win, (x0, y0, rw, rh))?;
+    // (Σf, var_f) of the window at window-level coordinates (x, y).
+    let window_terms = |x: usize, y: usize| -> (i64, i64) {
+        let (rx, ry) = (x - integ.x0, y - integ.y0);
+        let (sf, sff) = match t.runs {
+            None => integ.rect(rx, ry, t.w, t.h),
+            Some(runs) => runs.iter().fold((0u32, 0u32), |(s, q), run| {
+                let (a, b) = integ.rect(
+                    rx + usize::from(run.x0),
+                    ry + usize::from(run.row),
+                    usize::from(run.x1 - run.x0),
+                    1,
+                );
+                (s.wrapping_add(a), q.wrapping_add(b))
+            }),
+        };
+        let (sf, sff) = (i64::from(sf), i64::from(sff));
+        (sf, t.n * sff - sf * sf)
+    };
+    for y in y0..=y1 {
+        // Runs of KERNEL_BLOCK consecutive x share one pass over the template; the
+        // positions are still handed to `sink` (and counted) one by one in raster
+        // order, exactly as a position-by-position scan does.
+        for xb in (x0..=x1).step_by(KERNEL_BLOCK) {
+            let n = (x1 - xb + 1).min(KERNEL_BLOCK);
+            let mut terms = [(0i64, 0i64); KERNEL_BLOCK];
+            for (i, v) in terms.iter_mut().enumerate().take(n) {
+                *v = window_terms(xb + i, y);
+            }
+            let mut dots = [0u32; KERNEL_BLOCK];
+            if n == KERNEL_BLOCK {
+                if terms.iter().any(|&(_, var_f)| var_f > 0) {
+                    dots = dot_block::<KERNEL_BLOCK>(t, win, xb, y);
+                }
+            } else {
+                for (i, (d, &(_, var_f))) in dots.iter_mut().zip(&terms).enumerate().take(n) {
+                    if var_f > 0 {
+                        let [v] = dot_block::<1>(t, win, xb + i, y);
+                        *d = v;
+                    }
+                }
+            }
+            for (i, (&(sf, var_f), &dot)) in terms.iter().zip(&dots).enumerate().take(n) {
+                if var_f <= 0 {
+                    stats.flat_positions += 1;
+                    continue;
+                }
+                let sft = i64::from(dot);
+                stats.positions_scored += 1;
+                stats.macs += (t.w * t.h) as u64;
+                sink(
+                    xb + i,
+                    y,
+                    Score {
+                        num: t.n * sft - sf * t.st,
+                        var_f,
+                        var_t: t.var_t,
+                    },
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Cand {
+    pub(super) x: usize,
+    pub(super) y: usize,
+    pub(super) s: Score,
+}
+
+/// The best few positions, sorted best first, pairwise farther apart than `radius`
+/// (Chebyshev). The first entry is always the exact argmax of everything offered
+/// (ties keep the earliest offered, i.e. the first in raster order).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct TopK {
+    pub(super) items: [Cand; MAX_CANDIDATES],
+    pub(super) len: usize,
+    pub(super) cap: usize,
+    pub(super) radius: usize,
+}
+
+impl TopK {
+    pub(super) fn new(cap: usize, radius: usize) -> Self {
+        Self {
+            items: [Cand::default(); MAX_CANDIDATES],
+            len: 0,
+            cap: cap.clamp(1, MAX_CANDIDATES),
+            radius,
+        }
+    }
+
+    pub(super) fn as_slice(&self) -> &[Cand] {
+        self.items.get(..self.len).unwrap_or(&[])
+    }
+
+    pub(super) fn near(&self, a: &Cand, b: &Cand) -> bool {
+        a.x.abs_diff(b.x) <= self.radius && a.y.abs_diff(b.y) <= self.radius
+    }
+
+    pub(super) fn offer(&mut self, c: Cand) {
+        let cur = self.as_slice();
+        if self.len == self.cap {
+            if let Some(worst) = cur.last() {
+                if cmp_scores(&c.s, &worst.s) != Ordering::Greater {
+                    return;
+                }
+            }
+        }
+        let mut any_near = false;
+        for e in cur {
+            if self.near(e, &c) {
+                if cmp_scores(&c.s, &e.s) != Ordering::Greater {
+                    return;
+                }
+                any_near = true;
+            }
+        }
+        // Drop the entries near `c` (all worse than it), keeping the order, then
+        // insert `c` before the first remaining entry it beats; in place, over
+        // the `len` used entries only.
+        let (radius, len) = (self.radius, self.len.min(MAX_CANDIDATES));
+        let near = |e: &Cand| e.x.abs_diff(c.x) <= radius && e.y.abs_diff(c.y) <= radius;
+        let mut n = if any_near { 0 } else { len };
+        for i in (0..len).take(if any_near { len } else { 0 }) {
+            let Some(e) = self.items.get(i).copied() else {
+                break;
+            };
+            if near(&e) {
+                continue;
+            }
+            if n != i {
+                if let Some(o) = self.items.get_mut(n) {
+                    *o = e;
+                }
+            }
+            n += 1;
+        }
+        let kept = self.items.get(..n).unwrap_or(&[]);
+        // The list is sorted best first, so "c beats e" is false up to some index
+        // and true from there on: a binary search finds the first entry c beats.
+        let pos = kept.partition_point(|e| cmp_scores(&c.s, &e.s) != Ordering::Greater);
+        if pos >= self.cap {
+            self.len = n.min(self.cap);
+            return;
+        }
+        // Shift `pos..` one to the right, losing the last entry when full.
+        let end = (n + 1).min(self.cap);
+        for i in (pos + 1..end).rev() {
+            if let (Some(prev), Some(_)) = (self.items.get(i - 1).copied(), self.items.get(i)) {
+                if let Some(d) = self.items.get_mut(i) {
+                    *d = prev;
+                }
+            }
+        }
+        if let Some(slot) = self.items.get_mut(pos) {
+            *slot = c;
+        }
+        self.len = end;
+    }
+}
+
+/// Score every position of the coarsest level, keep the separated peaks, and
+/// refine each at every finer level; returns the full-resolution candidates,
+/// best first (the first is the winner).
+#[allow(clippy::too_many_lines)]
+pub(super) fn coarse_to_fine(
+    tpls: &[Option<Tpl>; MAX_LEVELS],
+    wins: &[Option<Win>; MAX_LEVELS],
+    levels: usize,
+    (tw, th, ww, wh): (usize, usize, usize, usize),
+    cfg: &SearchConfig,
+    tables: &mut Tables,
+    stats: &mut MatchStats,
+) -> Result<TopK, FailureCode> {
+    let radius0 = peak_radius_px(tw, th);
+    let lc = levels - 1;
+    let (Some(tc), Some(wc)) = (
+        tpls.get(lc).copied().flatten(),
+        wins.get(lc).copied().flatten(),
+    ) else {
+        return Err(FailureCode::NccScratchTooSmall);
+    };
+    let (lx, ly) = wc.last_pos(tc.w, tc.h);
+    tables.level(lc, &wc, true)?;
+    let mut top = if lc == 0 {
+        TopK::new(2, radius0)
+    } else {
+        TopK::new(cfg.candidates, cfg.nms_radius_px)
+    };
+    eval_positions(&tc, (lc, &wc), (0, 0, lx, ly), tables, stats, |x, y, s| {
+        top.offer(Cand { x, y, s });
+    })?;
+    stats.candidates = top.len as u8;
+
+    for k in (0..lc).rev() {
+        let (Some(t), Some(w)) = (
+            tpls.get(k).copied().flatten(),
+            wins.get(k).copied().flatten(),
+        ) else {
+            return Err(FailureCode::NccScratchTooSmall);
+        };
+        let (lx, ly) = w.last_pos(t.w, t.h);
+        let (r, keep) = refine_plan(tw, th, k, lc, cfg);
+        tables.level(k, &w, whole_level_tables(tw, th, ww, wh, k, lc, cfg))?;
+        let mut next = TopK::new(MAX_CANDIDATES, 0);
+        // Region centres already evaluated at this level: a climb that reaches one
+        // stops, since the candidate that evaluated it carries that climb on (the
+        // result is the same, without scoring the same positions twice).
+        let mut visited = [(usize::MAX, usize::MAX); MAX_CANDIDATES * (MAX_CLIMB_STEPS + 1)];
+        let mut n_visited = 0;
+        for c in top.as_slice().iter().take(keep) {
+            let mut center = ((2 * c.x).min(lx), (2 * c.y).min(ly));
+            // The region's argmax (ties keep the first offered): `TopK` with one
+            // entry and radius 0, without its 64-entry array.
+            let mut best: Option<Cand> = None;
+            for _ in 0..=MAX_CLIMB_STEPS {
+                let seen = visited.get(..n_visited).unwrap_or(&[]);
+                if seen.contains(&center) {
+                    break;
+                }
+                if let Some(v) = visited.get_mut(n_visited) {
+                    *v = center;
+                    n_visited += 1;
+                }
+                let (cx, cy) = center;
+                let bounds = (
+                    cx.saturating_sub(r),
+                    cy.saturating_sub(r),
+                    (cx + r).min(lx),
+                    (cy + r).min(ly),
+                );
+                eval_positions(&t, (k, &w), bounds, tables, stats, |x, y, s| {
+                    let better = best
+                        .as_ref()
+                        .is_none_or(|b| cmp_scores(&s, &b.s) == Ordering::Greater);
+                    if better {
+                        best = Some(Cand { x, y, s });
+                    }
+                })?;
+                let Some(b) = best.as_ref() else {
+                    break;
+                };
+                // Stop unless the peak sits on a border that is not the window's edge.
+                let on_edge = (b.x == bounds.0 && b.x > 0)
+                    || (b.x == bounds.2 && b.x < lx)
+                    || (b.y == bounds.1 && b.y > 0)
+                    || (b.y == bounds.3 && b.y < ly);
+                if !on_edge || (b.x, b.y) == center {
+                    break;
+                }
+                center = (b.x, b.y);
+            }
+            if let Some(b) = best {
+                next.offer(b);
+            }
+        }
+        top = next;
+    }
+    Ok(top)
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::super::test_util::*;
+    use super::super::*;
+    use super::*;
+    use crate::rng::Rng;
+    use std::vec::Vec;
+
+    /// The in-place `TopK::offer` keeps exactly the list the copying version
+    /// (the one before the in-place rewrite, kept here as the reference) keeps.
+    #[test]
+    fn top_k_offer_equals_copying_reference() {
+        fn ref_offer(items: &mut Vec<Cand>, cap: usize, radius: usize, c: Cand) {
+            let near =
+                |a: &Cand, b: &Cand| a.x.abs_diff(b.x) <= radius && a.y.abs_diff(b.y) <= radius;
+            if items.len() == cap && cmp_scores(&c.s, &items[cap - 1].s) != Ordering::Greater {
+                return;
+            }
+            if items
+                .iter()
+                .any(|e| near(e, &c) && cmp_scores(&c.s, &e.s) != Ordering::Greater)
+            {
+                return;
+            }
+            let mut out = Vec::new();
+            let mut placed = false;
+            for e in items.iter().filter(|e| !near(e, &c)) {
+                if !placed && cmp_scores(&c.s, &e.s) == Ordering::Greater {
+                    out.push(c);
+                    placed = true;
+                }
+                if out.len() < cap {
+                    out.push(*e);
+                }
+            }
+            if !placed && out.len() < cap {
+                out.push(c);
+            }
+            out.truncate(cap);
+            *items = out;
+        }
+        let mut rng = Rng::new(32);
+        for case in 0..300 {
+            let cap = 1 + rng.below(MAX_CANDIDATES as u32) as usize;
+            let radius = rng.below(4) as usize;
+            let mut top = TopK::new(cap, radius);
+            let mut want = Vec::new();
+            for _ in 0..400 {
+                // Few distinct values, so ties and near duplicates are common.
+                let c = Cand {
+                    x: rng.below(30) as usize,
+                    y: rng.below(30) as usize,
+                    s: Score {
+                        num: i64::from(rng.below(40)) - 10,
+                        var_f: 1 + i64::from(rng.below(5)),
+                        var_t: 7,
+                    },
+                };
+                top.offer(c);
+                ref_offer(&mut want, cap, radius, c);
+                let got: Vec<(usize, usize, Score)> =
+                    top.as_slice().iter().map(|e| (e.x, e.y, e.s)).collect();
+                let exp: Vec<(usize, usize, Score)> =
+                    want.iter().map(|e| (e.x, e.y, e.s)).collect();
+                assert_eq!(got, exp, "case {case}");
+            }
+        }
+    }
+
+    /// Agreement of coarse-to-fine with exhaustive search on `cases` textured
+    /// matches (template cut under gain, offset and noise), and the MACs of both.
+    fn agreement(seed: u64, cases: u32, filter: Filter, masked: bool) -> (u32, u64, u64) {
+        agreement_with(
+            seed,
+            cases,
+            filter,
+            masked,
+            &SearchConfig::for_filter(filter),
+        )
+    }
+
+    fn agreement_with(
+        seed: u64,
+        cases: u32,
+        filter: Filter,
+        masked: bool,
+        cfg: &SearchConfig,
+    ) -> (u32, u64, u64) {
+        let mut rng = Rng::new(seed);
+        let mut agree = 0;
+        let mut work = (0u64, 0u64);
+        for case in 0..cases {
+            let (l, iw, ih) = match case % 10 {
+                0 => (128usize, 208usize, 200usize),
+                1..=5 => (64, 150, 140),
+                _ => (32, 120, 110),
+            };
+            let img = textured(iw, ih, &mut rng);
+            let (tx, ty) = (
+                rng.below((iw - l + 1) as u32) as usize,
+                rng.below((ih - l + 1) as u32) as usize,
+            );
+            let gain = rng.uniform(0.7, 1.2);
+            let off = rng.uniform(-20.0, 20.0);
+            let t: Vec<u8> = crop(&img, iw, tx, ty, l, l)
+                .iter()
+                .map(|&v| {
+                    (f32::from(v) * gain + off + rng.uniform(-12.0, 12.0))
+                        .round()
+                        .clamp(0.0, 255.0) as u8
+                })
+                .collect();
+            // A disc-shaped "rock" mask keeping about 60 % of the template.
+            let mask: Vec<u8> = (0..l * l)
+                .map(|i| {
+                    let (x, y) = ((i % l) as i64 - l as i64 / 2, (i / l) as i64 - l as i64 / 2);
+                    if 5 * (x * x + y * y) < 4 * (l * l / 4) as i64 {
+                        255
+                    } else {
+                        0
+                    }
+                })
+                .collect();
+            let run = |mode| {
+                let mut b = Bufs::with_config(l, l, iw, ih, mode, cfg);
+                match_template_with(
+                    view(&t, l, l),
+                    masked.then(|| view(&mask, l, l)),
+                    view(&img, iw, ih),
+                    Rect::new(0, 0, iw as u32, ih as u32),
+                    filter,
+                    mode,
+                    cfg,
+                    &mut b.scratch(),
+                )
+                .unwrap()
+            };
+            let (e, es) = run(Search::Exhaustive);
+            let (c, cs) = run(Search::CoarseToFine);
+            work.0 += es.macs;
+            work.1 += cs.macs;
+            if (e.x, e.y) == (c.x, c.y) {
+                assert_eq!(e.exact, c.exact);
+                agree += 1;
+            }
+        }
+        (agree, work.0, work.1)
+    }
+
+    /// Verifies: VTSM-NCC-012
+    #[test]
+    fn coarse_to_fine_agrees_with_exhaustive_on_textured_cases() {
+        let cases = 200;
+        let (agree, ex, ctf) = agreement(22, cases, Filter::Gray, false);
+        let rate = f64::from(agree) / f64::from(cases);
+        std::println!(
+            "gray: coarse-to-fine == exhaustive on {agree}/{cases} = {:.1} %; MACs {ctf:.3e} vs {ex:.3e}",
+            rate * 100.0
+        );
+        assert!(rate >= 0.99, "agreement {rate}");
+        assert!(ctf * 5 < ex);
+    }
+
+    /// Verifies: VTSM-NCC-012
+    #[test]
+    fn coarse_to_fine_agrees_with_exhaustive_in_every_domain_and_masked() {
+        for (filter, masked) in [
+            (Filter::Gray, true),
+            (Filter::Sobel, false),
+            (Filter::Laplacian, false),
+            (Filter::Sobel, true),
+        ] {
+            let cases = 100;
+            let (agree, ex, ctf) = agreement(23, cases, filter, masked);
+            let rate = f64::from(agree) / f64::from(cases);
+            std::println!(
+                "{filter:?} masked={masked}: coarse-to-fine == exhaustive on {agree}/{cases} = {:.1} %; MACs {ctf:.3e} vs {ex:.3e}",
+                rate * 100.0
+            );
+            assert!(rate >= 0.95, "{filter:?} masked={masked}: agreement {rate}");
+        }
+    }
+
+    /// The smallest and largest configurations, with the shallowest and deepest
+    /// pyramids, run in the scratch of [`ScratchSizes::with_config`], and the
+    /// largest agrees with the exhaustive search on the synthetic cases.
+    /// Verifies: VTSM-NCC-012
+    #[test]
+    fn every_search_config_agrees_on_textured_cases() {
+        for min_coarse_px in [MIN_COARSE_PX, 64] {
+            for (cand, radius) in [(1usize, 0usize), (MAX_CANDIDATES, MAX_REFINE_RADIUS_PX)] {
+                let cfg = SearchConfig {
+                    candidates: cand,
+                    final_candidates: cand,
+                    refine_radius_px: radius,
+                    final_refine_radius_px: radius,
+                    first_refine_radius_px: radius,
+                    min_coarse_px,
+                    wide_min_coarse_px: min_coarse_px,
+                    ..SearchConfig::for_filter(Filter::Sobel)
+                };
+                let cases = 30;
+                let (agree, _, _) = agreement_with(29, cases, Filter::Sobel, true, &cfg);
+                std::println!("{cfg:?}: {agree}/{cases}");
+                // The minimal search only has to run (its agreement is printed).
+                let need = if cand == 1 { 0 } else { cases * 29 / 30 };
+                assert!(agree >= need, "{cfg:?}: {agree}/{cases}");
+            }
+        }
+    }
+}
