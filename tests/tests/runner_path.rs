@@ -211,3 +211,60 @@ fn a_spent_step_budget_returns_the_anytime_result() {
     assert!(!rep.drive.done);
     assert!(o.stats.work_units <= 100, "{} units", o.stats.work_units);
 }
+
+/// A relocalization of `left`/`right` from `prior` through the runner.
+fn run_frames(left: &[u8], right: &[u8], prior: Pose) -> DeviceRun {
+    let s = scene();
+    let req = Request {
+        left,
+        right,
+        prior,
+        ..request(&s.map)
+    };
+    run_on_devices(&req, &DeviceFaults::default(), &DriveLimits::UNLIMITED).unwrap()
+}
+
+/// Hopeless frames end fast with their own codes: the preflight refuses
+/// black, saturated and identical frames and a prior facing away from the map
+/// before any render; noise ends in `RELOC_NO_EVIDENCE` after the stated cap.
+///
+/// Verifies: VTSM-RELOC-021
+#[test]
+fn hopeless_frames_end_fast_with_their_own_codes() {
+    let s = scene();
+    let n = s.left.len();
+    let prior = request(&s.map).prior;
+    let (black, white) = (vec![0u8; n], vec![255u8; n]);
+    for (l, r, code) in [
+        (&black, &s.right, FailureCode::RelocFrameNoTexture),
+        (&s.left, &white, FailureCode::RelocFrameNoTexture),
+        (&s.left, &s.left, FailureCode::RelocStereoIdentical),
+    ] {
+        let r = run_frames(l, r, prior);
+        assert_eq!(r.result.as_ref().err(), Some(&code));
+        assert_eq!(r.log.count(code), 1);
+    }
+    let away = Pose::new(
+        vtsm_core::nalgebra::UnitQuaternion::from_axis_angle(
+            &Vec3::x_axis(),
+            core::f32::consts::PI,
+        ) * prior.rotation(),
+        prior.translation(),
+    );
+    let r = run_frames(&s.left, &s.right, away);
+    assert_eq!(r.result.err(), Some(FailureCode::RelocNoVisibleMaskVertex));
+
+    let mut rng = vtsm_core::rng::Rng::new(11);
+    let mut noise = || -> Vec<u8> { (0..n).map(|_| rng.below(256) as u8).collect() };
+    let (nl, nr) = (noise(), noise());
+    let r = run_frames(&nl, &nr, prior);
+    let (o, _) = r.result.unwrap();
+    let cap = vtsm_core::reloc::Options::for_params(&request(&s.map).params).no_evidence_attempts;
+    println!(
+        "noise: {:?} after {} attempts (cap {cap})",
+        o.failure, o.stats.attempts
+    );
+    assert_eq!(o.failure, Some(FailureCode::RelocNoEvidence));
+    assert_eq!(o.stats.attempts, cap);
+    assert_eq!(o.stats.correspondences, 0);
+}
