@@ -1,80 +1,97 @@
-//! Bare-metal image: runs the determinism workload and prints its digest over
-//! semihosting, then the relocalization's result and its cost in SysTick ticks,
-//! and exits QEMU. See `src/workload.rs`.
+//! Bare-metal image: runs the determinism workload and prints its digest, then
+//! the relocalization's result, the engine's instruction count and the stack
+//! high-water mark, and exits QEMU. See `src/workload.rs`.
 //!
-//! Instruction counting: under `qemu-system-arm -icount shift=0` virtual time
-//! advances exactly 1 ns per executed instruction, and SysTick runs from the
-//! MPS2 board clock (25 MHz), so one tick is 40 instructions. The image prints
-//! raw ticks; `.ci/run` and `fsw-docs/budgets/cycles.md` convert them.
+//! The same logic runs on every target; only the start-up differs, in
+//! `src/start/<arch>.rs` (selected by `target_arch`), with its linker script
+//! chosen in `build.rs`. Each start-up module provides:
+//!
+//! - `NAME`: the target, as printed;
+//! - `print(args)`: console output (semihosting or UART);
+//! - `exit(ok)`: ends the QEMU run with a pass or fail status;
+//! - `ticks()`: a monotonic counter that advances with executed instructions
+//!   under `-icount shift=0` (SysTick, `minstret`, `PMCCNTR_EL0`);
+//! - `calibration_loop(n)`: exactly `2 * n` instructions, to find instructions
+//!   per tick;
+//! - `stack_bounds()`: lowest and one-past-highest address of the stack;
+//! - `stack_pointer()`: the current stack pointer.
+//!
+//! Stack high-water mark: before any work, `paint_stack` fills the stack from
+//! its lowest address up to just below the current frame with a pattern; after
+//! the workload, `stack_used` finds the lowest word no longer holding it. The
+//! figure is measured from the top of the stack, so it includes start-up frames.
 #![no_std]
 #![no_main]
 
-use core::sync::atomic::{AtomicU32, Ordering};
-use cortex_m::peripheral::{syst::SystClkSource, SCB, SYST};
-use cortex_m_rt::{entry, exception};
-use cortex_m_semihosting::{debug, hprintln};
+#[cfg_attr(target_arch = "arm", path = "start/arm.rs")]
+#[cfg_attr(target_arch = "riscv64", path = "start/riscv64.rs")]
+#[cfg_attr(target_arch = "aarch64", path = "start/aarch64.rs")]
+mod start;
 
 mod workload_mod {
     use vtsm_core::nalgebra;
     include!("workload.rs");
 }
 
-const RELOAD: u32 = 0x00FF_FFFF;
-static WRAPS: AtomicU32 = AtomicU32::new(0);
-
-#[exception]
-fn SysTick() {
-    WRAPS.fetch_add(1, Ordering::Relaxed);
-}
-
-/// Ticks since SysTick was started. Wraps are counted by the exception; a wrap
-/// that happened but is still pending is counted here, with the counter re-read.
-fn ticks() -> u64 {
-    cortex_m::interrupt::free(|_| {
-        let mut wraps = WRAPS.load(Ordering::Acquire);
-        let mut current = SYST::get_current();
-        if SCB::is_pendst_pending() {
-            wraps += 1;
-            current = SYST::get_current();
-        }
-        u64::from(wraps) * u64::from(RELOAD + 1) + u64::from(RELOAD - current)
-    })
+macro_rules! out {
+    ($($arg:tt)*) => { start::print(format_args!($($arg)*)) };
 }
 
 const CAL_LOOPS: u32 = 50_000_000;
 
-/// Exactly `2 * n` instructions: `subs` and `bne` per iteration.
-fn calibration_loop(n: u32) {
-    // SAFETY: a register-only countdown loop; touches no memory.
-    unsafe {
-        core::arch::asm!("1:", "subs {0}, {0}, #1", "bne 1b", inout(reg) n => _, options(nomem, nostack));
+/// Stack paint pattern.
+const PAINT: u32 = 0x5AC3_A55A;
+
+/// Bytes left unpainted below the painter's own stack pointer, for anything
+/// (an exception entry) that might push while it runs.
+const PAINT_MARGIN: usize = 256;
+
+/// Fills the stack from `bottom` up to `PAINT_MARGIN` below the current stack
+/// pointer with `PAINT`; returns the end of the painted region.
+#[inline(never)]
+fn paint_stack(bottom: usize) -> usize {
+    let limit = (start::stack_pointer() - PAINT_MARGIN) & !3;
+    let mut p = (bottom + 3) & !3;
+    while p < limit {
+        // SAFETY: [bottom, limit) is the stack's unused part, below every live
+        // frame (this function is a leaf); no Rust object lives there.
+        unsafe { (p as *mut u32).write_volatile(PAINT) };
+        p += 4;
     }
+    limit
 }
 
-#[entry]
-fn main() -> ! {
-    if let Some(mut p) = cortex_m::Peripherals::take() {
-        p.SYST.set_clock_source(SystClkSource::Core);
-        p.SYST.set_reload(RELOAD);
-        p.SYST.clear_current();
-        p.SYST.enable_interrupt();
-        p.SYST.enable_counter();
-        // The counter holds 0 until its first reload; reading it then would
-        // count a whole period that has not elapsed.
-        while SYST::get_current() == 0 {}
+/// Bytes of stack used so far: from the top down to the lowest word that no
+/// longer holds `PAINT`.
+#[inline(never)]
+fn stack_used(bottom: usize, top: usize) -> usize {
+    let mut p = (bottom + 3) & !3;
+    // SAFETY: reads of the stack region given by the linker script, word-aligned.
+    while p < top && unsafe { (p as *const u32).read_volatile() } == PAINT {
+        p += 4;
     }
-    // Calibration: a loop of exactly 2·CAL_LOOPS instructions (`subs` + `bne`).
-    let c0 = ticks();
-    calibration_loop(CAL_LOOPS);
-    let cal_ticks = ticks() - c0;
-    let t0 = ticks();
+    top - p
+}
+
+/// The shared body, called by each target's start-up once its clock and
+/// floating point are ready.
+pub fn run() -> ! {
+    let (bottom, top) = start::stack_bounds();
+    let painted_to = paint_stack(bottom);
+    // Calibration: a loop of exactly 2·CAL_LOOPS instructions.
+    let c0 = start::ticks();
+    start::calibration_loop(CAL_LOOPS);
+    let cal_ticks = start::ticks() - c0;
+    let t0 = start::ticks();
     let digest = workload_mod::workload();
-    let t1 = ticks();
-    let s = workload_mod::relocalization(&ticks);
-    let t2 = ticks();
-    hprintln!("VTSM-DIGEST {:016x}", digest);
-    hprintln!(
-        "relocalization: success {} (code 0x{:04x}), error {} um -> {} um, {} attempts",
+    let t1 = start::ticks();
+    let s = workload_mod::relocalization(&start::ticks);
+    let t2 = start::ticks();
+    let used = stack_used(bottom, top);
+    out!("VTSM-TARGET {}\n", start::NAME);
+    out!("VTSM-DIGEST {:016x}\n", digest);
+    out!(
+        "relocalization: success {} (code 0x{:04x}), error {} um -> {} um, {} attempts\n",
         s.success,
         s.failure,
         s.initial_error_um,
@@ -82,8 +99,8 @@ fn main() -> ! {
         s.attempts
     );
     let cal_instructions = 2 * u64::from(CAL_LOOPS);
-    hprintln!(
-        "VTSM-TICKS calibration {} per {} instructions; workload {} relocalization-block {}",
+    out!(
+        "VTSM-TICKS calibration {} per {} instructions; workload {} relocalization-block {}\n",
         cal_ticks,
         cal_instructions,
         t1 - t0,
@@ -91,20 +108,27 @@ fn main() -> ! {
     );
     if cal_ticks > 0 {
         let per_tick = (cal_instructions + cal_ticks / 2) / cal_ticks;
-        hprintln!(
-            "VTSM-INSTRUCTIONS workload {} relocalization-block {} engine {} ({} per tick)",
+        out!(
+            "VTSM-INSTRUCTIONS workload {} relocalization-block {} engine {} ({} per tick)\n",
             (t1 - t0) * per_tick,
             (t2 - t1) * per_tick,
             s.engine_ticks * per_tick,
             per_tick
         );
     }
-    debug::exit(debug::EXIT_SUCCESS);
-    loop {}
+    // The whole painted region overwritten means the stack may have overflowed.
+    let overflow = used >= top - bottom;
+    out!(
+        "VTSM-STACK high-water {} bytes of {} (painted {} bytes){}\n",
+        used,
+        top - bottom,
+        painted_to.saturating_sub(bottom),
+        if overflow { " EXHAUSTED" } else { "" }
+    );
+    start::exit(!overflow)
 }
 
 #[panic_handler]
 fn panic(_: &core::panic::PanicInfo) -> ! {
-    debug::exit(debug::EXIT_FAILURE);
-    loop {}
+    start::exit(false)
 }
