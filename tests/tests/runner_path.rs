@@ -224,9 +224,10 @@ fn run_frames(left: &[u8], right: &[u8], prior: Pose) -> DeviceRun {
     run_on_devices(&req, &DeviceFaults::default(), &DriveLimits::UNLIMITED).unwrap()
 }
 
-/// Hopeless frames end fast with their own codes: the preflight refuses
-/// black, saturated and identical frames and a prior facing away from the map
-/// before any render; noise ends in `RELOC_NO_EVIDENCE` after the stated cap.
+/// Hopeless frames end fast with their own codes, as failed relocalizations:
+/// the preflight refuses black, saturated and identical frames and a prior
+/// facing away from the map before any render; noise ends in
+/// `RELOC_NO_EVIDENCE` after the stated cap.
 ///
 /// Verifies: VTSM-RELOC-021
 #[test]
@@ -241,8 +242,10 @@ fn hopeless_frames_end_fast_with_their_own_codes() {
         (&s.left, &s.left, FailureCode::RelocStereoIdentical),
     ] {
         let r = run_frames(l, r, prior);
-        assert_eq!(r.result.as_ref().err(), Some(&code));
-        assert_eq!(r.log.count(code), 1);
+        let (o, _) = r.result.unwrap();
+        assert_eq!(o.failure, Some(code));
+        assert_eq!((o.stats.attempts, o.stats.work_units), (0, 0));
+        assert_eq!(o.log.count(code), 1);
     }
     let away = Pose::new(
         vtsm_core::nalgebra::UnitQuaternion::from_axis_angle(
@@ -251,8 +254,9 @@ fn hopeless_frames_end_fast_with_their_own_codes() {
         ) * prior.rotation(),
         prior.translation(),
     );
-    let r = run_frames(&s.left, &s.right, away);
-    assert_eq!(r.result.err(), Some(FailureCode::RelocNoVisibleMaskVertex));
+    let (o, _) = run_frames(&s.left, &s.right, away).result.unwrap();
+    assert_eq!(o.failure, Some(FailureCode::RelocNoVisibleMaskVertex));
+    assert_eq!(o.stats.attempts, 0);
 
     let mut rng = vtsm_core::rng::Rng::new(11);
     let mut noise = || -> Vec<u8> { (0..n).map(|_| rng.below(256) as u8).collect() };

@@ -218,6 +218,11 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         }
     }
 
+    /// End the run before any work with `code` (the preflight refused the inputs).
+    pub(super) fn end_early(&mut self, code: FailureCode) {
+        self.finish(Some(code), 0);
+    }
+
     /// Run until done at a fixed caller time: a loop over [`Self::step`],
     /// bounded by [`Self::max_work_units`] + 1 calls.
     pub fn run_to_completion(&mut self, now: u64) -> Outcome {

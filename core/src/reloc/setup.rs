@@ -83,15 +83,12 @@ impl<'a> Setup<'a> {
     }
 
     /// Check every input once: params, policy, options, prior, image sizes
-    /// against the rig, that the map has a sampling mask, and the
-    /// [`preflight`](super::preflight) (texture in both images, two different
-    /// images, a mask vertex in view from the prior).
+    /// against the rig, and that the map has a sampling mask.
     ///
     /// # Errors
     /// [`FailureCode::ConfigParamOutOfRange`] (params, policy or options),
     /// [`FailureCode::RelocPriorInvalid`], [`FailureCode::ImageSizeMismatch`],
-    /// [`FailureCode::RelocNoVisibleMaskVertex`] (empty mask or none in view),
-    /// [`FailureCode::RelocFrameNoTexture`], [`FailureCode::RelocStereoIdentical`].
+    /// [`FailureCode::RelocNoVisibleMaskVertex`] (empty mask).
     pub fn validate(&self) -> Result<(), FailureCode> {
         self.params.validate()?;
         self.policy.validate()?;
@@ -107,6 +104,16 @@ impl<'a> Setup<'a> {
         if self.map.mask_vertex_count() == 0 {
             return Err(FailureCode::RelocNoVisibleMaskVertex);
         }
+        Ok(())
+    }
+
+    /// The [`preflight`](super::preflight) of these inputs: texture in both
+    /// images, two different images, a mask vertex in view from the prior.
+    ///
+    /// # Errors
+    /// [`FailureCode::RelocFrameNoTexture`], [`FailureCode::RelocStereoIdentical`],
+    /// [`FailureCode::RelocNoVisibleMaskVertex`].
+    pub fn preflight(&self) -> Result<super::preflight::Preflight, FailureCode> {
         super::preflight::check(
             self.map,
             &self.left,
@@ -114,11 +121,12 @@ impl<'a> Setup<'a> {
             &self.rig,
             &self.prior,
             usize::from(self.params.template_px),
-        )?;
-        Ok(())
+        )
     }
 
-    /// Validate (as [`Setup::validate`]) and build the engine over `ws`.
+    /// Validate (as [`Setup::validate`]) and build the engine over `ws`. When
+    /// the [`Setup::preflight`] fails, the engine is already done: its first
+    /// step returns the outcome with the preflight's code and no work.
     ///
     /// # Errors
     /// As [`Setup::validate`], and [`FailureCode::ConfigCapacityTooSmall`] if
@@ -137,13 +145,19 @@ impl<'a> Setup<'a> {
             &self.policy,
             ws,
         );
-        Ok(Relocalizer::from_checked(
+        let mut engine = Relocalizer::from_checked(
             pipeline,
             RansacSolver::from_params(&self.params),
             &self.params,
             &self.options,
             &self.prior,
             self.seed,
-        ))
+        );
+        // A hopeless frame is a relocalization that fails (an outcome with its
+        // code, after no work), not bad input.
+        if let Err(code) = self.preflight() {
+            engine.end_early(code);
+        }
+        Ok(engine)
     }
 }
