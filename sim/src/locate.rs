@@ -60,6 +60,12 @@ pub struct DeviceFaults {
     pub seed: u64,
 }
 
+/// Workspace sizes the engine built for `params` with the default policy
+/// needs (what `vtsm_core::reloc::Setup::sizes` gives for them).
+pub fn workspace_sizes(params: &Params) -> WorkspaceSizes {
+    WorkspaceSizes::for_params(params, MatchPolicy::for_params(params).search)
+}
+
 /// Retry and size settings of the desktop runner for a `width × height` rig.
 pub fn runner_config(width: u32, height: u32) -> RunnerConfig {
     RunnerConfig {
@@ -163,8 +169,7 @@ pub fn run_on_devices(
     }
     // Check before allocating: a bad parameter must not size a huge workspace.
     req.params.validate().map_err(FailureCode::from)?;
-    let mode = MatchPolicy::for_params(&req.params).search;
-    let sizes = WorkspaceSizes::for_params(&req.params, mode);
+    let sizes = workspace_sizes(&req.params);
     let mut bytes = vec![0u8; sizes.bytes];
     let mut words = vec![0u32; sizes.words];
     let mut runs = vec![Run::default(); sizes.runs];

@@ -35,7 +35,8 @@ pub struct Preflight {
     pub left_texture_permille: u32,
     /// Textured share of the sampled pixels of the right image, ‰.
     pub right_texture_permille: u32,
-    /// Mask vertices in front of the prior's left camera and inside its image.
+    /// Mask vertices found in front of the prior's left camera and inside its
+    /// image: 0 or 1, since the scan stops at the first one.
     pub visible_mask_vertices: u32,
     /// Pixels and vertices read (the work of the preflight).
     pub reads: u64,

@@ -17,7 +17,7 @@ use vtsm_core::config as cfg;
 use vtsm_core::reloc::workspace::{
     WorkspaceSizes, PAPER_WORKSPACE, PAPER_WORKSPACE_BYTES, TEST_WORKSPACE, TEST_WORKSPACE_BYTES,
 };
-use vtsm_core::reloc::{MatchPolicy, Outcome, Pipeline, RansacSolver, Relocalizer};
+use vtsm_core::reloc::{Outcome, Pipeline, RansacSolver, Relocalizer};
 
 /// RAM of the flight envelope the budgets are held against (10 MB).
 pub const ENVELOPE_RAM_BYTES: u64 = 10_000_000;
@@ -155,7 +155,7 @@ pub fn profile_rows() -> Vec<Row> {
     for profile in [Profile::Test, Profile::Demo, Profile::Paper] {
         let (w, h) = profile.image_size();
         let p = locate::params_for_width(w);
-        let ws = WorkspaceSizes::for_params(&p, MatchPolicy::for_params(&p).search);
+        let ws = locate::workspace_sizes(&p);
         let pair = 2 * (w as usize) * (h as usize);
         let engine = size_of::<Relocalizer<Pipeline<'static, 'static>, RansacSolver>>();
         let ram = ws.total_bytes() + pair + engine;
