@@ -48,3 +48,27 @@ fn workload_relocalization_converges() {
         s.final_error_um
     );
 }
+
+/// The workload runs the flight path: the HAL runner captures the pair, reads
+/// the map and the prior through the bare-metal device set, steps the engine
+/// 16 work units at a time and sends the outcome and the failure counters.
+///
+/// Verifies: VTSM-HAL-024
+#[test]
+fn workload_relocalizes_through_the_runner() {
+    let s = on_big_stack(|| workload_mod::relocalization(&|| 0));
+    assert!(s.success, "failure code 0x{:04x}", s.failure);
+    // One step per 16 attempts or RANSAC chunks, plus the last one.
+    assert!(
+        s.steps > s.attempts / 16,
+        "{} steps for {} attempts",
+        s.steps,
+        s.attempts
+    );
+    assert_eq!(s.telemetry_frames, 2, "outcome and failure-counter frames");
+    assert!(
+        s.telemetry_bytes >= 42,
+        "{} payload bytes",
+        s.telemetry_bytes
+    );
+}

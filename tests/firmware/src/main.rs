@@ -1,5 +1,6 @@
 //! Bare-metal image: runs the determinism workload and prints its digest, then
-//! the relocalization's result, the engine's instruction count and the stack
+//! the relocalization's result (through the HAL runner and the device set in
+//! `src/workload.rs`), the engine's instruction count and the stack
 //! high-water mark, and exits QEMU. See `src/workload.rs`.
 //!
 //! The same logic runs on every target; only the start-up differs, in
@@ -97,6 +98,12 @@ pub fn run() -> ! {
         s.initial_error_um,
         s.final_error_um,
         s.attempts
+    );
+    out!(
+        "VTSM-RUNNER {} engine steps, {} telemetry frames ({} payload bytes)\n",
+        s.steps,
+        s.telemetry_frames,
+        s.telemetry_bytes
     );
     let cal_instructions = 2 * u64::from(CAL_LOOPS);
     out!(

@@ -53,12 +53,18 @@ pub struct Summary {
     pub initial_error_um: u32,
     /// Correspondence attempts.
     pub attempts: u32,
-    /// Clock ticks spent in the engine alone (`run_to_completion`).
+    /// Clock ticks from the runner's first engine step to its last.
     pub engine_ticks: u64,
+    /// Engine step calls made by the runner.
+    pub steps: u32,
+    /// Telemetry frames the runner sent.
+    pub telemetry_frames: u32,
+    /// Telemetry payload bytes the runner sent.
+    pub telemetry_bytes: u32,
 }
 
-/// Run only the relocalization part (for reporting), timing the engine's
-/// `run_to_completion` with `clock`.
+/// Run only the relocalization part (for reporting), with `clock` as the
+/// runner's clock.
 pub fn relocalization(clock: &dyn Fn() -> u64) -> Summary {
     reloc_block(&mut Digest::new(), clock)
 }
@@ -141,13 +147,13 @@ fn camera_pose(x: f32, y: f32, z: f32, yaw: f32) -> vtsm_core::geom::Pose {
 fn reloc_block(d: &mut Digest, clock: &dyn Fn() -> u64) -> Summary {
     use vtsm_core::config::Params;
     use vtsm_core::geom::{Camera, StereoRig, Vec3};
-    use vtsm_core::image::{GrayView, Rect};
+    use vtsm_core::image::GrayView;
     use vtsm_core::map::{MapSource, MapView};
-    use vtsm_core::raster::{self, Target};
-    use vtsm_core::reloc::{Setup, Storage};
+    use vtsm_core::reloc::{MatchPolicy, Storage, WorkspaceSizes};
     use vtsm_core::rng::Rng;
+    use vtsm_hal::runner::{Buffers, DriveLimits, Runner, RunnerConfig};
 
-    let fail = |code: u16| Summary { success: false, failure: code, final_error_um: u32::MAX, initial_error_um: 0, attempts: 0, engine_ticks: 0 };
+    let fail = |code: u16| Summary { success: false, failure: code, final_error_um: u32::MAX, initial_error_um: 0, attempts: 0, engine_ticks: 0, steps: 0, telemetry_frames: 0, telemetry_bytes: 0 };
     let mut rng = Rng::new(7);
     let mut bumps = [[0.0f32; 3]; 12];
     for b in bumps.iter_mut() {
@@ -224,47 +230,39 @@ fn reloc_block(d: &mut Digest, clock: &dyn Fn() -> u64) -> Summary {
     let Ok(cam) = Camera::from_hfov(W as u32, H as u32, 70.0) else { return fail(3) };
     let Ok(rig) = StereoRig::new(cam, 0.3) else { return fail(4) };
     let truth = camera_pose(0.1, -0.15, 1.1, 0.05);
-    // Real images: rendered from the map at the true pose, with another gain and offset.
-    let mut left = [0u8; W * H];
-    let mut right = [0u8; W * H];
-    let (mut inten, mut depth, mut mdepth) = ([0u8; TILE * TILE], [0u32; TILE * TILE], [0u32; TILE * TILE]);
-    for (img, pose) in [(&mut left, truth), (&mut right, rig.world_from_right(&truth))] {
-        for ty in (0..H).step_by(TILE) {
-            for tx in (0..W).step_by(TILE) {
-                let (tw, th) = (TILE.min(W - tx), TILE.min(H - ty));
-                let rect = Rect::new(tx as i32, ty as i32, tw as u32, th as u32);
-                let mut target = Target { intensity: &mut inten, depth: &mut depth, mask_depth: &mut mdepth };
-                if raster::render_window(&map, &cam, &pose, rect, &mut target).is_err() {
-                    continue;
-                }
-                for y in 0..th {
-                    for x in 0..tw {
-                        let v = f32::from(inten[y * tw + x]) * 0.85 + 14.0;
-                        img[(ty + y) * W + tx + x] = v.clamp(0.0, 255.0) as u8;
-                    }
-                }
-            }
-        }
-    }
-    d.bytes(&left);
-    d.bytes(&right);
-
     let p = Params { template_px: 32, search_px: 128, n_corr: 24, n_iter: 3, attempts_per_iter: 300, ransac_iter: 300, max_reseed: 3, ..Params::paper() };
-    let (Ok(lv), Ok(rv)) = (GrayView::new(&left, W, H, W), GrayView::new(&right, W, H, W)) else { return fail(5) };
     let dq = nalgebra::UnitQuaternion::from_scaled_axis(Vec3::new(0.3, -0.5, 0.8).normalize() * 1.0f32.to_radians());
     let prior = vtsm_core::geom::Pose::new(dq * truth.rotation(), truth.translation() + Vec3::new(0.11, -0.06, 0.03));
-    let setup = Setup::new(&map, lv, rv, &rig, &p, &prior, 2026);
-    if setup.sizes() != WS {
+    if WorkspaceSizes::for_params(&p, MatchPolicy::for_params(&p).search) != WS {
         return fail(6);
     }
+
+    // The flight path: the runner captures the pair through the camera (which
+    // renders it from the map at the true pose, with another gain and offset),
+    // reads the prior and the map product through their devices, builds the
+    // engine with the one constructor and steps it with the clock's time.
+    let mut runner = Runner::new(
+        devices::SceneCamera { map: &map, rig: &rig, truth, sequence: 0, clock },
+        devices::TickClock(clock),
+        devices::FlashStore(encoded),
+        devices::FixedPrior(prior),
+        devices::CountingTelemetry::default(),
+        RunnerConfig { attempts: 3, product_attempts: 2, chunk_len: 4096, capture_timeout_ticks: u64::MAX, image_size: (W as u32, H as u32) },
+    );
+    let mut left = [0u8; W * H];
+    let mut right = [0u8; W * H];
+    let mut map_ram = [0u8; MAP_BYTES];
+    let Some(map_buf) = map_ram.get_mut(..n) else { return fail(7) };
     let mut storage = Storage::<{ WS.bytes }, { WS.words }, { WS.runs }>::new();
-    let mut reloc = match storage.workspace(WS).and_then(|ws| setup.build(ws)) {
+    let Ok(ws) = storage.workspace(WS) else { return fail(8) };
+    let limits = DriveLimits { units_per_step: 16, max_steps: u32::MAX, budget_ticks: u64::MAX };
+    let bufs = Buffers { left: &mut left, right: &mut right, map: map_buf };
+    let (out, report) = match runner.relocalize(bufs, &rig, &p, ws, 2026, &limits) {
         Ok(r) => r,
         Err(e) => return fail(e.code()),
     };
-    let e0 = clock();
-    let out = reloc.run_to_completion(0);
-    let engine_ticks = clock().wrapping_sub(e0);
+    d.bytes(&left);
+    d.bytes(&right);
     for v in out.pose.t().into_iter().chain(out.pose.q()) {
         d.f32(v);
     }
@@ -282,6 +280,139 @@ fn reloc_block(d: &mut Digest, clock: &dyn Fn() -> u64) -> Summary {
         final_error_um: (e1 * 1e6) as u32,
         initial_error_um: (e0 * 1e6) as u32,
         attempts: out.stats.attempts,
-        engine_ticks,
+        engine_ticks: report.drive.elapsed_ticks,
+        steps: report.drive.steps,
+        telemetry_frames: runner.telemetry.frames,
+        telemetry_bytes: runner.telemetry.bytes,
+    }
+}
+
+// ---- devices ------------------------------------------------------------------
+//
+// The no_std device set the runner drives on the bare-metal images (and on the
+// host, for the same digest): a camera that renders its frames from the map,
+// the target's instruction-driven clock, the map product in flash, a fixed
+// prior, and a telemetry link that counts what it is sent.
+mod devices {
+    use core::convert::Infallible;
+    use vtsm_core::geom::{Pose, StereoRig};
+    use vtsm_core::image::Rect;
+    use vtsm_core::map::MapView;
+    use vtsm_core::raster::{self, Target};
+    use vtsm_hal::prior::{Covariance, PriorEstimate};
+    use super::TILE;
+    use vtsm_hal::{Clock, ErrorKind, ErrorType, FrameInfo, MapStore, PosePrior, StereoCamera, Telemetry};
+
+    /// A stereo camera looking at the map from `truth`: each capture renders
+    /// the pair, in 64-pixel tiles, with a gain and offset unlike the map's
+    /// lighting.
+    pub struct SceneCamera<'a, 'm> {
+        pub map: &'a MapView<'m>,
+        pub rig: &'a StereoRig,
+        pub truth: Pose,
+        pub sequence: u32,
+        pub clock: &'a dyn Fn() -> u64,
+    }
+
+    impl ErrorType for SceneCamera<'_, '_> {
+        type Error = ErrorKind;
+    }
+
+    impl StereoCamera for SceneCamera<'_, '_> {
+        fn capture(&mut self, left: &mut [u8], right: &mut [u8], _timeout_ticks: u64) -> Result<FrameInfo, ErrorKind> {
+            let cam = self.rig.cam;
+            let (w, h) = (cam.width as usize, cam.height as usize);
+            let n = w * h;
+            let (Some(left), Some(right)) = (left.get_mut(..n), right.get_mut(..n)) else { return Err(ErrorKind::Other) };
+            let (mut inten, mut depth, mut mdepth) = ([0u8; TILE * TILE], [0u32; TILE * TILE], [0u32; TILE * TILE]);
+            for (img, pose) in [(left, self.truth), (right, self.rig.world_from_right(&self.truth))] {
+                for ty in (0..h).step_by(TILE) {
+                    for tx in (0..w).step_by(TILE) {
+                        let (tw, th) = (TILE.min(w - tx), TILE.min(h - ty));
+                        let rect = Rect::new(tx as i32, ty as i32, tw as u32, th as u32);
+                        let mut target = Target { intensity: &mut inten, depth: &mut depth, mask_depth: &mut mdepth };
+                        if raster::render_window(self.map, &cam, &pose, rect, &mut target).is_err() {
+                            continue;
+                        }
+                        for y in 0..th {
+                            for x in 0..tw {
+                                let v = f32::from(inten[y * tw + x]) * 0.85 + 14.0;
+                                img[(ty + y) * w + tx + x] = v.clamp(0.0, 255.0) as u8;
+                            }
+                        }
+                    }
+                }
+            }
+            self.sequence += 1;
+            Ok(FrameInfo { width: cam.width, height: cam.height, stride: cam.width, sequence: self.sequence, timestamp_ticks: (self.clock)(), exposure_us: 2000 })
+        }
+    }
+
+    /// The target's tick counter.
+    pub struct TickClock<'a>(pub &'a dyn Fn() -> u64);
+
+    impl ErrorType for TickClock<'_> {
+        type Error = Infallible;
+    }
+
+    impl Clock for TickClock<'_> {
+        fn tick_hz(&self) -> u32 {
+            1_000_000
+        }
+        fn now_ticks(&mut self) -> Result<u64, Infallible> {
+            Ok((self.0)())
+        }
+    }
+
+    /// The map product in memory-mapped flash.
+    pub struct FlashStore<'a>(pub &'a [u8]);
+
+    impl ErrorType for FlashStore<'_> {
+        type Error = ErrorKind;
+    }
+
+    impl MapStore for FlashStore<'_> {
+        fn len(&mut self) -> Result<u32, ErrorKind> {
+            u32::try_from(self.0.len()).map_err(|_| ErrorKind::Other)
+        }
+        fn read_range(&mut self, offset: u32, buf: &mut [u8]) -> Result<(), ErrorKind> {
+            let start = offset as usize;
+            let src = start.checked_add(buf.len()).and_then(|end| self.0.get(start..end)).ok_or(ErrorKind::Other)?;
+            buf.copy_from_slice(src);
+            Ok(())
+        }
+    }
+
+    /// A prior from the navigation filter, fixed for the run.
+    pub struct FixedPrior(pub Pose);
+
+    impl ErrorType for FixedPrior {
+        type Error = Infallible;
+    }
+
+    impl PosePrior for FixedPrior {
+        fn latest(&mut self) -> Result<PriorEstimate, Infallible> {
+            let (t, r) = (0.2f32 * 0.2, 1.5f32.to_radians() * 1.5f32.to_radians());
+            Ok(PriorEstimate { world_from_left: self.0, covariance: Covariance::Diagonal([t, t, t, r, r, r]), timestamp_ticks: 0 })
+        }
+    }
+
+    /// A downlink that counts frames and payload bytes.
+    #[derive(Default)]
+    pub struct CountingTelemetry {
+        pub frames: u32,
+        pub bytes: u32,
+    }
+
+    impl ErrorType for CountingTelemetry {
+        type Error = Infallible;
+    }
+
+    impl Telemetry for CountingTelemetry {
+        fn send(&mut self, _kind: u8, payload: &[u8]) -> Result<(), Infallible> {
+            self.frames += 1;
+            self.bytes += payload.len() as u32;
+            Ok(())
+        }
     }
 }
