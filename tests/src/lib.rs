@@ -226,3 +226,23 @@ mod tests {
         assert!(!is_requirement_id("VTSM-GEOM-04"));
     }
 }
+
+/// The firmware's determinism workload (`tests/firmware/src/workload.rs`),
+/// compiled for the host: the same digest and outcome folding as the images.
+#[allow(
+    dead_code,
+    missing_docs,
+    clippy::indexing_slicing,
+    clippy::new_without_default
+)]
+pub mod workload {
+    use vtsm_core::nalgebra;
+    include!("../firmware/src/workload.rs");
+}
+
+/// Digest of an outcome as the firmware folds it ([`workload::fold_outcome`]).
+pub fn outcome_digest(o: &vtsm_core::reloc::Outcome) -> u64 {
+    let mut d = workload::Digest::new();
+    workload::fold_outcome(&mut d, o);
+    d.0
+}

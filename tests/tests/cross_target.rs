@@ -6,11 +6,7 @@
 
 #![allow(clippy::panic)] // test-only helper below panics by design
 
-mod workload_mod {
-    #![allow(dead_code, missing_docs, clippy::indexing_slicing)]
-    use vtsm_core::nalgebra;
-    include!("../firmware/src/workload.rs");
-}
+use vtsm_tests::workload as workload_mod;
 
 /// The workload keeps its buffers on the stack, as the firmware does.
 fn on_big_stack<T: Send + 'static>(f: fn() -> T) -> T {

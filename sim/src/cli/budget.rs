@@ -42,6 +42,117 @@ pub struct Args {
     /// snapshot test). Existing files there are replaced.
     #[arg(long, value_name = "DIR")]
     pub write: Option<std::path::PathBuf>,
+    /// Add the section sizes of the firmware images found under DIR (the
+    /// firmware crate's `target/`: `DIR/<target>/release/vtsm-firmware` for
+    /// each target of [`FIRMWARE_TARGETS`]), read from their ELF headers.
+    /// These rows describe a build, not the code alone, so they are kept out
+    /// of the snapshot.
+    #[arg(long, value_name = "DIR")]
+    pub firmware: Option<std::path::PathBuf>,
+}
+
+/// The firmware targets whose images `--firmware` looks for.
+pub const FIRMWARE_TARGETS: [&str; 3] = [
+    "thumbv7em-none-eabihf",
+    "riscv64gc-unknown-none-elf",
+    "aarch64-unknown-none",
+];
+
+/// Section sizes of one bare-metal image, bytes, by what they hold.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ImageSections {
+    /// Executable code (`.text`, vectors).
+    pub text: u64,
+    /// Read-only data (`.rodata`).
+    pub rodata: u64,
+    /// Initialised data (`.data`): in flash, copied to RAM at start-up.
+    pub data: u64,
+    /// Zeroed data (`.bss`, `.uninit`): RAM only.
+    pub bss: u64,
+}
+
+impl ImageSections {
+    /// Non-volatile memory the image occupies: code, read-only and initial data.
+    pub fn flash(&self) -> u64 {
+        self.text + self.rodata + self.data
+    }
+    /// Static RAM: initialised plus zeroed data (the stack comes on top).
+    pub fn static_ram(&self) -> u64 {
+        self.data + self.bss
+    }
+}
+
+/// Sum the allocated sections of an ELF image by kind (executable,
+/// read-only, writable with contents, writable without).
+///
+/// # Errors
+/// The bytes are not an ELF file the `object` crate can read.
+pub fn image_sections(elf: &[u8]) -> std::result::Result<ImageSections, String> {
+    use object::{Object, ObjectSection, SectionFlags, SectionKind};
+    let file = object::File::parse(elf).map_err(|e| e.to_string())?;
+    let mut out = ImageSections::default();
+    for sec in file.sections() {
+        let SectionFlags::Elf { sh_flags } = sec.flags() else {
+            continue;
+        };
+        const ALLOC: u64 = 0x2;
+        if sh_flags & ALLOC == 0 {
+            continue;
+        }
+        let size = sec.size();
+        match sec.kind() {
+            SectionKind::Text => out.text += size,
+            SectionKind::ReadOnlyData | SectionKind::ReadOnlyString => out.rodata += size,
+            SectionKind::Data => out.data += size,
+            SectionKind::UninitializedData => out.bss += size,
+            // Anything else allocated (start-up tables, `.ARM.exidx`) is
+            // counted as read-only data.
+            _ => out.rodata += size,
+        }
+    }
+    Ok(out)
+}
+
+/// The `firmware` rows for every image found under `dir`.
+///
+/// # Errors
+/// No image found, or one that cannot be read as ELF.
+pub fn firmware_rows(dir: &std::path::Path) -> crate::Result<Vec<Row>> {
+    let mut rows = Vec::new();
+    for t in FIRMWARE_TARGETS {
+        let path = dir.join(t).join("release").join("vtsm-firmware");
+        let Ok(bytes) = std::fs::read(&path) else {
+            continue;
+        };
+        let s = image_sections(&bytes).map_err(|e| crate::Error::file(&path, e))?;
+        let to = |v: u64| usize::try_from(v).unwrap_or(usize::MAX);
+        rows.extend([
+            row("firmware", format!("{t}: .text"), to(s.text), "bytes"),
+            row("firmware", format!("{t}: .rodata"), to(s.rodata), "bytes"),
+            row("firmware", format!("{t}: .data"), to(s.data), "bytes"),
+            row("firmware", format!("{t}: .bss"), to(s.bss), "bytes"),
+            row(
+                "firmware",
+                format!("{t}: flash (text + rodata + data)"),
+                to(s.flash()),
+                "bytes",
+            ),
+            row(
+                "firmware",
+                format!("{t}: static RAM (data + bss)"),
+                to(s.static_ram()),
+                "bytes",
+            ),
+        ]);
+    }
+    if rows.is_empty() {
+        return Err(crate::Error::file(
+            dir,
+            "no firmware image (<target>/release/vtsm-firmware) here; build one with \
+             `(cd tests/firmware && cargo build --release --target <t>)`",
+        ));
+    }
+    Ok(rows)
 }
 
 /// One line of the budget.
@@ -281,6 +392,9 @@ pub fn run(args: &Args) -> crate::Result<u8> {
     if !args.no_run {
         rows.extend(measured_rows(args.seed)?);
     }
+    if let Some(dir) = &args.firmware {
+        rows.extend(firmware_rows(dir)?);
+    }
     if let Some(dir) = &args.write {
         write(dir, &rows)?;
         println!("wrote {} rows to {}", rows.len(), dir.display());
@@ -304,9 +418,10 @@ pub fn run(args: &Args) -> crate::Result<u8> {
 }
 
 /// Rows whose value is not a deterministic function of the code and seed
-/// (wall time): left out of the snapshot.
+/// (wall time, and the firmware images, which depend on the toolchain that
+/// built them): left out of the snapshot.
 pub fn in_snapshot(r: &Row) -> bool {
-    r.unit != "µs"
+    r.unit != "µs" && r.section != "firmware"
 }
 
 /// Relative tolerance of a row in the snapshot comparison: static sizes and
@@ -333,7 +448,10 @@ fn write(dir: &std::path::Path, rows: &[Row]) -> crate::Result<()> {
     let mut md = String::from(
         "# Budget (generated)\n\nWritten by `vtsm budget --write fsw-docs/budgets/`; do not edit: \
          `tests/tests/e2e_budget.rs` compares `budget.snapshot.json` with the code \
-         (static rows exactly, measured counters within 2 %).\n\n\
+         (static rows exactly, measured counters within 2 %). The `firmware` rows, when \
+         present, are read from the ELF images by `--firmware tests/firmware/target` \
+         (after `cargo build --release --target <t>` in `tests/firmware/`) and are not \
+         in the snapshot.\n\n\
          | section | item | value | unit |\n|---|---|---:|---|\n",
     );
     for r in rows {
@@ -352,4 +470,39 @@ fn write(dir: &std::path::Path, rows: &[Row]) -> crate::Result<()> {
         crate::io::write_atomic(&path, text.as_bytes(), true)?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    /// The host test binary is an ELF image too: its code, read-only data and
+    /// zeroed data are found, and flash and RAM are the documented sums.
+    #[test]
+    fn image_sections_of_an_elf_image() {
+        let exe = std::fs::read(std::env::current_exe().unwrap()).unwrap();
+        let s = image_sections(&exe).unwrap();
+        assert!(s.text > 100_000, "{s:?}");
+        assert!(s.rodata > 0 && s.bss > 0, "{s:?}");
+        assert_eq!(s.flash(), s.text + s.rodata + s.data);
+        assert_eq!(s.static_ram(), s.data + s.bss);
+    }
+
+    /// Bytes that are not ELF, and a directory without images, are errors
+    /// naming the file.
+    #[test]
+    fn firmware_rows_refuse_what_is_not_an_image() {
+        assert!(image_sections(b"not an elf file at all").is_err());
+        let dir = std::env::temp_dir().join(format!("vtsm-fw-none-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let e = firmware_rows(&dir).unwrap_err().to_string();
+        assert!(e.contains("no firmware image"), "{e}");
+        let bin = dir.join(FIRMWARE_TARGETS[0]).join("release");
+        std::fs::create_dir_all(&bin).unwrap();
+        std::fs::write(bin.join("vtsm-firmware"), b"garbage").unwrap();
+        let e = firmware_rows(&dir).unwrap_err().to_string();
+        assert!(e.contains("vtsm-firmware"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

@@ -29,9 +29,16 @@
 #[cfg_attr(target_arch = "aarch64", path = "start/aarch64.rs")]
 mod start;
 
+#[cfg_attr(vtsm_flight, allow(dead_code))]
 mod workload_mod {
     use vtsm_core::nalgebra;
     include!("workload.rs");
+}
+
+#[cfg(vtsm_flight)]
+mod flight {
+    use vtsm_core::nalgebra;
+    include!("flight.rs");
 }
 
 macro_rules! out {
@@ -78,11 +85,21 @@ fn stack_used(bottom: usize, top: usize) -> usize {
 /// floating point are ready.
 pub fn run() -> ! {
     let (bottom, top) = start::stack_bounds();
+    #[cfg_attr(vtsm_flight, allow(unused_variables))]
     let painted_to = paint_stack(bottom);
     // Calibration: a loop of exactly 2·CAL_LOOPS instructions.
     let c0 = start::ticks();
     start::calibration_loop(CAL_LOOPS);
     let cal_ticks = start::ticks() - c0;
+    #[cfg(vtsm_flight)]
+    run_flight(bottom, top, cal_ticks);
+    #[cfg(not(vtsm_flight))]
+    run_workload(bottom, top, painted_to, cal_ticks);
+}
+
+/// The determinism workload and the timed relocalization: reports and exits.
+#[cfg(not(vtsm_flight))]
+fn run_workload(bottom: usize, top: usize, painted_to: usize, cal_ticks: u64) -> ! {
     let t0 = start::ticks();
     let digest = workload_mod::workload();
     let t1 = start::ticks();
@@ -133,6 +150,41 @@ pub fn run() -> ! {
         if overflow { " EXHAUSTED" } else { "" }
     );
     start::exit(!overflow)
+}
+
+/// The flight-profile run (images built with `VTSM_FLIGHT_BUNDLE`): reports
+/// and exits instead of running the determinism workload.
+#[cfg(vtsm_flight)]
+fn run_flight(bottom: usize, top: usize, cal_ticks: u64) -> ! {
+    let f = flight::run(&start::ticks);
+    let used = stack_used(bottom, top);
+    let per_tick = (2 * u64::from(CAL_LOOPS) + cal_ticks / 2) / cal_ticks.max(1);
+    out!("VTSM-TARGET {}\n", start::NAME);
+    out!(
+        "VTSM-FLIGHT-DIGEST {:016x} (host {:016x})\n",
+        f.digest,
+        flight::scene::HOST_DIGEST
+    );
+    out!(
+        "flight relocalization: code 0x{:04x}, error {} um -> {} um, {} attempts (host {}), {} steps\n",
+        f.failure,
+        f.initial_error_um,
+        f.final_error_um,
+        f.attempts,
+        flight::scene::HOST_ATTEMPTS,
+        f.steps
+    );
+    out!(
+        "VTSM-FLIGHT-INSTRUCTIONS engine {} ({} per tick)\n",
+        f.engine_ticks * per_tick,
+        per_tick
+    );
+    out!(
+        "VTSM-FLIGHT-RAM workspace {} bytes; stack high-water {} bytes (static RAM: see the image's .data + .bss)\n",
+        f.workspace_bytes,
+        used
+    );
+    start::exit(f.digest == flight::scene::HOST_DIGEST && used < top - bottom)
 }
 
 #[panic_handler]

@@ -32,6 +32,20 @@ impl Digest {
     }
 }
 
+/// Fold an outcome, bit for bit: pose, residual, inliers, work counters,
+/// failure code. The flight-profile run and its host reference use it too.
+pub fn fold_outcome(d: &mut Digest, out: &vtsm_core::reloc::Outcome) {
+    for v in out.pose.t().into_iter().chain(out.pose.q()) {
+        d.f32(v);
+    }
+    d.f32(out.quality.rms_m);
+    d.u64(u64::from(out.quality.inliers));
+    d.u64(u64::from(out.stats.attempts));
+    d.u64(u64::from(out.stats.ransac_iterations));
+    d.u64(out.stats.pipeline.ncc_macs);
+    d.u64(u64::from(out.failure.map_or(0, |c| c.code())));
+}
+
 /// Run the workload and return the digest.
 pub fn workload() -> u64 {
     let mut d = Digest::new();
@@ -263,15 +277,7 @@ fn reloc_block(d: &mut Digest, clock: &dyn Fn() -> u64) -> Summary {
     };
     d.bytes(&left);
     d.bytes(&right);
-    for v in out.pose.t().into_iter().chain(out.pose.q()) {
-        d.f32(v);
-    }
-    d.f32(out.quality.rms_m);
-    d.u64(u64::from(out.quality.inliers));
-    d.u64(u64::from(out.stats.attempts));
-    d.u64(u64::from(out.stats.ransac_iterations));
-    d.u64(out.stats.pipeline.ncc_macs);
-    d.u64(u64::from(out.failure.map_or(0, |c| c.code())));
+    fold_outcome(d, &out);
     let (e1, _) = out.pose.error_to(&truth);
     let (e0, _) = prior.error_to(&truth);
     Summary {
@@ -293,7 +299,7 @@ fn reloc_block(d: &mut Digest, clock: &dyn Fn() -> u64) -> Summary {
 // host, for the same digest): a camera that renders its frames from the map,
 // the target's instruction-driven clock, the map product in flash, a fixed
 // prior, and a telemetry link that counts what it is sent.
-mod devices {
+pub mod devices {
     use core::convert::Infallible;
     use vtsm_core::geom::{Pose, StereoRig};
     use vtsm_core::image::Rect;
@@ -345,6 +351,37 @@ mod devices {
             }
             self.sequence += 1;
             Ok(FrameInfo { width: cam.width, height: cam.height, stride: cam.width, sequence: self.sequence, timestamp_ticks: (self.clock)(), exposure_us: 2000 })
+        }
+    }
+
+    /// A stereo camera whose frame memory holds one captured pair: each
+    /// capture delivers it (the DMA copy into the caller's buffers). Used by
+    /// the flight-profile image (`src/flight.rs`).
+    #[allow(dead_code)]
+    pub struct FrameCamera<'a> {
+        pub left: &'a [u8],
+        pub right: &'a [u8],
+        pub width: u32,
+        pub height: u32,
+        pub sequence: u32,
+        pub clock: &'a dyn Fn() -> u64,
+    }
+
+    impl ErrorType for FrameCamera<'_> {
+        type Error = ErrorKind;
+    }
+
+    impl StereoCamera for FrameCamera<'_> {
+        fn capture(&mut self, left: &mut [u8], right: &mut [u8], _timeout_ticks: u64) -> Result<FrameInfo, ErrorKind> {
+            let n = self.left.len();
+            let (Some(l), Some(r)) = (left.get_mut(..n), right.get_mut(..n)) else { return Err(ErrorKind::Other) };
+            if self.right.len() != n {
+                return Err(ErrorKind::Other);
+            }
+            l.copy_from_slice(self.left);
+            r.copy_from_slice(self.right);
+            self.sequence += 1;
+            Ok(FrameInfo { width: self.width, height: self.height, stride: self.width, sequence: self.sequence, timestamp_ticks: (self.clock)(), exposure_us: 2000 })
         }
     }
 
