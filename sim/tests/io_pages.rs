@@ -586,3 +586,39 @@ fn meshes_above_the_product_capacity_are_refused_with_a_code() {
     let e = mesh::check_capacity(p, MAX_MAP_VERTICES + 1, 1).unwrap_err();
     assert!(e.msg.contains("MAX_MAP_VERTICES"), "{e}");
 }
+
+/// The example in the ICD builds, with both pages in the atlas.
+///
+/// Verifies: VTSM-CLI-026
+#[test]
+fn icd_two_page_example_builds_a_map() {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../fsw-docs/interfaces/examples/two-pages/m.obj");
+    let m = mesh::load_mesh(&p).unwrap();
+    assert_eq!(m.triangles.len(), 4);
+    // Two 8² pages used to their edges: two 12² rectangles.
+    let (w, h) = (m.texture.width, m.texture.height);
+    assert_eq!((w * h, w.max(h)), (288, 24));
+    let bytes = m.encode_map(0.5).unwrap();
+    let map = MapView::new_checked(&bytes).unwrap();
+    // Rock faces sample the dark page (40..=50), sand faces the light one (200..=205).
+    for i in 0..map.triangle_count() {
+        let t = map.triangle(i).unwrap();
+        let rock = (0..3).all(|k| map.vertex(t.v[k]).unwrap().x <= 1.0);
+        let c =
+            t.uv.iter()
+                .fold([0f32; 2], |a, c| [a[0] + c[0] / 3.0, a[1] + c[1] / 3.0]);
+        let g = map
+            .texture()
+            .get(c[0].round() as usize, c[1].round() as usize)
+            .unwrap();
+        assert!(
+            if rock {
+                (40..=50).contains(&g)
+            } else {
+                (200..=205).contains(&g)
+            },
+            "{g}"
+        );
+    }
+}

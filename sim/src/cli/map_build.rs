@@ -16,8 +16,9 @@ pub const DEFAULT_TILE_SIZE_M: f32 = 0.5;
 /// Arguments of `vtsm map build`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
-    /// Textured mesh: Wavefront OBJ (texture from the MTL's map_Kd) or PLY
-    /// (texture from `comment TextureFile`, or per-vertex colour).
+    /// Textured mesh: Wavefront OBJ (textures from the MTL's map_Kd) or PLY
+    /// (textures from `comment TextureFile`, page per face from `texnumber`, or
+    /// per-vertex colour). Several texture pages are packed into one atlas.
     #[arg(long, value_name = "M.obj|M.ply")]
     pub mesh: PathBuf,
     /// Mask mesh K: the triangles of the mesh to sample points from (same vertex
