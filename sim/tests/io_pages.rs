@@ -260,14 +260,15 @@ const VIEWS: [([f32; 3], [f32; 3]); 6] = [
 ];
 
 /// Largest intensity difference over all views (same pixels drawn, same depths,
-/// same mask depths asserted), and the number of pixels compared.
+/// same mask depths asserted), and the number of pixels compared (printed with
+/// the number that differ).
 fn compare_renders(a: &MeshData, b: &MeshData) -> (u8, usize) {
     let (ba, bb) = (a.encode_map(0.5).unwrap(), b.encode_map(0.5).unwrap());
     let (ma, mb) = (
         MapView::new_checked(&ba).unwrap(),
         MapView::new_checked(&bb).unwrap(),
     );
-    let (mut worst, mut pixels) = (0u8, 0usize);
+    let (mut worst, mut pixels, mut differ) = (0u8, 0usize, 0usize);
     for (eye, target) in VIEWS {
         let (ia, da, ka) = render(&ma, eye, target);
         let (ib, db, kb) = render(&mb, eye, target);
@@ -277,9 +278,11 @@ fn compare_renders(a: &MeshData, b: &MeshData) -> (u8, usize) {
             if *d != DEPTH_NONE {
                 worst = worst.max(x.abs_diff(*y));
                 pixels += 1;
+                differ += usize::from(x != y);
             }
         }
     }
+    println!("{differ} of {pixels} drawn pixels differ");
     (worst, pixels)
 }
 
