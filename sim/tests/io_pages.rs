@@ -625,3 +625,32 @@ fn icd_two_page_example_builds_a_map() {
         );
     }
 }
+
+/// Through the binary: the two-page example builds (exit 0, one summary line on
+/// stdout), and with stderr not a terminal no progress is drawn there.
+///
+/// Verifies: VTSM-CLI-026, VTSM-CLI-031
+#[test]
+fn map_build_cli_builds_the_two_page_example_quietly() {
+    let d = dir("cli");
+    let mesh = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../fsw-docs/interfaces/examples/two-pages/m.obj");
+    let out = d.join("two.vmap");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_vtsm"))
+        .args(["map", "build", "--mesh"])
+        .arg(&mesh)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr),
+    );
+    assert_eq!(o.status.code(), Some(0), "{stderr}");
+    assert!(stderr.is_empty(), "{stderr}");
+    assert_eq!(stdout.lines().count(), 1, "{stdout}");
+    assert!(stdout.contains("4 triangles"), "{stdout}");
+    let bytes = std::fs::read(&out).unwrap();
+    assert!(MapView::new_checked(&bytes).is_ok());
+}
