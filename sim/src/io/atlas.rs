@@ -392,4 +392,69 @@ mod tests {
         let e = pack(&pages, &[0, 2], &mut [full; 2]).unwrap_err();
         assert!(e.contains("page 2"), "{e}");
     }
+
+    /// Bilinear sample at texture pixel (x, y), clamped to the edge texels (the
+    /// core sampler's rule, in f64).
+    fn bilinear(img: &Gray8, x: f64, y: f64) -> f64 {
+        let (w, h) = (i64::from(img.width), i64::from(img.height));
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let g = |i: i64, j: i64| {
+            let (i, j) = (i.clamp(0, w - 1), j.clamp(0, h - 1));
+            f64::from(img.pixels[(j * w + i) as usize])
+        };
+        let (i, j) = (x0 as i64, y0 as i64);
+        let top = g(i, j) * (1.0 - fx) + g(i + 1, j) * fx;
+        let bot = g(i, j + 1) * (1.0 - fx) + g(i + 1, j + 1) * fx;
+        top * (1.0 - fy) + bot * fy
+    }
+
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        /// Sampling the atlas anywhere within half a texel of a triangle's corners
+        /// reads what sampling its own page reads: nothing from another page.
+        ///
+        /// Verifies: VTSM-CLI-026
+        #[test]
+        fn atlas_samples_equal_page_samples(
+            sizes in proptest::collection::vec((1u32..40, 1u32..40), 1..6),
+            tris in proptest::collection::vec(
+                (0usize..6, proptest::array::uniform6(-0.2f32..1.2)), 1..12),
+            probes in proptest::collection::vec((0f64..1.0, 0f64..1.0, -0.5f64..0.5, -0.5f64..0.5), 8),
+            seed in 0u32..1000,
+        ) {
+            let pages: Vec<Page> = sizes.iter().enumerate().map(|(k, &(w, h))| {
+                let mut img = Gray8::filled(w, h, 0);
+                for (n, p) in img.pixels.iter_mut().enumerate() {
+                    *p = ((n as u32 * 37 + k as u32 * 91 + seed) % 251) as u8;
+                }
+                Page { image: img, name: format!("p{k}") }
+            }).collect();
+            let tri_page: Vec<u32> = tris.iter().map(|t| (t.0 % pages.len()) as u32).collect();
+            let before: Vec<CornerUvs> = tris.iter().map(|t| {
+                let c = t.1;
+                [[c[0], c[1]], [c[2], c[3]], [c[4], c[5]]]
+            }).collect();
+            let mut uvs = before.clone();
+            let a = pack(&pages, &tri_page, &mut uvs).unwrap();
+            let (aw, ah) = (f64::from(a.texture.width), f64::from(a.texture.height));
+            for ((p, b), u) in tri_page.iter().zip(&before).zip(&uvs) {
+                let img = &pages[*p as usize].image;
+                let (w, h) = (f64::from(img.width), f64::from(img.height));
+                for &(s, t, dx, dy) in &probes {
+                    // A point of the triangle (or just beyond it by up to half a texel).
+                    let (s, t) = if s + t > 1.0 { (1.0 - s, 1.0 - t) } else { (s, t) };
+                    let mix = |c: &CornerUvs, k: usize| {
+                        f64::from(c[0][k]) * (1.0 - s - t) + f64::from(c[1][k]) * s + f64::from(c[2][k]) * t
+                    };
+                    let (px, py) = (mix(b, 0) * w - 0.5 + dx, (1.0 - mix(b, 1)) * h - 0.5 + dy);
+                    let (qx, qy) = (mix(u, 0) * aw - 0.5 + dx, (1.0 - mix(u, 1)) * ah - 0.5 + dy);
+                    let (gp, ga) = (bilinear(img, px, py), bilinear(&a.texture, qx, qy));
+                    prop_assert!((gp - ga).abs() < 0.05, "page {gp} atlas {ga}");
+                }
+            }
+        }
+    }
 }
