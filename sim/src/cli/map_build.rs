@@ -2,9 +2,12 @@
 //!
 //! Nothing is written unless every input is valid and the product encodes; the
 //! output appears atomically (temporary file + rename) and an existing file is
-//! only replaced with `--force`.
+//! only replaced with `--force`. On a terminal, stderr shows the progress of
+//! reading the mesh (bytes parsed) and then the stage being run.
 
 use crate::io::{self, mesh};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::io::IsTerminal;
 use std::path::PathBuf;
 
 /// Default tile edge of the map product, metres.
@@ -13,8 +16,9 @@ pub const DEFAULT_TILE_SIZE_M: f32 = 0.5;
 /// Arguments of `vtsm map build`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
-    /// Textured mesh: Wavefront OBJ (texture from the MTL's map_Kd) or PLY
-    /// (texture from `comment TextureFile`, or per-vertex colour).
+    /// Textured mesh: Wavefront OBJ (textures from the MTL's map_Kd) or PLY
+    /// (textures from `comment TextureFile`, page per face from `texnumber`, or
+    /// per-vertex colour). Several texture pages are packed into one atlas.
     #[arg(long, value_name = "M.obj|M.ply")]
     pub mesh: PathBuf,
     /// Mask mesh K: the triangles of the mesh to sample points from (same vertex
@@ -44,9 +48,51 @@ pub fn build(args: &Args) -> crate::Result<(Vec<u8>, String)> {
         ))
         .with_code(vtsm_core::FailureCode::MapTileSizeOutOfRange));
     }
-    let mut m = mesh::load_mesh(&args.mesh)?;
+    let bar = progress_bar();
+    bar.set_message("reading");
+    let loaded = mesh::load_mesh_with_progress(&args.mesh, &bar);
+    let mut m = match loaded {
+        Ok(m) => m,
+        Err(e) => {
+            bar.finish_and_clear();
+            return Err(e);
+        }
+    };
+    // The rest is one pass each over the mesh: shown as a spinner with the stage.
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} {elapsed} {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+    );
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    let built = finish(args, &mut m, &bar);
+    bar.finish_and_clear();
+    built
+}
+
+/// A progress bar on stderr when it is a terminal (hidden otherwise, so logs and
+/// the one-line errors stay clean).
+fn progress_bar() -> ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(0);
+    if let Ok(style) = ProgressStyle::with_template(
+        "{msg} {elapsed} [{bar:40}] {bytes}/{total_bytes} ({eta} left)",
+    ) {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar
+}
+
+/// Mask and encode a loaded mesh, naming the stage on `bar`.
+fn finish(
+    args: &Args,
+    m: &mut mesh::MeshData,
+    bar: &ProgressBar,
+) -> crate::Result<(Vec<u8>, String)> {
     let mask_note = match &args.mask {
         Some(k) => {
+            bar.set_message(format!("matching mask {}", k.display()));
             let geo = mesh::load_geometry(k)?;
             let s = m.apply_mask(&geo, k)?;
             format!(
@@ -56,6 +102,7 @@ pub fn build(args: &Args) -> crate::Result<(Vec<u8>, String)> {
         }
         None => String::new(),
     };
+    bar.set_message(format!("encoding {} triangles", m.triangles.len()));
     let bytes = m.encode_map(args.tile_size_m).map_err(|mut e| {
         if e.file.is_none() {
             e.file = Some(args.mesh.clone());

@@ -24,9 +24,10 @@
 use crate::error::{Error, Result};
 use crate::io::image::Gray8;
 use crate::io::json::short_number;
+use indicatif::ProgressBar;
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
-use vtsm_core::config::{MAX_IMAGE_DIM, MAX_MAP_TILES};
+use vtsm_core::config::{MAX_IMAGE_DIM, MAX_MAP_TILES, MAX_MAP_TRIANGLES, MAX_MAP_VERTICES};
 use vtsm_core::map::{self, MapSource};
 use vtsm_core::FailureCode;
 
@@ -107,6 +108,7 @@ impl MeshData {
         if triangles.is_empty() {
             return Err(Error::file(path, "mesh has no faces"));
         }
+        check_capacity(path, vertices.len(), triangles.len())?;
         let (uvs, texture) =
             match (texture, uvs, vertex_gray) {
                 (Some(tex), Some(uvs), _) => (uvs, tex),
@@ -461,6 +463,39 @@ impl<'a> VertexIndex<'a> {
     }
 }
 
+/// Refuse a mesh above the map product's capacities (`config::MAX_MAP_VERTICES`,
+/// `config::MAX_MAP_TRIANGLES`) before anything else is spent on it. The readers
+/// call this once the geometry is read, before loading textures; `path` names the mesh.
+///
+/// # Errors
+/// [`FailureCode::MapCountOutOfRange`] with a message giving the count and the cap.
+pub fn check_capacity(path: &Path, vertices: usize, triangles: usize) -> Result<()> {
+    let code = FailureCode::MapCountOutOfRange;
+    let tag = format!("({}, 0x{:04x})", code.name(), code.code());
+    let over = |what: &str, n: usize, cap: usize, name: &str| {
+        Err(Error::file(
+            path,
+            format!(
+                "mesh has {n} {what}, above the map product's capacity of {cap} \
+                 (config::{name}); decimate it or split the depot {tag}"
+            ),
+        )
+        .with_code(code))
+    };
+    if triangles > MAX_MAP_TRIANGLES {
+        return over(
+            "triangles",
+            triangles,
+            MAX_MAP_TRIANGLES,
+            "MAX_MAP_TRIANGLES",
+        );
+    }
+    if vertices > MAX_MAP_VERTICES {
+        return over("vertices", vertices, MAX_MAP_VERTICES, "MAX_MAP_VERTICES");
+    }
+    Ok(())
+}
+
 /// Build a texture atlas for a vertex-coloured mesh: one [`ATLAS_CELL_PX`]² cell
 /// per triangle, cells laid out row by row in a square-ish image. Returns the
 /// per-corner uvs and the texture.
@@ -531,7 +566,15 @@ pub fn synthesize_atlas(
 /// # Errors
 /// Unknown extension or any reader error.
 pub fn load_mesh(path: &Path) -> Result<MeshData> {
-    let raw = load_raw(path, true)?;
+    load_mesh_with_progress(path, &ProgressBar::hidden())
+}
+
+/// [`load_mesh`], reporting the bytes of the file parsed so far on `bar`.
+///
+/// # Errors
+/// Unknown extension or any reader error.
+pub fn load_mesh_with_progress(path: &Path, bar: &ProgressBar) -> Result<MeshData> {
+    let raw = load_raw(path, true, bar)?;
     MeshData::from_raw(raw, path)
 }
 
@@ -540,14 +583,14 @@ pub fn load_mesh(path: &Path) -> Result<MeshData> {
 /// # Errors
 /// Unknown extension or any reader error.
 pub fn load_geometry(path: &Path) -> Result<RawMesh> {
-    load_raw(path, false)
+    load_raw(path, false, &ProgressBar::hidden())
 }
 
-fn load_raw(path: &Path, appearance: bool) -> Result<RawMesh> {
+fn load_raw(path: &Path, appearance: bool, bar: &ProgressBar) -> Result<RawMesh> {
     if super::has_extension(path, "obj") {
-        super::obj::read(path, appearance)
+        super::obj::read_with_progress(path, appearance, bar)
     } else if super::has_extension(path, "ply") {
-        super::ply::read(path, appearance)
+        super::ply::read_with_progress(path, appearance, bar)
     } else {
         Err(Error::file(
             path,

@@ -4,7 +4,8 @@
 //! Readers: Wavefront OBJ + MTL ([`obj`]), PLY ([`ply`]), PNG / JPEG / TIFF / PGM
 //! images ([`image`]), the JSON files `calib.json`, `prior.json` / `truth.json` and
 //! `result.json` ([`json`]). Meshes of either format load into [`mesh::MeshData`],
-//! the in-memory form that becomes a map product ([`mesh::MeshData::encode_map`]).
+//! the in-memory form that becomes a map product ([`mesh::MeshData::encode_map`]);
+//! faces on several texture pages get one repacked texture ([`atlas`]).
 //!
 //! Every reader checks everything it reads: a bad file gives one
 //! [`crate::Error`] naming the file, the line (text formats) or byte offset
@@ -12,6 +13,7 @@
 //! [`write_atomic`], so an output appears complete or not at all, and an
 //! existing output is only replaced when asked.
 
+pub mod atlas;
 pub mod image;
 pub mod json;
 pub mod mesh;

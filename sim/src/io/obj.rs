@@ -8,25 +8,49 @@
 //! statement (`o`, `g`, `s`, `l`, ...) are ignored; `#` starts a comment.
 //!
 //! Materials: `newmtl` and `map_Kd [options] file` in the MTL file, with the
-//! texture path relative to the MTL file. A map product holds one texture, so all
-//! faces must use materials with the same `map_Kd` (or none). The texture is
-//! loaded by [`crate::io::image`] and converted to 8-bit gray.
+//! texture path relative to the MTL file. Of the options, `-s u [v [w]]` and
+//! `-o u [v [w]]` are applied to the texture coordinates of the material's faces
+//! (`u' = u · s + o`), `-mm`, `-imfchan`, `-t` and `-type` are refused (they change
+//! gray levels or coordinates in ways a map product cannot hold), the rest do not
+//! change a diffuse lookup and are skipped. Textures are loaded by
+//! [`crate::io::image`] and converted to 8-bit gray. Faces whose materials use
+//! several textures (texture pages) get one atlas ([`crate::io::atlas`]); then
+//! every face needs a textured material.
 //!
 //! Errors name the OBJ or MTL file and line. Bounds: counts fit `u32`; lines are
 //! processed one at a time, so memory grows with the mesh only.
 
 use crate::error::{Error, Result};
+use crate::io::atlas;
 use crate::io::image::Gray8;
-use crate::io::mesh::RawMesh;
+use crate::io::mesh::{CornerUvs, RawMesh};
 use crate::io::{clip, parse_finite};
+use indicatif::ProgressBar;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+
+/// Lines between two progress updates.
+const PROGRESS_LINES: usize = 1 << 16;
 
 /// A material of an MTL file: only its diffuse texture matters here.
 #[derive(Clone, Debug, PartialEq)]
 struct Material {
-    /// Resolved `map_Kd` path, with the MTL file and line that named it.
-    map_kd: Option<(PathBuf, PathBuf, usize)>,
+    /// Its `map_Kd`, if any.
+    map_kd: Option<TextureRef>,
+}
+
+/// A `map_Kd` statement: the texture and how it maps texture coordinates.
+#[derive(Clone, Debug, PartialEq)]
+struct TextureRef {
+    /// Resolved texture path.
+    file: PathBuf,
+    /// MTL file and line that named it.
+    mtl: PathBuf,
+    line: usize,
+    /// `-s u v`: texture coordinates are multiplied by this ...
+    scale: [f32; 2],
+    /// ... then `-o u v` is added.
+    offset: [f32; 2],
 }
 
 /// Read an OBJ file. With `appearance`, also read its MTL libraries and texture;
@@ -35,8 +59,16 @@ struct Material {
 /// # Errors
 /// See the module doc.
 pub fn read(path: &Path, appearance: bool) -> Result<RawMesh> {
+    read_with_progress(path, appearance, &ProgressBar::hidden())
+}
+
+/// [`read`], reporting the bytes parsed so far on `bar` (its length is set to the file's).
+///
+/// # Errors
+/// See the module doc.
+pub fn read_with_progress(path: &Path, appearance: bool, bar: &ProgressBar) -> Result<RawMesh> {
     let bytes = super::read_file(path)?;
-    parse(&bytes, path, appearance)
+    parse_with_progress(&bytes, path, appearance, bar)
 }
 
 /// Parse OBJ `bytes`; `path` names errors and locates MTL files.
@@ -44,6 +76,17 @@ pub fn read(path: &Path, appearance: bool) -> Result<RawMesh> {
 /// # Errors
 /// See the module doc.
 pub fn parse(bytes: &[u8], path: &Path, appearance: bool) -> Result<RawMesh> {
+    parse_with_progress(bytes, path, appearance, &ProgressBar::hidden())
+}
+
+fn parse_with_progress(
+    bytes: &[u8],
+    path: &Path,
+    appearance: bool,
+    bar: &ProgressBar,
+) -> Result<RawMesh> {
+    bar.set_length(bytes.len() as u64);
+    let mut done = 0usize;
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut vertices: Vec<[f32; 3]> = Vec::new();
     let mut colours: Vec<Option<[f32; 3]>> = Vec::new();
@@ -59,6 +102,10 @@ pub fn parse(bytes: &[u8], path: &Path, appearance: bool) -> Result<RawMesh> {
 
     for (i, raw_line) in bytes.split(|&b| b == b'\n').enumerate() {
         let ln = i + 1;
+        done += raw_line.len() + 1;
+        if i % PROGRESS_LINES == 0 {
+            bar.set_position(done as u64);
+        }
         let err = |m: String| Error::at(path, ln, m);
         let text =
             std::str::from_utf8(raw_line).map_err(|_| err("line is not UTF-8 text".to_string()))?;
@@ -198,24 +245,22 @@ pub fn parse(bytes: &[u8], path: &Path, appearance: bool) -> Result<RawMesh> {
         None
     };
 
+    bar.set_position(bytes.len() as u64);
     let vertex_gray = vertex_gray(&colours);
+    let mut uvs = uvs;
     let texture = if appearance {
-        pick_texture(path, &mat_list, &tri_mat, saw_usemtl)?
+        super::mesh::check_capacity(path, vertices.len(), triangles.len())?;
+        let faces = FaceMaterials {
+            mats: &mat_list,
+            tri_mat: &tri_mat,
+            tri_vt: &tri_vt,
+            tri_line: &tri_line,
+            saw_usemtl,
+        };
+        load_textures(path, &faces, uvs.as_deref_mut())?
     } else {
         None
     };
-    if texture.is_some() && !all_vt {
-        let line = tri_vt
-            .iter()
-            .zip(tri_line.iter())
-            .find(|(t, _)| t.is_none())
-            .map_or(0, |(_, &l)| l);
-        return Err(Error::at(
-            path,
-            line,
-            "face has no texture coordinates (vt) but the mesh is textured",
-        ));
-    }
     Ok(RawMesh {
         vertices,
         triangles,
@@ -293,57 +338,207 @@ fn vertex_gray(colours: &[Option<[f32; 3]>]) -> Option<Vec<u8>> {
     )
 }
 
-/// The one texture used by the faces, loaded as gray.
-fn pick_texture(
-    path: &Path,
-    mats: &[Material],
-    tri_mat: &[Option<usize>],
+/// What the faces of an OBJ file use: their materials, texture indices and lines.
+struct FaceMaterials<'a> {
+    mats: &'a [Material],
+    tri_mat: &'a [Option<usize>],
+    tri_vt: &'a [Option<[u32; 3]>],
+    tri_line: &'a [usize],
     saw_usemtl: bool,
-) -> Result<Option<Gray8>> {
-    let mut used: BTreeMap<PathBuf, (PathBuf, usize)> = BTreeMap::new();
-    if saw_usemtl {
-        for m in tri_mat.iter().flatten() {
-            if let Some((tex, mtl, line)) = mats.get(*m).and_then(|m| m.map_kd.clone()) {
-                used.entry(tex).or_insert((mtl, line));
-            }
-        }
-    } else {
-        // No usemtl: a library with exactly one textured material is taken as meant.
-        for (tex, mtl, line) in mats.iter().filter_map(|m| m.map_kd.clone()) {
-            used.entry(tex).or_insert((mtl, line));
-        }
-    }
-    if used.len() > 1 {
-        return Err(Error::file(
-            path,
-            format!(
-                "faces use {} different textures; a map product holds one texture",
-                used.len()
-            ),
-        ));
-    }
-    let Some((tex, (mtl, line))) = used.into_iter().next() else {
-        return Ok(None);
-    };
-    if !tex.is_file() {
-        return Err(Error::at(
-            &mtl,
-            line,
-            format!("texture `{}` not found", tex.display()),
-        ));
-    }
-    super::image::read_gray(&tex).map(Some)
 }
 
-/// Options of `map_Kd` and how many values each takes (`None`: 1 to 3 numbers).
-fn option_arity(opt: &str) -> Option<Option<usize>> {
-    match opt {
-        "-blendu" | "-blendv" | "-cc" | "-clamp" | "-bm" | "-boost" | "-texres" | "-imfchan"
-        | "-type" => Some(Some(1)),
-        "-mm" => Some(Some(2)),
-        "-o" | "-s" | "-t" => Some(None),
-        _ => None,
+/// The faces' texture as one gray image: the one texture they use, or an atlas
+/// of their texture pages ([`crate::io::atlas`]), with `uvs` transformed by the
+/// materials' `map_Kd -s / -o` and remapped into the atlas. `None` when no face
+/// uses a texture.
+fn load_textures(
+    path: &Path,
+    f: &FaceMaterials,
+    uvs: Option<&mut [CornerUvs]>,
+) -> Result<Option<Gray8>> {
+    // Material of each triangle that decides its texture: its usemtl, or without
+    // any usemtl the library's one textured material.
+    let textured: Vec<usize> = f
+        .mats
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| m.map_kd.is_some())
+        .map(|(i, _)| i)
+        .collect();
+    let default_mat = if f.saw_usemtl {
+        None
+    } else {
+        match textured.as_slice() {
+            [] => return Ok(None),
+            [one] => Some(*one),
+            _ => {
+                return Err(Error::file(
+                    path,
+                    format!(
+                        "the material libraries define {} textured materials but no face \
+                         selects one with usemtl",
+                        textured.len()
+                    ),
+                ))
+            }
+        }
+    };
+    let mat_of = |k: usize| -> Option<&Material> {
+        let m = default_mat.or_else(|| f.tri_mat.get(k).copied().flatten())?;
+        f.mats.get(m).filter(|m| m.map_kd.is_some())
+    };
+    // Distinct textures in order of first use; page of each triangle.
+    let mut pages: Vec<&TextureRef> = Vec::new();
+    let mut tri_page: Vec<Option<u32>> = Vec::with_capacity(f.tri_mat.len());
+    for k in 0..f.tri_mat.len() {
+        let page = mat_of(k).and_then(|m| m.map_kd.as_ref()).map(|t| {
+            match pages.iter().position(|p| p.file == t.file) {
+                Some(i) => i as u32,
+                None => {
+                    pages.push(t);
+                    (pages.len() - 1) as u32
+                }
+            }
+        });
+        tri_page.push(page);
     }
+    if pages.is_empty() {
+        return Ok(None);
+    }
+    let line_of = |k: usize| f.tri_line.get(k).copied().unwrap_or(0);
+    let Some(uvs) = uvs else {
+        let k = f.tri_vt.iter().position(Option::is_none).unwrap_or(0);
+        return Err(Error::at(
+            path,
+            line_of(k),
+            "face has no texture coordinates (vt) but the mesh is textured",
+        ));
+    };
+    for t in &pages {
+        if !t.file.is_file() {
+            return Err(Error::at(
+                &t.mtl,
+                t.line,
+                format!("texture `{}` not found", t.file.display()),
+            ));
+        }
+    }
+    for (k, uv) in uvs.iter_mut().enumerate() {
+        if let Some(m) = mat_of(k).and_then(|m| m.map_kd.as_ref()) {
+            for st in uv.iter_mut() {
+                *st = [
+                    st[0] * m.scale[0] + m.offset[0],
+                    st[1] * m.scale[1] + m.offset[1],
+                ];
+            }
+        }
+    }
+    if let [one] = pages.as_slice() {
+        return super::image::read_gray(&one.file).map(Some);
+    }
+    // Several pages: every face needs one.
+    let mut tri_page_all: Vec<u32> = Vec::with_capacity(tri_page.len());
+    for (k, p) in tri_page.iter().enumerate() {
+        let Some(p) = p else {
+            let why = match f.tri_mat.get(k).copied().flatten() {
+                None => "no material (no usemtl before it)".to_string(),
+                Some(_) => "a material without map_Kd".to_string(),
+            };
+            return Err(Error::at(
+                path,
+                line_of(k),
+                format!(
+                    "face has {why} while other faces use {} texture pages; every face \
+                     of a multi-page mesh needs a textured material",
+                    pages.len()
+                ),
+            ));
+        };
+        tri_page_all.push(*p);
+    }
+    let images = pages
+        .iter()
+        .map(|t| {
+            Ok(atlas::Page {
+                image: super::image::read_gray(&t.file)?,
+                name: t.file.display().to_string(),
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let packed = atlas::pack(&images, &tri_page_all, uvs).map_err(|m| Error::file(path, m))?;
+    Ok(Some(packed.texture))
+}
+
+/// What an option of `map_Kd` does here, and how many values it takes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum MapOption {
+    /// Does not change a diffuse texture lookup; skipped (value count).
+    Skip(usize),
+    /// `-s` / `-o`: 1 to 3 numbers, applied to the texture coordinates.
+    Scale,
+    /// See [`MapOption::Scale`].
+    Offset,
+    /// Changes gray levels or coordinates in a way a map product cannot hold.
+    Refuse(&'static str),
+}
+
+fn map_option(opt: &str) -> Option<MapOption> {
+    Some(match opt {
+        "-blendu" | "-blendv" | "-cc" | "-clamp" | "-bm" | "-boost" | "-texres" => {
+            MapOption::Skip(1)
+        }
+        "-s" => MapOption::Scale,
+        "-o" => MapOption::Offset,
+        "-mm" => MapOption::Refuse("changes the texture's gray levels"),
+        "-imfchan" => MapOption::Refuse("selects one channel instead of the colour"),
+        "-t" => MapOption::Refuse("perturbs texture coordinates (turbulence)"),
+        "-type" => MapOption::Refuse("is for reflection maps"),
+        _ => return None,
+    })
+}
+
+/// Parse `map_Kd [options] file` (tokens after the keyword) into the file name,
+/// scale and offset.
+fn parse_map_kd(rest: &[&str]) -> std::result::Result<(String, [f32; 2], [f32; 2]), String> {
+    let mut k = 0usize;
+    let (mut scale, mut offset) = ([1f32, 1.0], [0f32, 0.0]);
+    while let Some(opt) = rest.get(k).and_then(|t| map_option(t)) {
+        let name = rest.get(k).copied().unwrap_or("");
+        k += 1;
+        match opt {
+            MapOption::Skip(n) => k += n,
+            MapOption::Refuse(why) => {
+                return Err(format!(
+                    "map_Kd option {name} is not supported (it {why}); remove it"
+                ))
+            }
+            MapOption::Scale | MapOption::Offset => {
+                let mut vals: Vec<f32> = Vec::new();
+                while vals.len() < 3 {
+                    match rest.get(k).map(|t| t.parse::<f32>()) {
+                        Some(Ok(v)) if v.is_finite() => {
+                            vals.push(v);
+                            k += 1;
+                        }
+                        _ => break,
+                    }
+                }
+                let Some(&u) = vals.first() else {
+                    return Err(format!("map_Kd option {name} needs 1 to 3 numbers"));
+                };
+                if opt == MapOption::Scale {
+                    scale = [u, vals.get(1).copied().unwrap_or(1.0)];
+                } else {
+                    offset = [u, vals.get(1).copied().unwrap_or(0.0)];
+                }
+            }
+        }
+    }
+    let file = rest.get(k..).map(|r| r.join(" ")).unwrap_or_default();
+    if file.is_empty() {
+        return Err("map_Kd names no texture file".to_string());
+    }
+    Ok((file, scale, offset))
 }
 
 /// Parse an MTL file into (material name, material). Texture paths are resolved
@@ -368,33 +563,17 @@ fn parse_mtl(bytes: &[u8], mtl_path: &Path) -> Result<Vec<(String, Material)>> {
                 out.push((rest.join(" "), Material { map_kd: None }));
             }
             "map_Kd" | "map_kd" => {
-                let mut k = 0usize;
-                while let Some(arity) = rest.get(k).and_then(|t| option_arity(t)) {
-                    k += 1;
-                    match arity {
-                        Some(n) => k += n,
-                        None => {
-                            let mut taken = 0;
-                            while taken < 3 && rest.get(k).is_some_and(|t| t.parse::<f32>().is_ok())
-                            {
-                                k += 1;
-                                taken += 1;
-                            }
-                        }
-                    }
-                }
-                let file = rest.get(k..).map(|r| r.join(" ")).unwrap_or_default();
-                if file.is_empty() {
-                    return Err(err("map_Kd names no texture file"));
-                }
+                let (file, scale, offset) = parse_map_kd(rest).map_err(|m| err(&m))?;
                 let Some((_, m)) = out.last_mut() else {
                     return Err(err("map_Kd before any newmtl"));
                 };
-                m.map_kd = Some((
-                    dir.join(file.replace('\\', "/")),
-                    mtl_path.to_path_buf(),
-                    ln,
-                ));
+                m.map_kd = Some(TextureRef {
+                    file: dir.join(file.replace('\\', "/")),
+                    mtl: mtl_path.to_path_buf(),
+                    line: ln,
+                    scale,
+                    offset,
+                });
             }
             _ => {}
         }

@@ -8,8 +8,12 @@
 //! `texture_s texture_t`. From the `face` element: the list `vertex_indices`
 //! (or `vertex_index`), polygons fan-triangulated, and an optional list
 //! `texcoord` of `2 n` values per face, which takes precedence over per-vertex
-//! coordinates. The texture is named by `comment TextureFile <file>`, relative to
-//! the PLY file. Every other element and property is read and skipped.
+//! coordinates, and an optional scalar `texnumber` (as Metashape and MeshLab
+//! write) selecting the face's texture page. Textures are named by
+//! `comment TextureFile <file>` lines, relative to the PLY file, page 0 first;
+//! with several, every face needs a `texnumber` below their count and the pages
+//! are packed into one atlas ([`crate::io::atlas`]). Every other element and
+//! property is read and skipped.
 //!
 //! Element counts are checked against the bytes (binary) or lines (ascii)
 //! actually present before anything is allocated, so a forged header cannot
@@ -17,9 +21,13 @@
 //! or byte offset (binary).
 
 use crate::error::{Error, Result};
-use crate::io::clip;
 use crate::io::mesh::RawMesh;
+use crate::io::{atlas, clip};
+use indicatif::ProgressBar;
 use std::path::{Path, PathBuf};
+
+/// Element instances between two progress updates.
+const PROGRESS_INSTANCES: usize = 1 << 16;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Ty {
@@ -106,14 +114,31 @@ enum Format {
 /// # Errors
 /// See the module doc.
 pub fn read(path: &Path, appearance: bool) -> Result<RawMesh> {
+    read_with_progress(path, appearance, &ProgressBar::hidden())
+}
+
+/// [`read`], reporting the bytes parsed so far on `bar` (its length is set to the file's).
+///
+/// # Errors
+/// See the module doc.
+pub fn read_with_progress(path: &Path, appearance: bool, bar: &ProgressBar) -> Result<RawMesh> {
     let bytes = super::read_file(path)?;
-    parse(&bytes, path, appearance)
+    parse_with_progress(&bytes, path, appearance, bar)
 }
 
 /// Where a value came from, for error messages.
 enum Loc {
     Line(usize),
     Byte(usize),
+}
+
+/// One face as read: vertex indices, optional `texcoord` list, optional
+/// `texnumber`, and where it was.
+struct Face {
+    verts: Vec<f64>,
+    texcoord: Option<Vec<f64>>,
+    page: Option<f64>,
+    loc: Loc,
 }
 
 /// The body as a stream of numbers.
@@ -228,7 +253,8 @@ impl<'a> Body<'a> {
 struct Header {
     format: Format,
     elements: Vec<Element>,
-    texture: Option<(String, usize)>,
+    /// `comment TextureFile` names with their header lines, in file order.
+    textures: Vec<(String, usize)>,
     body_start: usize,
     header_lines: usize,
 }
@@ -241,7 +267,7 @@ fn parse_header(bytes: &[u8], path: &Path) -> Result<Header> {
     let mut ln = 0usize;
     let mut format: Option<Format> = None;
     let mut elements: Vec<Element> = Vec::new();
-    let mut texture = None;
+    let mut textures = Vec::new();
     loop {
         let rest = bytes.get(pos..).unwrap_or(&[]);
         let Some(end) = rest.iter().position(|&b| b == b'\n') else {
@@ -271,7 +297,7 @@ fn parse_header(bytes: &[u8], path: &Path) -> Result<Header> {
             ["comment", "TextureFile", name @ ..] | ["comment", "texturefile", name @ ..]
                 if !name.is_empty() =>
             {
-                texture = Some((name.join(" "), ln));
+                textures.push((name.join(" "), ln));
             }
             ["comment", ..] | ["obj_info", ..] | [] => {}
             ["element", name, count] => {
@@ -312,7 +338,7 @@ fn parse_header(bytes: &[u8], path: &Path) -> Result<Header> {
     Ok(Header {
         format,
         elements,
-        texture,
+        textures,
         body_start: pos,
         header_lines: ln,
     })
@@ -340,6 +366,16 @@ fn find_list(props: &[Prop], names: &[&str]) -> Option<usize> {
 /// # Errors
 /// See the module doc.
 pub fn parse(bytes: &[u8], path: &Path, appearance: bool) -> Result<RawMesh> {
+    parse_with_progress(bytes, path, appearance, &ProgressBar::hidden())
+}
+
+fn parse_with_progress(
+    bytes: &[u8],
+    path: &Path,
+    appearance: bool,
+    bar: &ProgressBar,
+) -> Result<RawMesh> {
+    bar.set_length(bytes.len() as u64);
     let h = parse_header(bytes, path)?;
     let body_len = bytes.len().saturating_sub(h.body_start);
     for el in &h.elements {
@@ -374,8 +410,8 @@ pub fn parse(bytes: &[u8], path: &Path, appearance: bool) -> Result<RawMesh> {
     let mut vuv: Vec<[f32; 2]> = Vec::new();
     let mut has_colour = false;
     let mut has_vuv = false;
-    // faces: vertex indices, optional texcoords, location
-    let mut faces: Vec<(Vec<f64>, Option<Vec<f64>>, Loc)> = Vec::new();
+    let mut faces: Vec<Face> = Vec::new();
+    let mut has_texnumber = false;
     let mut saw_vertex = false;
     let mut saw_face = false;
 
@@ -411,7 +447,7 @@ pub fn parse(bytes: &[u8], path: &Path, appearance: bool) -> Result<RawMesh> {
         } else {
             (None, None, None)
         };
-        let (vidx, tidx) = if is_face {
+        let (vidx, tidx, pidx) = if is_face {
             let Some(vi) = find_list(&el.props, &["vertex_indices", "vertex_index"]) else {
                 return Err(Error::file(
                     path,
@@ -426,13 +462,22 @@ pub fn parse(bytes: &[u8], path: &Path, appearance: bool) -> Result<RawMesh> {
                     ));
                 }
             }
-            (Some(vi), find_list(&el.props, &["texcoord"]))
+            let texnumber = find_scalar(&el.props, &["texnumber"]);
+            has_texnumber = texnumber.is_some();
+            (
+                Some(vi),
+                find_list(&el.props, &["texcoord"]),
+                texnumber.map(|t| t.0),
+            )
         } else {
-            (None, None)
+            (None, None, None)
         };
 
         let mut vals: Vec<f64> = Vec::with_capacity(el.props.len());
-        for _ in 0..el.count {
+        for n in 0..el.count {
+            if n % PROGRESS_INSTANCES == 0 {
+                bar.set_position(body.pos as u64);
+            }
             let fail = |b: &Body, m: String| match b.loc() {
                 Loc::Line(l) => Error::at(path, l, m),
                 Loc::Byte(o) => Error::file(path, format!("at byte {o}: {m}")),
@@ -507,7 +552,12 @@ pub fn parse(bytes: &[u8], path: &Path, appearance: bool) -> Result<RawMesh> {
                         format!("face needs at least 3 vertices, found {}", flist.len()),
                     ));
                 }
-                faces.push((flist, tlist, loc));
+                faces.push(Face {
+                    verts: flist,
+                    texcoord: tlist,
+                    page: pidx.map(get),
+                    loc,
+                });
             }
         }
     }
@@ -527,8 +577,25 @@ pub fn parse(bytes: &[u8], path: &Path, appearance: bool) -> Result<RawMesh> {
     let nv = vertices.len();
     let mut triangles: Vec<[u32; 3]> = Vec::new();
     let mut face_uvs: Vec<[[f32; 2]; 3]> = Vec::new();
-    let all_tc = faces.iter().all(|f| f.1.is_some());
-    for (fl, tl, loc) in &faces {
+    let mut tri_page: Vec<u32> = Vec::new();
+    let all_tc = faces.iter().all(|f| f.texcoord.is_some());
+    let pages = if appearance { h.textures.len() } else { 0 };
+    if pages > 1 && !has_texnumber {
+        return Err(Error::file(
+            path,
+            format!(
+                "the header names {pages} texture files but the face element has no \
+                 `texnumber` property saying which one each face uses"
+            ),
+        ));
+    }
+    for Face {
+        verts: fl,
+        texcoord: tl,
+        page,
+        loc,
+    } in &faces
+    {
         let at = |m: String| match loc {
             Loc::Line(l) => Error::at(path, *l, m),
             Loc::Byte(o) => Error::file(path, format!("face at byte {o}: {m}")),
@@ -554,8 +621,21 @@ pub fn parse(bytes: &[u8], path: &Path, appearance: bool) -> Result<RawMesh> {
             }
             _ => None,
         };
+        let page = match page {
+            Some(p) if pages > 0 => {
+                if !(*p >= 0.0 && *p < pages as f64) {
+                    return Err(at(format!(
+                        "texnumber {p} out of range: the header names {pages} texture file{}",
+                        if pages == 1 { "" } else { "s" }
+                    )));
+                }
+                *p as u32
+            }
+            _ => 0,
+        };
         for k in 1..idx.len() - 1 {
             triangles.push([idx[0], idx[k], idx[k + 1]]);
+            tri_page.push(page);
             if let Some(tc) = &tc {
                 face_uvs.push([tc[0], tc[k], tc[k + 1]]);
             }
@@ -573,9 +653,15 @@ pub fn parse(bytes: &[u8], path: &Path, appearance: bool) -> Result<RawMesh> {
     } else {
         None
     };
-    let texture = match (&h.texture, appearance) {
-        (Some((name, ln)), true) => {
-            let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    bar.set_position(bytes.len() as u64);
+    if appearance {
+        super::mesh::check_capacity(path, vertices.len(), triangles.len())?;
+    }
+    let mut uvs = uvs;
+    let texture = if appearance && !h.textures.is_empty() {
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let mut images = Vec::with_capacity(h.textures.len());
+        for (name, ln) in &h.textures {
             let tex: PathBuf = dir.join(name.replace('\\', "/"));
             if !tex.is_file() {
                 return Err(Error::at(
@@ -584,9 +670,21 @@ pub fn parse(bytes: &[u8], path: &Path, appearance: bool) -> Result<RawMesh> {
                     format!("texture `{}` not found", tex.display()),
                 ));
             }
-            Some(super::image::read_gray(&tex)?)
+            images.push(atlas::Page {
+                image: super::image::read_gray(&tex)?,
+                name: tex.display().to_string(),
+            });
         }
-        _ => None,
+        match (images.len(), uvs.as_deref_mut()) {
+            (1, _) | (_, None) => images.into_iter().next().map(|p| p.image),
+            (_, Some(uvs)) => Some(
+                atlas::pack(&images, &tri_page, uvs)
+                    .map_err(|m| Error::file(path, m))?
+                    .texture,
+            ),
+        }
+    } else {
+        None
     };
     Ok(RawMesh {
         vertices,
