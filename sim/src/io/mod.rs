@@ -12,6 +12,7 @@
 //! [`write_atomic`], so an output appears complete or not at all, and an
 //! existing output is only replaced when asked.
 
+pub mod calib_opencv;
 pub mod image;
 pub mod json;
 pub mod mesh;
