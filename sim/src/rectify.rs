@@ -14,9 +14,10 @@
 //!
 //! [`RectifyMap::new`] builds the per-pixel lookup of
 //! `cv2.initUndistortRectifyMap` (`CV_32FC1` maps); [`RectifyMap::remap`] samples
-//! it bilinearly with a constant 0 border, like `cv2.remap` with `INTER_LINEAR`
-//! and `BORDER_CONSTANT` but with exact (unquantised) weights. Pixel coordinates
-//! use the pixel-centre convention of design §3, which is OpenCV's.
+//! it bilinearly with exact weights and a constant 0 border, like `cv2.remap`
+//! with `INTER_LINEAR` and `BORDER_CONSTANT` (OpenCV 5 gives the same pixels;
+//! OpenCV 4 quantises positions to 1/32 pixel). Pixel coordinates use the
+//! pixel-centre convention of design §3, which is OpenCV's.
 //!
 //! [`Rectifier`] bundles both and converts poses: the rectified left camera has
 //! the physical left camera's centre and the orientation `R1` (OpenCV's: it maps

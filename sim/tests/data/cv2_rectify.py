@@ -5,7 +5,7 @@ usage: python3 cv2_rectify.py calib.json left.png right.png OUTDIR
 Reads the OpenCV form of calib.json, runs cv2.stereoRectify (default flags,
 i.e. CALIB_ZERO_DISPARITY, alpha=-1), cv2.initUndistortRectifyMap (CV_32FC1)
 and cv2.remap (INTER_LINEAR, BORDER_CONSTANT 0), and writes OUTDIR/rect.json
-({"R1","R2","P1","P2"}), OUTDIR/left_rect.png, OUTDIR/right_rect.png and the
+({"R1","R2","P1","P2","version"}), OUTDIR/left_rect.png, OUTDIR/right_rect.png and the
 maps as raw little-endian f32 (OUTDIR/{left,right}_map{x,y}.f32).
 """
 import json
@@ -27,7 +27,8 @@ def main():
     r = np.array(c["R"], dtype=np.float64)
     t = np.array(c["T"], dtype=np.float64).reshape(3, 1)
     r1, r2, p1, p2, _q, _roi1, _roi2 = cv2.stereoRectify(k1, d1, k2, d2, size, r, t)
-    res = {"R1": r1.tolist(), "R2": r2.tolist(), "P1": p1.tolist(), "P2": p2.tolist()}
+    res = {"R1": r1.tolist(), "R2": r2.tolist(), "P1": p1.tolist(), "P2": p2.tolist(),
+           "version": cv2.__version__}
     with open(f"{out}/rect.json", "w") as f:
         json.dump(res, f)
     for name, path, k, d, rr, p in (
