@@ -12,8 +12,9 @@
 //! undistorted by OpenCV's five fixed-point iterations (so the principal points
 //! agree with OpenCV's to rounding). Only horizontal pairs are accepted.
 //!
-//! [`RectifyMap::new`] builds the per-pixel lookup of
-//! `cv2.initUndistortRectifyMap` (`CV_32FC1` maps); [`RectifyMap::remap`] samples
+//! [`MapModel`] is the per-pixel lookup of `cv2.initUndistortRectifyMap`
+//! (`CV_32FC1` maps; stored by [`RectifyMap`] for comparison, computed on the
+//! fly by [`MapModel::remap`]), and the remap samples
 //! it bilinearly with exact weights and a constant 0 border, like `cv2.remap`
 //! with `INTER_LINEAR` and `BORDER_CONSTANT` (OpenCV 5 gives the same pixels;
 //! OpenCV 4 quantises positions to 1/32 pixel). Pixel coordinates use the
@@ -30,6 +31,7 @@
 use crate::io::calib_opencv::{OpenCvCalib, OpenCvCamera};
 use crate::io::image::Gray8;
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
+use rayon::prelude::*;
 use vtsm_core::geom::{Camera, Pose, StereoRig, Vec3};
 
 /// Iterations of OpenCV's `undistortPoints` default (fixed point, no tolerance).
@@ -288,8 +290,85 @@ pub fn stereo_rectify(c: &OpenCvCalib) -> Result<Rectification, String> {
     })
 }
 
-/// The lookup of `cv2.initUndistortRectifyMap`: for each rectified pixel, the
-/// physical pixel it samples.
+/// The physical pixel seen by each rectified pixel: the inverse of the rectified
+/// pinhole and rotation, then the physical camera's distortion and intrinsics
+/// (the arithmetic of `cv2.initUndistortRectifyMap`, in f64, rounded to f32).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MapModel {
+    /// `(P · R)⁻¹` of the rectified pinhole `P` (3 × 3) and rotation `R`.
+    ir: Matrix3<f64>,
+    /// The physical camera sampled.
+    cam: PhysicalCamera,
+}
+
+impl MapModel {
+    /// For `cam`, the rectifying rotation `r` and the rectified pinhole `(f, c)`.
+    pub fn new(cam: &PhysicalCamera, r: &Matrix3<f64>, f: f64, c: [f64; 2]) -> Self {
+        let kp = Matrix3::new(f, 0.0, c[0], 0.0, f, c[1], 0.0, 0.0, 1.0);
+        Self {
+            ir: (kp * r).try_inverse().unwrap_or_else(Matrix3::identity),
+            cam: *cam,
+        }
+    }
+
+    /// The physical pixel `(x, y)` sampled by rectified pixel `(u, v)`.
+    pub fn at(&self, u: u32, v: u32) -> (f32, f32) {
+        let q = self.ir * Vector3::new(f64::from(u), f64::from(v), 1.0);
+        let (x, y) = (q.x / q.z, q.y / q.z);
+        let (xd, yd) = self.cam.dist.distort(x, y);
+        (
+            (self.cam.fx * xd + self.cam.cx) as f32,
+            (self.cam.fy * yd + self.cam.cy) as f32,
+        )
+    }
+
+    /// Rectify `src` into a `size` image without storing the map (rows in
+    /// parallel; the same pixels as [`RectifyMap::remap`]).
+    pub fn remap(&self, src: &Gray8, size: (u32, u32)) -> Gray8 {
+        let w = size.0 as usize;
+        let mut pixels = vec![0u8; w * size.1 as usize];
+        pixels
+            .par_chunks_mut(w.max(1))
+            .enumerate()
+            .for_each(|(v, row)| {
+                for (u, px) in row.iter_mut().enumerate() {
+                    let (sx, sy) = self.at(u as u32, v as u32);
+                    *px = sample(src, sx, sy);
+                }
+            });
+        Gray8 {
+            width: size.0,
+            height: size.1,
+            pixels,
+        }
+    }
+}
+
+/// Bilinear sample of `src` at `(sx, sy)`; neighbours outside `src` count as 0
+/// (OpenCV's `BORDER_CONSTANT`), so a position wholly outside gives 0.
+fn sample(src: &Gray8, sx: f32, sy: f32) -> u8 {
+    if !(sx.is_finite() && sy.is_finite()) {
+        return 0;
+    }
+    let (sw, sh) = (i64::from(src.width), i64::from(src.height));
+    let px = |x: i64, y: i64| -> f32 {
+        if x < 0 || y < 0 || x >= sw || y >= sh {
+            0.0
+        } else {
+            f32::from(src.pixels.get((y * sw + x) as usize).copied().unwrap_or(0))
+        }
+    };
+    let (fx, fy) = (sx.floor(), sy.floor());
+    let (x0, y0) = (fx as i64, fy as i64);
+    let (ax, ay) = (sx - fx, sy - fy);
+    let top = px(x0, y0) * (1.0 - ax) + px(x0 + 1, y0) * ax;
+    let bot = px(x0, y0 + 1) * (1.0 - ax) + px(x0 + 1, y0 + 1) * ax;
+    let v = top * (1.0 - ay) + bot * ay;
+    (v + 0.5).floor().clamp(0.0, 255.0) as u8
+}
+
+/// The stored lookup of `cv2.initUndistortRectifyMap` (`CV_32FC1`): for each
+/// rectified pixel, the physical pixel it samples.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RectifyMap {
     /// Width of the rectified image.
@@ -303,31 +382,15 @@ pub struct RectifyMap {
 }
 
 impl RectifyMap {
-    /// `initUndistortRectifyMap(K, dist, R, P, size, CV_32FC1)` for `cam`, the
-    /// rectifying rotation `r` and the rectified pinhole `(f, c)`.
-    pub fn new(
-        cam: &PhysicalCamera,
-        r: &Matrix3<f64>,
-        f: f64,
-        c: [f64; 2],
-        size: (u32, u32),
-    ) -> Self {
-        let kp = Matrix3::new(f, 0.0, c[0], 0.0, f, c[1], 0.0, 0.0, 1.0);
-        let ir = (kp * r).try_inverse().unwrap_or_else(Matrix3::identity);
-        let (w, h) = (size.0 as usize, size.1 as usize);
-        let mut map_x = vec![0.0f32; w * h];
-        let mut map_y = vec![0.0f32; w * h];
-        let (p1, p2) = (cam.dist.0[2], cam.dist.0[3]);
-        for v in 0..h {
-            for u in 0..w {
-                let q = ir * Vector3::new(u as f64, v as f64, 1.0);
-                let (x, y) = (q.x / q.z, q.y / q.z);
-                let r2 = x * x + y * y;
-                let (kr, _) = cam.dist.radial(r2);
-                let xd = x * kr + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x);
-                let yd = y * kr + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y;
-                map_x[v * w + u] = (cam.fx * xd + cam.cx) as f32;
-                map_y[v * w + u] = (cam.fy * yd + cam.cy) as f32;
+    /// The map of `model` over a `size` rectified image.
+    pub fn new(model: &MapModel, size: (u32, u32)) -> Self {
+        let n = size.0 as usize * size.1 as usize;
+        let (mut map_x, mut map_y) = (Vec::with_capacity(n), Vec::with_capacity(n));
+        for v in 0..size.1 {
+            for u in 0..size.0 {
+                let (x, y) = model.at(u, v);
+                map_x.push(x);
+                map_y.push(y);
             }
         }
         Self {
@@ -338,33 +401,13 @@ impl RectifyMap {
         }
     }
 
-    /// Sample `src` through the map, bilinearly; neighbours outside `src` count as 0
-    /// (OpenCV's `BORDER_CONSTANT`), so a pixel whose source lies wholly outside is 0.
+    /// Sample `src` through the map, bilinearly, with a 0 border.
     pub fn remap(&self, src: &Gray8) -> Gray8 {
-        let (sw, sh) = (i64::from(src.width), i64::from(src.height));
-        let px = |x: i64, y: i64| -> f32 {
-            if x < 0 || y < 0 || x >= sw || y >= sh {
-                0.0
-            } else {
-                f32::from(src.pixels.get((y * sw + x) as usize).copied().unwrap_or(0))
-            }
-        };
         let pixels = self
             .map_x
             .iter()
             .zip(&self.map_y)
-            .map(|(&sx, &sy)| {
-                if !(sx.is_finite() && sy.is_finite()) {
-                    return 0;
-                }
-                let (fx, fy) = (sx.floor(), sy.floor());
-                let (x0, y0) = (fx as i64, fy as i64);
-                let (ax, ay) = (sx - fx, sy - fy);
-                let top = px(x0, y0) * (1.0 - ax) + px(x0 + 1, y0) * ax;
-                let bot = px(x0, y0 + 1) * (1.0 - ax) + px(x0 + 1, y0 + 1) * ax;
-                let v = top * (1.0 - ay) + bot * ay;
-                (v + 0.5).floor().clamp(0.0, 255.0) as u8
-            })
+            .map(|(&sx, &sy)| sample(src, sx, sy))
             .collect();
         Gray8 {
             width: self.width,
@@ -374,18 +417,19 @@ impl RectifyMap {
     }
 }
 
-/// Rectification of one physical rig: the maps of both cameras, the core's rig
-/// and the pose conversions between the physical and rectified left cameras.
+/// Rectification of one physical rig: the map models of both cameras, the
+/// core's rig and the pose conversions between the physical and rectified left
+/// cameras. Holds no per-pixel map (a paper-size map pair would be 320 MB).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Rectifier {
     /// `R1`, `R2`, `P1`, `P2` and the rectified pinhole.
     pub rect: Rectification,
     /// The core's rectified rig.
     pub rig: StereoRig,
-    /// Map of the left camera.
-    pub left: RectifyMap,
-    /// Map of the right camera.
-    pub right: RectifyMap,
+    /// Map model of the left camera.
+    pub left: MapModel,
+    /// Map model of the right camera.
+    pub right: MapModel,
     /// Physical-left from rectified-left (`R1ᵀ`), as a core pose (no translation).
     pub phys_from_rect: Pose,
 }
@@ -400,19 +444,17 @@ impl Rectifier {
         let rig = rect
             .rig()
             .map_err(|e| format!("rectified rig rejected: {}", e.description()))?;
-        let left = RectifyMap::new(
+        let left = MapModel::new(
             &PhysicalCamera::from_opencv(&c.left),
             &rect.r1,
             rect.f_px,
             rect.c_px,
-            rect.size,
         );
-        let right = RectifyMap::new(
+        let right = MapModel::new(
             &PhysicalCamera::from_opencv(&c.right),
             &rect.r2,
             rect.f_px,
             rect.c_px,
-            rect.size,
         );
         let rt =
             Rotation3::from_matrix_eps(&rect.r1.transpose(), 1e-15, 100, Rotation3::identity());
@@ -425,6 +467,14 @@ impl Rectifier {
             right,
             phys_from_rect: Pose::new(q32, Vec3::zeros()),
         })
+    }
+
+    /// The stored maps of both cameras (as `cv2.initUndistortRectifyMap`).
+    pub fn maps(&self) -> (RectifyMap, RectifyMap) {
+        (
+            RectifyMap::new(&self.left, self.rect.size),
+            RectifyMap::new(&self.right, self.rect.size),
+        )
     }
 
     /// The rectified pair as the rectified form of `calib.json` (`fx = fy`, the
@@ -444,7 +494,10 @@ impl Rectifier {
 
     /// Rectify a physical pair (each image of the calibration's size).
     pub fn rectify_pair(&self, left: &Gray8, right: &Gray8) -> (Gray8, Gray8) {
-        (self.left.remap(left), self.right.remap(right))
+        (
+            self.left.remap(left, self.rect.size),
+            self.right.remap(right, self.rect.size),
+        )
     }
 
     /// `world_from_left` of the rectified left camera, from the physical one's.

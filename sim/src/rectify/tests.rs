@@ -75,7 +75,8 @@ fn identity_calib_gives_identity_map() {
     assert!((r.baseline_m - 0.3).abs() < 1e-15);
     assert!((r.p2[0][3] + 30.0).abs() < 1e-12);
     let rect = Rectifier::new(&c).unwrap();
-    for (i, (&x, &y)) in rect.left.map_x.iter().zip(&rect.left.map_y).enumerate() {
+    let (left_map, _) = rect.maps();
+    for (i, (&x, &y)) in left_map.map_x.iter().zip(&left_map.map_y).enumerate() {
         let (u, v) = ((i % 160) as f32, (i / 160) as f32);
         assert!(
             (x - u).abs() < 1e-3 && (y - v).abs() < 1e-3,
@@ -166,14 +167,11 @@ fn general_rig_rectifies_to_a_pure_baseline() {
     }
     let full = Rectifier::new(&c).unwrap();
     let pc = PhysicalCamera::from_opencv(&l);
-    for (i, (&x, &y)) in full
-        .left
-        .map_x
-        .iter()
-        .zip(&full.left.map_y)
-        .enumerate()
-        .step_by(37)
-    {
+    let (lm, rm) = full.maps();
+    // The on-the-fly remap gives the stored maps' pixels.
+    let (a, b) = (test_image(160, 120), test_image(160, 120));
+    assert_eq!(full.rectify_pair(&a, &b), (lm.remap(&a), rm.remap(&b)));
+    for (i, (&x, &y)) in lm.map_x.iter().zip(&lm.map_y).enumerate().step_by(37) {
         let (u, v) = ((i % 160) as f64, (i / 160) as f64);
         let ray =
             rect.r1.transpose() * Vector3::new((u - rect.c_px[0]) / f, (v - rect.c_px[1]) / f, 1.0);
