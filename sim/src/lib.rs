@@ -17,6 +17,7 @@ pub mod io;
 pub mod locate;
 pub mod mapping;
 pub mod panel;
+pub mod rectify;
 pub mod render;
 pub mod scene;
 pub mod terrain;

@@ -569,14 +569,48 @@ pub fn render(
     world_from_cam: &Pose,
     opts: &RenderOptions,
 ) -> Vec<u8> {
-    let (w, h) = (cam.width as usize, cam.height as usize);
+    render_rays(
+        terrain,
+        light,
+        (cam.width, cam.height),
+        [cam.cx, cam.cy],
+        world_from_cam,
+        opts,
+        |fu, fv| {
+            Some(Vec3::new(
+                (fu - cam.cx) / cam.fx,
+                (fv - cam.cy) / cam.fy,
+                1.0,
+            ))
+        },
+    )
+}
+
+/// [`render`] through any camera model: `ray(u, v)` gives the camera-frame
+/// direction (any length) seen at the continuous pixel position `(u, v)`, or
+/// `None` where the model has no ray (drawn black). `centre` is the image centre
+/// of the vignetting. Used for the distorted physical cameras of
+/// [`crate::scene::physical`]; with the pinhole ray it is [`render`], bit for bit.
+pub fn render_rays<F>(
+    terrain: &Terrain,
+    light: &Lighting,
+    size: (u32, u32),
+    centre: [f32; 2],
+    world_from_cam: &Pose,
+    opts: &RenderOptions,
+    ray: F,
+) -> Vec<u8>
+where
+    F: Fn(f32, f32) -> Option<Vec3> + Sync,
+{
+    let (w, h) = (size.0 as usize, size.1 as usize);
     let mut out = vec![0u8; w * h];
     let s = opts.supersample.clamp(1, 8);
     let o = world_from_cam.translation();
     let origin = [o.x, o.y, o.z];
     let sky = sky_radiance(light);
     let noise = Rng::new(opts.noise_seed).fork(0x5E75_0000);
-    let r_max2 = cam.cx * cam.cx + cam.cy * cam.cy;
+    let r_max2 = centre[0] * centre[0] + centre[1] * centre[1];
     out.par_chunks_mut(w).enumerate().for_each(|(v, row)| {
         for (u, px) in row.iter_mut().enumerate() {
             let mut sum = 0.0f32;
@@ -584,7 +618,9 @@ pub fn render(
                 for si in 0..s {
                     let fu = u as f32 + (si as f32 + 0.5) / s as f32 - 0.5;
                     let fv = v as f32 + (sj as f32 + 0.5) / s as f32 - 0.5;
-                    let dc = Vec3::new((fu - cam.cx) / cam.fx, (fv - cam.cy) / cam.fy, 1.0);
+                    let Some(dc) = ray(fu, fv) else {
+                        continue;
+                    };
                     let dw = world_from_cam.transform_vector(&dc).normalize();
                     sum += match cast_ray(terrain, origin, [dw.x, dw.y, dw.z]) {
                         Some(hit) => radiance(terrain, light, hit.p[0], hit.p[1]),
@@ -594,7 +630,7 @@ pub fn render(
             }
             let mut lin = sum / (s * s) as f32;
             if opts.vignetting > 0.0 {
-                let (du, dv) = (u as f32 - cam.cx, v as f32 - cam.cy);
+                let (du, dv) = (u as f32 - centre[0], v as f32 - centre[1]);
                 lin *= 1.0 - opts.vignetting * (du * du + dv * dv) / r_max2;
             }
             let mut val = tone(lin, light.exposure);

@@ -20,6 +20,7 @@ use vtsm_core::geom::{Camera, Pose, StereoRig, Vec3};
 use vtsm_core::rng::Rng;
 
 pub mod export;
+pub mod physical;
 
 /// Horizontal field of view of every camera, degrees.
 pub const HFOV_DEG: f32 = 77.0;

@@ -7,9 +7,11 @@
 //! `"status": "failed"`.
 
 use crate::error::{Error, Result, EXIT_RELOC_FAILED};
+use crate::io::calib_opencv::{self, CalibFile};
 use crate::io::image::{self as img, Gray8};
 use crate::io::json::{self, Calib, PoseJson, ResultFile};
 use crate::io::{self, mesh};
+use crate::rectify::Rectifier;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use vtsm_core::geom::{Pose, StereoRig};
@@ -34,7 +36,9 @@ pub struct Args {
     /// Map product written by `vtsm map build`. Give this or --mesh.
     #[arg(long, value_name = "D.vmap")]
     pub map: Option<PathBuf>,
-    /// Stereo calibration: {"width","height","fx","fy","cx","cy","baseline_m"}.
+    /// Stereo calibration: a rectified pair {"width","height","fx","fy","cx","cy","baseline_m"},
+    /// or the OpenCV form {"image_size","left","right","R","T"} of a physical pair
+    /// (rectified here; poses then refer to the physical left camera).
     #[arg(long, value_name = "calib.json")]
     pub calib: PathBuf,
     /// Left image (PNG, JPEG, TIFF or PGM; 8 or 16 bit; colour is converted to gray).
@@ -65,7 +69,7 @@ pub struct Args {
 pub struct Inputs {
     /// Map product bytes, already accepted by `MapView::new_checked`.
     pub map: Vec<u8>,
-    /// The calibration as read.
+    /// The calibration as read (for a physical pair: the rectified one).
     pub calib: Calib,
     /// The checked stereo rig.
     pub rig: StereoRig,
@@ -73,10 +77,14 @@ pub struct Inputs {
     pub left: Gray8,
     /// Right image, calibration size.
     pub right: Gray8,
-    /// Prior `world_from_left`.
+    /// Prior `world_from_left` of the camera the core sees (for a physical
+    /// pair: the rectified left camera).
     pub prior: Pose,
     /// Seed.
     pub seed: u64,
+    /// The rectifier of a physical pair (OpenCV form of `calib.json`); the
+    /// images above are already rectified.
+    pub physical: Option<Rectifier>,
 }
 
 impl Inputs {
@@ -111,13 +119,30 @@ pub fn check_args(args: &Args) -> Result<()> {
 /// The first bad input, as a one-line error naming its file.
 pub fn load_inputs(args: &Args) -> Result<Inputs> {
     check_args(args)?;
-    let calib = json::read_calib(&args.calib)?;
+    let (calib, physical) = match calib_opencv::read_calib_any(&args.calib)? {
+        CalibFile::Rectified(c) => (c, None),
+        CalibFile::OpenCv(c) => {
+            let r = Rectifier::new(&c).map_err(|why| Error::file(&args.calib, why))?;
+            (r.calib(), Some((r, c.size())))
+        }
+    };
     let rig = calib.rig().map_err(|c| {
         Error::file(&args.calib, format!("rejected: {}", c.description())).with_code(c)
     })?;
     let prior = json::read_pose(&args.prior)?;
-    let left = img::read_gray_sized(&args.left, calib.width, calib.height)?;
-    let right = img::read_gray_sized(&args.right, calib.width, calib.height)?;
+    let (w, h) = physical
+        .as_ref()
+        .map_or((calib.width, calib.height), |p| p.1);
+    let left = img::read_gray_sized(&args.left, w, h)?;
+    let right = img::read_gray_sized(&args.right, w, h)?;
+    let physical = physical.map(|p| p.0);
+    let (left, right, prior) = match &physical {
+        Some(r) => {
+            let (l, rr) = r.rectify_pair(&left, &right);
+            (l, rr, r.to_rectified(&prior))
+        }
+        None => (left, right, prior),
+    };
     let map = match (&args.map, &args.mesh) {
         (Some(path), None) => {
             let bytes = io::read_file(path)?;
@@ -157,6 +182,7 @@ pub fn load_inputs(args: &Args) -> Result<Inputs> {
         right,
         prior,
         seed: args.seed,
+        physical,
     })
 }
 
@@ -177,7 +203,8 @@ pub struct Outcome {
 
 /// The relocalization engine call: the same [`crate::locate::relocalize`] as
 /// `vtsm demo` and `vtsm eval`, with the paper's parameters and ℓ scaled to the
-/// image width.
+/// image width. For a physical pair the outcome's pose is converted back from
+/// the rectified left camera to the physical one.
 ///
 /// # Errors
 /// Inputs the core rejects (map, image sizes, parameters), with their codes.
@@ -192,7 +219,12 @@ pub fn run_engine(inputs: &Inputs) -> Result<Outcome> {
         seed: inputs.seed,
     };
     let report = crate::locate::relocalize(&req)?;
-    Ok(outcome_from_core(&report.outcome))
+    let mut outcome = outcome_from_core(&report.outcome);
+    // The core solved for the rectified left camera; report the physical one.
+    if let (Some(r), Some(p)) = (&inputs.physical, outcome.pose.as_mut()) {
+        *p = r.to_physical(p);
+    }
+    Ok(outcome)
 }
 
 /// The command-line view of a core outcome (pose, inliers, iterations and

@@ -2,7 +2,9 @@
 //! `vtsm relocalize` reads (design §5), plus `scene.json` describing the scene.
 
 use crate::error::{Error, Result};
-use crate::scene::export::{existing, write_scene, SceneFiles};
+use crate::io::calib_opencv::opencv_calib_text;
+use crate::scene::export::{existing, write_scene, write_scene_with_calib, SceneFiles};
+use crate::scene::physical::capture_physical;
 use crate::scene::{parse_hours, perturbed_prior, Capture, Profile, Scene, STOPS_PER_CIRCLE};
 use crate::terrain::TerrainKind;
 use std::path::PathBuf;
@@ -44,6 +46,11 @@ pub struct Args {
     /// Overwrite files already in DIR.
     #[arg(long)]
     pub force: bool,
+    /// Write a physical pair instead of an ideal rectified one: distorted images
+    /// of two slightly rotated cameras with different intrinsics, `calib.json`
+    /// in the OpenCV form, and poses of the physical left camera.
+    #[arg(long)]
+    pub physical: bool,
 }
 
 /// Run the command; returns the exit code.
@@ -103,7 +110,18 @@ pub fn run(args: &Args) -> Result<u8> {
     let shadow_s = t1.elapsed().as_secs_f64();
     let t2 = Instant::now();
     let cpu2 = process_cpu_s();
-    let (rig, truth, pair) = scene.capture(&light, &cap);
+    let (rig, truth, pair, calib_text) = if args.physical {
+        let (calib, truth, pair) = capture_physical(&scene, &light, &cap);
+        (
+            scene.rig(cap.baseline_m),
+            truth,
+            pair,
+            Some(opencv_calib_text(&calib)),
+        )
+    } else {
+        let (rig, truth, pair) = scene.capture(&light, &cap);
+        (rig, truth, pair, None)
+    };
     let pair_s = t2.elapsed().as_secs_f64();
     let pair_cpu_s = process_cpu_s().zip(cpu2).map(|(b, a)| b - a);
     let t3 = Instant::now();
@@ -121,6 +139,7 @@ pub fn run(args: &Args) -> Result<u8> {
         "baseline_m": args.baseline, "wind": args.wind, "sun_elevation_deg": light.sun.elevation_deg,
         "sun_azimuth_deg": light.sun.azimuth_deg, "triangles": map.triangles.len(),
         "masked_triangles": map.mask.iter().filter(|&&m| m).count(),
+        "physical": args.physical,
     });
     let files = SceneFiles {
         map: &map,
@@ -132,7 +151,10 @@ pub fn run(args: &Args) -> Result<u8> {
         meta,
     };
     let t4 = Instant::now();
-    write_scene(&args.out, &files, args.force)?;
+    match &calib_text {
+        Some(text) => write_scene_with_calib(&args.out, &files, text, args.force)?,
+        None => write_scene(&args.out, &files, args.force)?,
+    }
     let write_s = t4.elapsed().as_secs_f64();
     println!(
         "timing (wall, {} threads): terrain {terrain_s:.2} s, shadow map {shadow_s:.2} s, \

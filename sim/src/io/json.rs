@@ -207,7 +207,7 @@ fn key_line(text: &str, key: &str) -> Option<usize> {
         .map(|i| i + 1)
 }
 
-fn parse_json<T: for<'de> Deserialize<'de>>(bytes: &[u8], path: &Path) -> Result<T> {
+pub(crate) fn parse_json<T: for<'de> Deserialize<'de>>(bytes: &[u8], path: &Path) -> Result<T> {
     serde_json::from_slice(bytes).map_err(|e| {
         let msg = format!("invalid JSON: {e}");
         // serde_json appends " at line L column C"; the line goes in front instead.
@@ -223,7 +223,7 @@ fn parse_json<T: for<'de> Deserialize<'de>>(bytes: &[u8], path: &Path) -> Result
     })
 }
 
-fn field_error(bytes: &[u8], path: &Path, key: &str, why: String) -> Error {
+pub(crate) fn field_error(bytes: &[u8], path: &Path, key: &str, why: String) -> Error {
     let text = String::from_utf8_lossy(bytes);
     let msg = format!("`{key}`: {why}");
     match key_line(&text, key) {

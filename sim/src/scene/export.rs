@@ -136,6 +136,17 @@ pub fn existing(dir: &Path) -> Vec<PathBuf> {
 /// Write all scene files into `dir` (created if missing). Refuses, writing nothing, if
 /// any of them exists and `force` is false.
 pub fn write_scene(dir: &Path, files: &SceneFiles<'_>, force: bool) -> Result<()> {
+    write_scene_with_calib(dir, files, &calib_json(files.rig), force)
+}
+
+/// [`write_scene`] with `calib.json` given as text (the OpenCV form of a
+/// physical pair, whose images are `files.rig`'s size).
+pub fn write_scene_with_calib(
+    dir: &Path,
+    files: &SceneFiles<'_>,
+    calib_text: &str,
+    force: bool,
+) -> Result<()> {
     if !force {
         if let Some(p) = existing(dir).first() {
             return Err(Error::file(p, "already exists (use --force to overwrite)"));
@@ -159,7 +170,7 @@ pub fn write_scene(dir: &Path, files: &SceneFiles<'_>, force: bool) -> Result<()
         &tex.pixels,
     )?;
     write_text(&dir.join("mask.obj"), &obj_text(files.map, None, true))?;
-    write_text(&dir.join("calib.json"), &calib_json(files.rig))?;
+    write_text(&dir.join("calib.json"), calib_text)?;
     write_png_gray(&dir.join("left.png"), w, h, files.left)?;
     write_png_gray(&dir.join("right.png"), w, h, files.right)?;
     write_text(&dir.join("prior.json"), &pose_json(files.prior))?;
