@@ -233,7 +233,7 @@ impl Cam {
 
     /// `(u_l, v, u_r)` of a left-camera point; `None` behind or at the camera.
     fn project(&self, p: &V3) -> Option<[f64; 3]> {
-        if !(p.z >= MIN_Z_M) {
+        if p.z.is_nan() || p.z < MIN_Z_M {
             return None;
         }
         let iz = 1.0 / p.z;
@@ -323,14 +323,15 @@ fn evaluate(
 /// `Σ = s² (JᵀJ)⁻¹` with `s² = cost / (3n − 6)`.
 fn covariance(e: &Eval, n: u16) -> Option<Covariance> {
     let dof = 3.0 * f64::from(n) - 6.0;
-    if !(dof > 0.0) {
+    if dof <= 0.0 {
         return None;
     }
     let s2 = e.cost / dof;
     let inv = e.jtj.cholesky()?.inverse() * s2;
     let mut m = [0.0f32; 36];
-    for (k, v) in m.iter_mut().enumerate() {
-        *v = inv[(k / 6, k % 6)] as f32;
+    // nalgebra iterates column-major: the transpose's order is the row-major order.
+    for (v, x) in m.iter_mut().zip(inv.transpose().iter()) {
+        *v = *x as f32;
     }
     m.iter().all(|v| v.is_finite()).then_some(Covariance { m })
 }
@@ -395,10 +396,8 @@ pub fn refine(
         let mut lambda = LAMBDA_START;
         for _ in 0..cfg.max_iterations {
             stats.iterations += 1;
-            let mut a = e.jtj;
-            for k in 0..6 {
-                a[(k, k)] += lambda * e.jtj[(k, k)].max(f64::MIN_POSITIVE);
-            }
+            let damp = e.jtj.diagonal().map(|d| lambda * d.max(f64::MIN_POSITIVE));
+            let a = e.jtj + M6::from_diagonal(&damp);
             let Some(ch) = a.cholesky() else {
                 lambda *= 10.0;
                 if lambda > LAMBDA_MAX {
