@@ -30,6 +30,8 @@ pub const MAX_SEEDS: usize = 256;
 pub const MAX_CONSECUTIVE_CAP: usize = 64;
 /// Largest cap on correspondence attempts in one iteration.
 pub const MAX_ATTEMPTS_PER_ITER: usize = 100_000;
+/// Largest cap on Levenberg–Marquardt iterations of the final pose refinement.
+pub const MAX_REFINE_ITER: usize = 32;
 /// Events kept in the failure log's ring.
 pub const FAILURE_RING_LEN: usize = 32;
 
@@ -92,12 +94,15 @@ pub const DEFAULT_REUSE_FRACTION: f32 = 0.5;
 pub const DEFAULT_ATTEMPTS_PER_ITER: u32 = 2000;
 /// Minimum NCC score to accept a match.
 pub const DEFAULT_MIN_SCORE: f32 = 0.5;
+/// Levenberg–Marquardt iterations of the final pose refinement (0 = off).
+pub const DEFAULT_REFINE_ITER: u8 = 10;
 
 const _: () = assert!(MIN_TEMPLATE_PX <= MAX_TEMPLATE_PX);
 const _: () = assert!(MAX_TEMPLATE_PX <= MAX_SEARCH_PX);
 const _: () = assert!(DEFAULT_N_CORR as usize <= MAX_CORR);
 const _: () = assert!(DEFAULT_N_ITER as usize <= MAX_ITER);
 const _: () = assert!(DEFAULT_RANSAC_ITER as usize <= MAX_RANSAC_ITER);
+const _: () = assert!(DEFAULT_REFINE_ITER as usize <= MAX_REFINE_ITER);
 const _: () = assert!(DEFAULT_TEMPLATE_PX as usize <= MAX_TEMPLATE_PX);
 // 28.4 edge setup runs in i64 on absolute coordinates (< 2^18, so edge terms < 2^41);
 // a window-relative variant would fit i32: see fsw-docs/budgets/numeric.md.
@@ -198,6 +203,10 @@ pub struct Params {
     pub min_score: f32,
     /// Pose seeds for large priors (0 = off), 0..=MAX_SEEDS.
     pub seeds: u16,
+    /// Levenberg–Marquardt iterations of the final pose refinement on the
+    /// stereo reprojection error, 0..=MAX_REFINE_ITER (0 = keep the RANSAC
+    /// pose; its covariance is reported either way).
+    pub refine_iter: u8,
     /// Mechanism switches.
     pub mechanisms: Mechanisms,
 }
@@ -246,6 +255,8 @@ pub enum ParamField {
     MinScore,
     /// `seeds`
     Seeds,
+    /// `refine_iter`
+    RefineIter,
 }
 
 /// A parameter outside its allowed range.
@@ -288,6 +299,7 @@ impl Params {
             attempts_per_iter: DEFAULT_ATTEMPTS_PER_ITER,
             min_score: DEFAULT_MIN_SCORE,
             seeds: 0,
+            refine_iter: DEFAULT_REFINE_ITER,
             mechanisms: Mechanisms {
                 stall: true,
                 reseed: true,
@@ -373,6 +385,9 @@ impl Params {
         if self.seeds as usize > MAX_SEEDS {
             return err(ParamField::Seeds);
         }
+        if usize::from(self.refine_iter) > MAX_REFINE_ITER {
+            return err(ParamField::RefineIter);
+        }
         Ok(())
     }
 }
@@ -426,6 +441,10 @@ mod tests {
             (|p| p.attempts_per_iter = 10, ParamField::AttemptsPerIter),
             (|p| p.min_score = 1.0, ParamField::MinScore),
             (|p| p.seeds = MAX_SEEDS as u16 + 1, ParamField::Seeds),
+            (
+                |p| p.refine_iter = MAX_REFINE_ITER as u8 + 1,
+                ParamField::RefineIter,
+            ),
         ];
         for (mutate, field) in cases {
             let mut p = Params::paper();

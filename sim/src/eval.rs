@@ -66,6 +66,30 @@ pub struct GroupSummary {
     pub final_t_mm_mean: f64,
     /// Median final rotation error over successful trials, degrees (NaN if none).
     pub final_r_deg_median: f64,
+    /// The tail of the final translation error over successful trials, mm
+    /// (NaN if none): 90th and 95th percentile (linear between order
+    /// statistics) and the largest.
+    pub final_t_mm_p90: f64,
+    /// 95th percentile, mm.
+    pub final_t_mm_p95: f64,
+    /// Largest, mm.
+    pub final_t_mm_max: f64,
+    /// Mean final rotation error over successful trials, degrees.
+    pub final_r_deg_mean: f64,
+    /// 90th percentile of the final rotation error, degrees.
+    pub final_r_deg_p90: f64,
+    /// 95th percentile of the final rotation error, degrees.
+    pub final_r_deg_p95: f64,
+    /// Largest final rotation error, degrees.
+    pub final_r_deg_max: f64,
+    /// Successful trials with a covariance whose true translation error lies
+    /// inside its 95 % ellipsoid (`d² ≤ χ²₃(0.95)`, extra `cov_d2_t`), percent
+    /// of those with a covariance (NaN if none).
+    pub cov_t_within_pct: f64,
+    /// The same for the rotation error (extra `cov_d2_r`), percent.
+    pub cov_r_within_pct: f64,
+    /// Successful trials that had a covariance.
+    pub cov_trials: usize,
     /// Mean relocalization time, seconds.
     pub time_s_mean: f64,
 }
@@ -133,6 +157,34 @@ fn median(mut v: Vec<f64>) -> f64 {
     }
 }
 
+/// `q`-quantile (0..=1) of `v`, linear between order statistics (NaN if empty).
+pub fn quantile(mut v: Vec<f64>, q: f64) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let pos = q.clamp(0.0, 1.0) * (v.len() - 1) as f64;
+    let (lo, hi) = (pos.floor() as usize, pos.ceil() as usize);
+    let (a, b) = (v[lo], v[hi.min(v.len() - 1)]);
+    a + (b - a) * (pos - lo as f64)
+}
+
+/// χ²₃ at 0.95: the squared Mahalanobis radius of a 3-D 95 % ellipsoid.
+pub const CHI2_3_95: f64 = 7.814_727_903_251_178;
+
+/// Percent of the finite values of `d2` at or below [`CHI2_3_95`], and their count.
+fn within_95(d2: &[f64]) -> (f64, usize) {
+    let v: Vec<f64> = d2.iter().copied().filter(|x| x.is_finite()).collect();
+    let n = v.len();
+    let inside = v.iter().filter(|&&x| x <= CHI2_3_95).count();
+    let pct = if n == 0 {
+        f64::NAN
+    } else {
+        100.0 * inside as f64 / n as f64
+    };
+    (pct, n)
+}
+
 fn mean(v: &[f64]) -> f64 {
     if v.is_empty() {
         f64::NAN
@@ -155,6 +207,14 @@ pub fn summarize(outcomes: &[TrialOutcome]) -> Vec<GroupSummary> {
             let rows: Vec<&TrialOutcome> = outcomes.iter().filter(|o| o.group == g).collect();
             let ok: Vec<&&TrialOutcome> = rows.iter().filter(|o| o.success).collect();
             let final_t: Vec<f64> = ok.iter().map(|o| o.final_t_mm).collect();
+            let final_r: Vec<f64> = ok.iter().map(|o| o.final_r_deg).collect();
+            let d2 = |k: &str| -> Vec<f64> {
+                ok.iter()
+                    .map(|o| o.extra.get(k).copied().unwrap_or(f64::NAN))
+                    .collect()
+            };
+            let (cov_t, cov_n) = within_95(&d2("cov_d2_t"));
+            let (cov_r, _) = within_95(&d2("cov_d2_r"));
             GroupSummary {
                 group: g.to_string(),
                 trials: rows.len(),
@@ -163,7 +223,17 @@ pub fn summarize(outcomes: &[TrialOutcome]) -> Vec<GroupSummary> {
                 init_t_mm_mean: mean(&rows.iter().map(|o| o.init_t_mm).collect::<Vec<_>>()),
                 final_t_mm_median: median(final_t.clone()),
                 final_t_mm_mean: mean(&final_t),
-                final_r_deg_median: median(ok.iter().map(|o| o.final_r_deg).collect()),
+                final_r_deg_median: median(final_r.clone()),
+                final_t_mm_p90: quantile(final_t.clone(), 0.90),
+                final_t_mm_p95: quantile(final_t.clone(), 0.95),
+                final_t_mm_max: quantile(final_t.clone(), 1.0),
+                final_r_deg_mean: mean(&final_r),
+                final_r_deg_p90: quantile(final_r.clone(), 0.90),
+                final_r_deg_p95: quantile(final_r.clone(), 0.95),
+                final_r_deg_max: quantile(final_r, 1.0),
+                cov_t_within_pct: cov_t,
+                cov_r_within_pct: cov_r,
+                cov_trials: cov_n,
                 time_s_mean: mean(&rows.iter().map(|o| o.time_s).collect::<Vec<_>>()),
             }
         })
@@ -201,6 +271,41 @@ pub fn markdown_table(meta: &RunMeta, rows: &[GroupSummary]) -> String {
             num(r.final_t_mm_mean, 1),
             num(r.final_r_deg_median, 3),
             num(r.time_s_mean, 2)
+        );
+    }
+    s.push_str(&tail_table(rows));
+    s
+}
+
+/// The tail of the final error per group (successful trials), and how often
+/// the reported covariance's 95 % ellipsoid holds the true error.
+pub fn tail_table(rows: &[GroupSummary]) -> String {
+    let mut s = String::from(
+        "\nTail of the final error (successful trials) and covariance check (true error inside the reported 95 % ellipsoid, d² ≤ χ²₃(0.95) = 7.81):\n\n| group | t median (mm) | t p90 | t p95 | t max | r median (°) | r mean | r p95 | r max | inside 95 %: t | inside 95 %: r | with covariance |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
+    let pct = |v: f64| {
+        if v.is_finite() {
+            format!("{v:.0} %")
+        } else {
+            "—".to_string()
+        }
+    };
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            r.group,
+            num(r.final_t_mm_median, 1),
+            num(r.final_t_mm_p90, 1),
+            num(r.final_t_mm_p95, 1),
+            num(r.final_t_mm_max, 1),
+            num(r.final_r_deg_median, 3),
+            num(r.final_r_deg_mean, 3),
+            num(r.final_r_deg_p95, 3),
+            num(r.final_r_deg_max, 3),
+            pct(r.cov_t_within_pct),
+            pct(r.cov_r_within_pct),
+            r.cov_trials
         );
     }
     s
@@ -268,6 +373,36 @@ pub struct Series<'a> {
     pub color: &'a str,
     /// Points (x, y).
     pub points: Vec<(f64, f64)>,
+}
+
+/// Empirical CDF of the final translation error of the successful trials,
+/// one series per group (groups in order of first appearance): points
+/// `(error mm, fraction of the group's successes at or below it)`.
+pub fn error_cdf_series(outcomes: &[TrialOutcome]) -> Vec<(String, Vec<(f64, f64)>)> {
+    let mut order: Vec<&str> = Vec::new();
+    for o in outcomes {
+        if !order.contains(&o.group.as_str()) {
+            order.push(&o.group);
+        }
+    }
+    order
+        .into_iter()
+        .map(|g| {
+            let mut e: Vec<f64> = outcomes
+                .iter()
+                .filter(|o| o.group == g && o.success)
+                .map(|o| o.final_t_mm)
+                .collect();
+            e.sort_by(f64::total_cmp);
+            let n = e.len() as f64;
+            let pts = e
+                .iter()
+                .enumerate()
+                .map(|(i, &x)| (x, (i + 1) as f64 / n))
+                .collect();
+            (g.to_string(), pts)
+        })
+        .collect()
 }
 
 /// A self-contained SVG scatter plot with axes, ticks and a legend.
@@ -498,6 +633,11 @@ mod tests {
         assert!((s[0].success_pct - 200.0 / 3.0).abs() < 1e-9);
         assert_eq!(s[0].final_t_mm_median, 15.0);
         assert_eq!(s[1].final_t_mm_mean, 30.0);
+        // Tail over the two successes of "b" (10, 20): linear quantiles, max.
+        assert!((s[0].final_t_mm_p90 - 19.0).abs() < 1e-9);
+        assert!((s[0].final_t_mm_p95 - 19.5).abs() < 1e-9);
+        assert_eq!(s[0].final_t_mm_max, 20.0);
+        assert!(s[0].cov_t_within_pct.is_nan() && s[0].cov_trials == 0);
         let md = markdown_table(
             &RunMeta {
                 suite: "t".into(),
@@ -514,6 +654,36 @@ mod tests {
         let c = csv(&o);
         assert_eq!(c.lines().count(), 5);
         assert!(c.lines().next().unwrap().ends_with(",range_m"));
+    }
+
+    /// Verifies: VTSM-CLI-034
+    #[test]
+    fn tail_quantiles_and_covariance_coverage_per_group() {
+        let mut o: Vec<TrialOutcome> = (0..21).map(|i| outcome("g", i, true, i as f64)).collect();
+        // d² of 0..20 against 7.81: 8 of 21 inside (0..=7).
+        for (i, t) in o.iter_mut().enumerate() {
+            t.extra.insert("cov_d2_t".into(), i as f64);
+            t.extra.insert("cov_d2_r".into(), 0.5);
+        }
+        o.push(outcome("g", 21, false, 1000.0));
+        let s = summarize(&o);
+        assert_eq!(s[0].final_t_mm_median, 10.0);
+        assert!((s[0].final_t_mm_p90 - 18.0).abs() < 1e-9);
+        assert!((s[0].final_t_mm_p95 - 19.0).abs() < 1e-9);
+        assert_eq!(s[0].final_t_mm_max, 20.0);
+        assert_eq!(s[0].cov_trials, 21);
+        assert!((s[0].cov_t_within_pct - 800.0 / 21.0).abs() < 1e-9);
+        assert_eq!(s[0].cov_r_within_pct, 100.0);
+        let t = tail_table(&s);
+        assert!(t.contains("| g | 10.0 | 18.0 | 19.0 | 20.0 |"), "{t}");
+        let cdf = error_cdf_series(&o);
+        assert_eq!(cdf.len(), 1);
+        assert_eq!(cdf[0].1.len(), 21);
+        assert_eq!(cdf[0].1[20], (20.0, 1.0));
+        assert!(cdf[0]
+            .1
+            .windows(2)
+            .all(|w| w[0].0 <= w[1].0 && w[0].1 < w[1].1));
     }
 
     #[test]

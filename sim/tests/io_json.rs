@@ -165,6 +165,11 @@ fn result_file_has_the_design_fields() {
         inliers: 87,
         iterations: 5,
         stats,
+        covariance: Some(
+            (0..36)
+                .map(|i| if i % 7 == 0 { 1e-6 } else { 0.0 })
+                .collect(),
+        ),
     };
     let text = json::result_text(&r);
     let v: serde_json::Value = serde_json::from_str(&text).unwrap();
@@ -181,5 +186,7 @@ fn result_file_has_the_design_fields() {
     assert_eq!(v["inliers"], 87);
     assert_eq!(v["iterations"], 5);
     assert_eq!(v["stats"]["templates_rendered"], 12);
+    assert_eq!(v["covariance"].as_array().unwrap().len(), 36);
+    assert_eq!(v["covariance"][7], 1e-6);
     assert_eq!(json::parse_result(text.as_bytes(), p()).unwrap(), r);
 }

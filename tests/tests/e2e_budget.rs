@@ -85,6 +85,15 @@ fn budget_measured_rows_are_a_real_run() {
     assert_eq!(v("NCC MACs"), s.pipeline.ncc_macs);
     assert_eq!(v("RANSAC iterations"), u64::from(s.ransac_iterations));
     assert_eq!(v("inliers"), u64::from(o.quality.inliers));
+    assert_eq!(v("refinement iterations"), u64::from(s.refine.iterations));
+    assert!(
+        v("refinement iterations")
+            <= u64::from(locate::params_for_width(rig.cam.width).refine_iter)
+    );
+    assert!(
+        v("refinement pair evaluations")
+            <= (2 + v("refinement iterations")) * u64::from(o.quality.inliers)
+    );
     let (t1, _) = o.pose.error_to(&truth);
     assert!(
         v("final error") < 50_000,

@@ -40,6 +40,7 @@
 
 mod fit;
 mod ransac;
+mod refine;
 
 pub use fit::{
     umeyama, umeyama_weighted, umeyama_with_stats, FitStats, JACOBI_MAX_SWEEPS, MIN_PLANARITY,
@@ -49,6 +50,7 @@ pub use ransac::{
     ransac, required_iterations, Ransac, RansacConfig, RansacStats, DEFAULT_CONFIDENCE,
     REFIT_ROUNDS, SIGMA_GATE,
 };
+pub use refine::{refine, Covariance, RefineConfig, RefineStats, Refined, DEFAULT_MAX_STEP_RAD};
 
 use crate::config::MAX_POSE_CANDIDATES;
 use crate::geom::{Pose, Vec3};

@@ -456,6 +456,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         }
         let enough = self.stats.successes >= u16::from(self.params.n_iter);
         if enough || update_m < self.params.convergence_m {
+            self.refine_final(now);
             self.finish(None, now);
         } else {
             self.reuse_inliers(sol.inliers);
@@ -521,6 +522,31 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
                 code
             };
             self.finish(Some(end), now);
+        }
+    }
+
+    /// The final estimate, in the unit that concludes the last solve: the
+    /// solver refines the anchor on the last inlier set (pairs and mask are
+    /// still those of that solve) and gives its covariance. A refinement that
+    /// fails is logged and the RANSAC pose stays. (A multi-seed winner that
+    /// ends the run has no pairs left: nothing to refine.)
+    fn refine_final(&mut self, now: u64) {
+        let n = self.pairs.len();
+        if n == 0 {
+            return;
+        }
+        let mask = self.inlier_mask.get(..n).unwrap_or(&[]);
+        match self.solver.refine(&self.pairs, mask, &self.anchor) {
+            Some(Ok(r)) => {
+                self.stats.refine = r.stats;
+                self.quality.covariance = Some(r.covariance);
+                self.quality.reproj_rms_px = r.rms_px;
+                if r.stats.accepted && pose_is_valid(&r.pose) {
+                    self.anchor = r.pose;
+                }
+            }
+            Some(Err(code)) => self.log.record(code, now, self.round),
+            None => {}
         }
     }
 

@@ -146,6 +146,23 @@ pub trait Solver {
         let _ = (pairs, inlier_mask);
         Err(FailureCode::PoseRansacNoConsensus)
     }
+
+    /// The final estimate: refine `pose` (the last solution) on the pairs
+    /// flagged in `inlier_mask` and give its covariance. `None` (the default)
+    /// means the solver has no refinement; the engine then keeps `pose`.
+    ///
+    /// # Contract
+    /// Bounded work, no randomness; the returned pose is either `pose` or one
+    /// that passed the solver's own safeguard.
+    fn refine(
+        &mut self,
+        pairs: &[Correspondence],
+        inlier_mask: &[bool],
+        pose: &Pose,
+    ) -> Option<Result<crate::pose::Refined, FailureCode>> {
+        let _ = (pairs, inlier_mask, pose);
+        None
+    }
 }
 
 /// RANSAC hypotheses evaluated per work unit by a chunked [`Solver`].
@@ -275,6 +292,8 @@ pub struct Stats {
     pub reseeds: u16,
     /// Seeds evaluated in multi-seed mode.
     pub seeds_tried: u16,
+    /// Final refinement counters (all zero when it did not run).
+    pub refine: crate::pose::RefineStats,
     /// Pipeline counters.
     pub pipeline: PipelineStats,
 }
@@ -309,6 +328,12 @@ pub struct Quality {
     pub inlier_ratio: f32,
     /// Successful iterations, in order (multi-seed winner first when used).
     pub history: heapless::Vec<IterationRecord, MAX_ITER>,
+    /// Covariance of `pose` from the final refinement (see
+    /// [`crate::pose::Covariance`] for the frame); `None` if it did not run.
+    pub covariance: Option<crate::pose::Covariance>,
+    /// RMS reprojection residual of the inliers under `pose`, pixels per
+    /// observation (0 if the final refinement did not run).
+    pub reproj_rms_px: f32,
 }
 
 /// The result of a relocalization.

@@ -147,7 +147,10 @@ impl<'a> Setup<'a> {
         );
         let mut engine = Relocalizer::from_checked(
             pipeline,
-            RansacSolver::from_params(&self.params),
+            RansacSolver::from_params(&self.params).with_refinement(
+                &self.rig,
+                crate::pose::RefineConfig::from_params(&self.params),
+            ),
             &self.params,
             &self.options,
             &self.prior,

@@ -191,6 +191,7 @@ pub fn rows() -> Vec<Row> {
         cap("MAX_CORR", cfg::MAX_CORR, "count"),
         cap("MAX_ITER", cfg::MAX_ITER, "count"),
         cap("MAX_RANSAC_ITER", cfg::MAX_RANSAC_ITER, "count"),
+        cap("MAX_REFINE_ITER", cfg::MAX_REFINE_ITER, "count"),
         cap("MAX_POSE_CANDIDATES", cfg::MAX_POSE_CANDIDATES, "count"),
         cap("MAX_SEEDS", cfg::MAX_SEEDS, "count"),
         cap("MAX_CONSECUTIVE_CAP", cfg::MAX_CONSECUTIVE_CAP, "count"),
@@ -292,6 +293,14 @@ pub fn profile_rows() -> Vec<Row> {
                     as usize,
                 "count",
             ),
+            // pose::refine: one pass for the RANSAC pose, one for the weighted
+            // fit, one per Levenberg–Marquardt iteration, each over ≤ N_corr
+            // inliers; done once, in the unit that concludes the last solve.
+            r(
+                "final refinement, structural bound (pair evaluations: (2 + refine_iter) × N_corr)",
+                (2 + usize::from(p.refine_iter)) * usize::from(p.n_corr),
+                "count",
+            ),
         ]);
     }
     out
@@ -375,6 +384,16 @@ pub fn measured_rows(seed: u64) -> crate::Result<Vec<Row>> {
         m("NCC positions scored", p.ncc_positions, "count"),
         m("NCC MACs", p.ncc_macs, "count"),
         m("RANSAC iterations", u64::from(s.ransac_iterations), "count"),
+        m(
+            "refinement iterations",
+            u64::from(s.refine.iterations),
+            "count",
+        ),
+        m(
+            "refinement pair evaluations",
+            u64::from(s.refine.residuals_evaluated),
+            "count",
+        ),
         m("stalls", u64::from(s.stalls), "count"),
         m("reseeds", u64::from(s.reseeds), "count"),
         m(

@@ -154,6 +154,20 @@ pub fn run(args: &Args) -> Result<u8> {
         o.stats.reseeds,
         report.template_px
     );
+    if let Some(c) = &o.quality.covariance {
+        let (st, sr) = (c.sigma_t_m(), c.sigma_r_rad());
+        println!(
+            "  1-σ (world x, y, z): {:.1} {:.1} {:.1} mm, {:.3} {:.3} {:.3}°; reprojection RMS {:.2} px, refined {}",
+            st[0] * 1e3,
+            st[1] * 1e3,
+            st[2] * 1e3,
+            sr[0].to_degrees(),
+            sr[1].to_degrees(),
+            sr[2].to_degrees(),
+            o.quality.reproj_rms_px,
+            if o.stats.refine.accepted { "yes" } else { "no" }
+        );
+    }
     println!(
         "  relocalization time {:.2} s (single thread), workspace {:.1} MB",
         report.elapsed.as_secs_f64(),

@@ -754,13 +754,58 @@ fn run_trial(
                 ("attempts", out.stats.attempts),
                 ("stalls", u32::from(out.stats.stalls)),
                 ("reseeds", u32::from(out.stats.reseeds)),
+                ("refine_accepted", u32::from(out.stats.refine.accepted)),
             ] {
                 o.extra.insert(k.into(), f64::from(v));
+            }
+            if let Some(c) = &out.quality.covariance {
+                for (k, v) in covariance_check(&out.pose, &truth, c) {
+                    o.extra.insert(k.into(), v);
+                }
             }
         }
         Err(e) => o.failure = Some(format!("error: {e}")),
     }
     o
+}
+
+/// How the reported covariance covers the true error: squared Mahalanobis
+/// distances of the world-frame position error `t_est − t_true` (3×3
+/// translation block) and of the world-frame rotation vector `φ` with
+/// `R_true = exp([φ]×) R_est` (rotation block), and the 1-σ radii
+/// `√tr` of each block (mm, degrees).
+pub fn covariance_check(
+    est: &Pose,
+    truth: &Pose,
+    c: &vtsm_core::pose::Covariance,
+) -> [(&'static str, f64); 4] {
+    use nalgebra::{Matrix3, Vector3};
+    let q64 = |p: &Pose| {
+        let q = p.q();
+        UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+            f64::from(q[0]),
+            f64::from(q[1]),
+            f64::from(q[2]),
+            f64::from(q[3]),
+        ))
+    };
+    let t64 = |p: &Pose| {
+        let t = p.t();
+        Vector3::new(f64::from(t[0]), f64::from(t[1]), f64::from(t[2]))
+    };
+    let dt = t64(est) - t64(truth);
+    let phi = (q64(truth) * q64(est).inverse()).scaled_axis();
+    let block = |o: usize| Matrix3::from_fn(|i, j| f64::from(c.get(o + i, o + j)));
+    let d2 = |e: Vector3<f64>, m: Matrix3<f64>| {
+        m.try_inverse()
+            .map_or(f64::NAN, |inv| (e.transpose() * inv * e)[(0, 0)])
+    };
+    [
+        ("cov_d2_t", d2(dt, block(0))),
+        ("cov_d2_r", d2(phi, block(3))),
+        ("sigma_t_mm", block(0).trace().max(0.0).sqrt() * 1e3),
+        ("sigma_r_deg", block(3).trace().max(0.0).sqrt().to_degrees()),
+    ]
 }
 
 const COLORS: [&str; 6] = [
@@ -775,6 +820,29 @@ fn extra(o: &TrialOutcome, k: &str) -> f64 {
 fn breakdowns(cfg: &SuiteConfig, outcomes: &[TrialOutcome]) -> (String, Vec<(String, String)>) {
     let mut plots = Vec::new();
     let mut notes = String::new();
+    // The error distribution of every suite: one empirical CDF per group.
+    let cdf = eval::error_cdf_series(outcomes);
+    let cdf_series: Vec<Series> = cdf
+        .iter()
+        .enumerate()
+        .map(|(i, (g, pts))| Series {
+            name: g,
+            color: COLORS[i % COLORS.len()],
+            points: pts.clone(),
+        })
+        .collect();
+    plots.push((
+        "final_error_cdf.svg".to_string(),
+        eval::svg_scatter(
+            &format!(
+                "{}: distribution of the final error (successful trials)",
+                cfg.suite.name()
+            ),
+            "final translation error (mm)",
+            "fraction of successes at or below",
+            &cdf_series,
+        ),
+    ));
     match cfg.suite {
         Suite::Paper | Suite::Baseline => {
             for (file, key, xlabel) in [

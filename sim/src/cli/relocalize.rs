@@ -199,6 +199,8 @@ pub struct Outcome {
     pub iterations: u32,
     /// Work counters by name.
     pub stats: BTreeMap<String, u64>,
+    /// Pose covariance from the final refinement (`vtsm_core::pose::Covariance`).
+    pub covariance: Option<vtsm_core::pose::Covariance>,
 }
 
 /// The relocalization engine call: the same [`crate::locate::relocalize`] as
@@ -256,6 +258,8 @@ pub fn outcome_from_core(o: &vtsm_core::reloc::Outcome) -> Outcome {
         ("samples_out_of_view", u64::from(p.out_of_view)),
         ("samples_occluded", u64::from(p.occluded)),
         ("triangulations", u64::from(p.triangulations)),
+        ("refine_iterations", u64::from(s.refine.iterations)),
+        ("refine_accepted", u64::from(s.refine.accepted)),
     ] {
         stats.insert(k.to_string(), v);
     }
@@ -265,6 +269,7 @@ pub fn outcome_from_core(o: &vtsm_core::reloc::Outcome) -> Outcome {
         inliers: u32::from(o.quality.inliers),
         iterations: u32::from(s.successes),
         stats,
+        covariance: o.quality.covariance,
     }
 }
 
@@ -277,6 +282,9 @@ pub fn outcome_result(o: &Outcome) -> ResultFile {
         inliers: o.inliers,
         iterations: o.iterations,
         stats: o.stats.clone(),
+        covariance: o
+            .covariance
+            .map(|c| c.m.iter().map(|&v| f64::from(v)).collect()),
     }
 }
 

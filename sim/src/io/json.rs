@@ -197,6 +197,11 @@ pub struct ResultFile {
     pub iterations: u32,
     /// Work counters, by name (ordered, so the file is deterministic).
     pub stats: std::collections::BTreeMap<String, u64>,
+    /// 6×6 covariance of `world_from_left`, row-major (36 numbers): world-frame
+    /// camera position in metres, then a world-frame rotation vector in
+    /// radians (`fsw-docs/interfaces/files.md`); `null` when not estimated.
+    #[serde(default)]
+    pub covariance: Option<Vec<f64>>,
 }
 
 /// The 1-based line on which `"key"` first appears in `text`, if it does.
