@@ -279,10 +279,16 @@ fn mask_matches_triangles_in_any_corner_order_and_vertex_numbering() {
     // coordinates perturbed by far less than the tolerance.
     let chosen: Vec<usize> = (0..m.triangles.len()).step_by(3).collect();
     let n = verts.len() as u32;
-    let mask_vertices: Vec<[f32; 3]> = verts
+    let mask_vertices: Vec<[f64; 3]> = verts
         .iter()
         .rev()
-        .map(|v| [v[0] + 1e-6, v[1] - 1e-6, v[2]])
+        .map(|v| {
+            [
+                f64::from(v[0]) + 1e-6,
+                f64::from(v[1]) - 1e-6,
+                f64::from(v[2]),
+            ]
+        })
         .collect();
     let mut mask_tris = Vec::new();
     for &k in chosen.iter().rev() {
@@ -430,6 +436,7 @@ fn scene_export_obj_files_read_back_as_the_simulated_map() {
         uvs: uvs.clone(),
         mask: mask.clone(),
         texture: tex.clone(),
+        origin: [0.0; 3],
     };
 
     write_png(&d.join("map_texture.png"), &tex, true).unwrap();

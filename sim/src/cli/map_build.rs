@@ -3,6 +3,10 @@
 //! Nothing is written unless every input is valid and the product encodes; the
 //! output appears atomically (temporary file + rename) and an existing file is
 //! only replaced with `--force`.
+//!
+//! The product's origin (`--origin`, default the mesh's bounding-box centre
+//! rounded to whole metres) is subtracted from the f64 vertex coordinates before
+//! they become f32 ([`crate::frame`]).
 
 use crate::io::{self, mesh};
 use std::path::PathBuf;
@@ -30,6 +34,10 @@ pub struct Args {
     /// Edge of the square culling tiles, metres.
     #[arg(long, value_name = "S", default_value_t = DEFAULT_TILE_SIZE_M)]
     pub tile_size_m: f32,
+    /// Origin X,Y,Z of the map's local frame, metres in the mesh's frame
+    /// (default: the bounding-box centre rounded to whole metres).
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub origin: Option<String>,
 }
 
 /// Load, mask and encode: the product bytes and a one-line summary.
@@ -44,7 +52,12 @@ pub fn build(args: &Args) -> crate::Result<(Vec<u8>, String)> {
         ))
         .with_code(vtsm_core::FailureCode::MapTileSizeOutOfRange));
     }
-    let mut m = mesh::load_mesh(&args.mesh)?;
+    let origin = args
+        .origin
+        .as_deref()
+        .map(crate::frame::parse_origin)
+        .transpose()?;
+    let mut m = mesh::load_mesh_at(&args.mesh, origin)?;
     let mask_note = match &args.mask {
         Some(k) => {
             let geo = mesh::load_geometry(k)?;
@@ -63,13 +76,16 @@ pub fn build(args: &Args) -> crate::Result<(Vec<u8>, String)> {
         e
     })?;
     let summary = format!(
-        "{}: {} vertices, {} triangles ({} in mask{mask_note}), texture {}x{}, {} bytes",
+        "{}: {} vertices, {} triangles ({} in mask{mask_note}), texture {}x{}, origin ({}, {}, {}) m, {} bytes",
         args.out.display(),
         m.vertices.len(),
         m.triangles.len(),
         m.mask_count(),
         m.texture.width,
         m.texture.height,
+        m.origin[0],
+        m.origin[1],
+        m.origin[2],
         bytes.len()
     );
     Ok((bytes, summary))

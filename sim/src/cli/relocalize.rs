@@ -4,11 +4,16 @@
 //! the engine ([`run_engine`]) and writes `result.json` ([`outcome_result`]).
 //! Any bad input gives a one-line error naming the file, exit code 2, and no
 //! output; a clean relocalization failure gives exit code 1 and a result with
-//! `"status": "failed"`.
+//! `"status": "failed"`. With `--pairs` it relocalizes a batch against one map
+//! ([`super::batch`]).
+//!
+//! Poses in and out (prior, result) are f64 in the mesh's own frame; the map's
+//! origin ([`MapView::origin`]) is subtracted on the way into the core and added
+//! on the way out ([`crate::frame`]).
 
 use crate::error::{Error, Result, EXIT_RELOC_FAILED};
 use crate::io::image::{self as img, Gray8};
-use crate::io::json::{self, Calib, PoseJson, ResultFile};
+use crate::io::json::{self, Calib, ResultFile};
 use crate::io::{self, mesh};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -38,14 +43,19 @@ pub struct Args {
     #[arg(long, value_name = "calib.json")]
     pub calib: PathBuf,
     /// Left image (PNG, JPEG, TIFF or PGM; 8 or 16 bit; colour is converted to gray).
-    #[arg(long, value_name = "L.png")]
-    pub left: PathBuf,
+    #[arg(long, value_name = "L.png", required_unless_present = "pairs")]
+    pub left: Option<PathBuf>,
     /// Right image, same size as the left one and as the calibration.
-    #[arg(long, value_name = "R.png")]
-    pub right: PathBuf,
+    #[arg(long, value_name = "R.png", required_unless_present = "pairs")]
+    pub right: Option<PathBuf>,
     /// Prior pose JSON file: `world_from_left` with translation `t` (x, y, z) and quaternion `q` (w, x, y, z).
-    #[arg(long, value_name = "prior.json")]
-    pub prior: PathBuf,
+    #[arg(long, value_name = "prior.json", required_unless_present = "pairs")]
+    pub prior: Option<PathBuf>,
+    /// Batch: a JSON-lines file (or a directory of `*.json` pair files) naming
+    /// left, right, prior (and optionally calib, out, truth, seed) per pair; the
+    /// map is loaded once and one JSON line per pair is written to --out or stdout.
+    #[arg(long, value_name = "pairs.jsonl", conflicts_with_all = ["left", "right", "prior"])]
+    pub pairs: Option<PathBuf>,
     /// Seed of the relocalizer's random draws (same inputs + seed = same result).
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub seed: u64,
@@ -58,6 +68,15 @@ pub struct Args {
     /// Tile edge (metres) of the map product built from --mesh.
     #[arg(long, value_name = "S", default_value_t = super::map_build::DEFAULT_TILE_SIZE_M)]
     pub tile_size_m: f32,
+    /// Origin X,Y,Z (metres, mesh frame) of the map built from --mesh
+    /// (default: the mesh's bounding-box centre rounded to whole metres).
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        requires = "mesh",
+        allow_hyphen_values = true
+    )]
+    pub origin: Option<String>,
 }
 
 /// Every input of one relocalization, loaded and checked.
@@ -73,10 +92,12 @@ pub struct Inputs {
     pub left: Gray8,
     /// Right image, calibration size.
     pub right: Gray8,
-    /// Prior `world_from_left`.
+    /// Prior `world_from_left` in the map's local frame (user frame minus `origin`).
     pub prior: Pose,
     /// Seed.
     pub seed: u64,
+    /// The map's origin in the user frame ([`MapView::origin`]).
+    pub origin: [f64; 3],
 }
 
 impl Inputs {
@@ -111,13 +132,66 @@ pub fn check_args(args: &Args) -> Result<()> {
 /// The first bad input, as a one-line error naming its file.
 pub fn load_inputs(args: &Args) -> Result<Inputs> {
     check_args(args)?;
+    let map = load_map(args)?;
+    load_inputs_with_map(args, map)
+}
+
+/// A required single-pair path (clap requires it unless `--pairs` is given).
+fn required<'a>(p: &'a Option<PathBuf>, name: &str) -> Result<&'a PathBuf> {
+    p.as_ref()
+        .ok_or_else(|| Error::msg(format!("--{name} is required (or give --pairs)")))
+}
+
+/// Load and validate the calibration, images and prior named by `args`
+/// against a map product already loaded by [`load_map`].
+///
+/// # Errors
+/// The first bad input, as a one-line error naming its file.
+pub fn load_inputs_with_map(args: &Args, map: Vec<u8>) -> Result<Inputs> {
+    let (left_path, right_path, prior_path) = (
+        required(&args.left, "left")?,
+        required(&args.right, "right")?,
+        required(&args.prior, "prior")?,
+    );
     let calib = json::read_calib(&args.calib)?;
     let rig = calib.rig().map_err(|c| {
         Error::file(&args.calib, format!("rejected: {}", c.description())).with_code(c)
     })?;
-    let prior = json::read_pose(&args.prior)?;
-    let left = img::read_gray_sized(&args.left, calib.width, calib.height)?;
-    let right = img::read_gray_sized(&args.right, calib.width, calib.height)?;
+    let origin = MapView::new_checked(&map).map_err(Error::from)?.origin();
+    let prior = json::parse_pose_json(&io::read_file(prior_path)?, prior_path)?;
+    let prior = crate::frame::json_to_local(&prior, origin).map_err(|c| {
+        Error::file(
+            prior_path,
+            format!("pose rejected in the map's local frame: {}", c.name()),
+        )
+        .with_code(c)
+    })?;
+    let left = img::read_gray_sized(left_path, calib.width, calib.height)?;
+    let right = img::read_gray_sized(right_path, calib.width, calib.height)?;
+    Ok(Inputs {
+        map,
+        calib,
+        rig,
+        left,
+        right,
+        prior,
+        seed: args.seed,
+        origin,
+    })
+}
+
+/// Load the map product named by `args`: read and check `--map`, or build it
+/// from `--mesh` (and `--mask`, `--origin`, `--tile-size-m`).
+///
+/// # Errors
+/// The first bad input, as a one-line error naming its file.
+pub fn load_map(args: &Args) -> Result<Vec<u8>> {
+    check_args(args)?;
+    let origin = args
+        .origin
+        .as_deref()
+        .map(crate::frame::parse_origin)
+        .transpose()?;
     let map = match (&args.map, &args.mesh) {
         (Some(path), None) => {
             let bytes = io::read_file(path)?;
@@ -135,7 +209,7 @@ pub fn load_inputs(args: &Args) -> Result<Inputs> {
             bytes
         }
         (None, Some(path)) => {
-            let mut m = mesh::load_mesh(path)?;
+            let mut m = mesh::load_mesh_at(path, origin)?;
             if let Some(k) = &args.mask {
                 let geo = mesh::load_geometry(k)?;
                 m.apply_mask(&geo, k)?;
@@ -149,15 +223,7 @@ pub fn load_inputs(args: &Args) -> Result<Inputs> {
         }
         _ => return Err(Error::msg("give exactly one of --mesh and --map")),
     };
-    Ok(Inputs {
-        map,
-        calib,
-        rig,
-        left,
-        right,
-        prior,
-        seed: args.seed,
-    })
+    Ok(map)
 }
 
 /// What the engine reports for one relocalization.
@@ -165,8 +231,11 @@ pub fn load_inputs(args: &Args) -> Result<Inputs> {
 pub struct Outcome {
     /// The failure code when the relocalization failed cleanly, `None` on success.
     pub failure: Option<FailureCode>,
-    /// Final estimate (the last estimate on failure), if any.
+    /// Final estimate (the last estimate on failure), if any, in the map's
+    /// local frame.
     pub pose: Option<Pose>,
+    /// The map's origin: `pose` plus this is the estimate in the user frame.
+    pub origin: [f64; 3],
     /// RANSAC inliers of the final estimate.
     pub inliers: u32,
     /// Successful iterations.
@@ -192,11 +261,14 @@ pub fn run_engine(inputs: &Inputs) -> Result<Outcome> {
         seed: inputs.seed,
     };
     let report = crate::locate::relocalize(&req)?;
-    Ok(outcome_from_core(&report.outcome))
+    Ok(Outcome {
+        origin: inputs.origin,
+        ..outcome_from_core(&report.outcome)
+    })
 }
 
 /// The command-line view of a core outcome (pose, inliers, iterations and
-/// every work counter by name).
+/// every work counter by name), for a map at origin 0.
 pub fn outcome_from_core(o: &vtsm_core::reloc::Outcome) -> Outcome {
     let s = &o.stats;
     let p = &s.pipeline;
@@ -230,18 +302,22 @@ pub fn outcome_from_core(o: &vtsm_core::reloc::Outcome) -> Outcome {
     Outcome {
         failure: o.failure,
         pose: Some(o.pose),
+        origin: [0.0; 3],
         inliers: u32::from(o.quality.inliers),
         iterations: u32::from(s.successes),
         stats,
     }
 }
 
-/// The `result.json` content of an outcome.
+/// The `result.json` content of an outcome (pose in the user frame).
 pub fn outcome_result(o: &Outcome) -> ResultFile {
     ResultFile {
         status: if o.failure.is_none() { "ok" } else { "failed" }.to_string(),
         failure: o.failure.map(|c| c.name().to_string()),
-        world_from_left: o.pose.as_ref().map(PoseJson::from_pose),
+        world_from_left: o
+            .pose
+            .as_ref()
+            .map(|p| crate::frame::local_to_json(p, o.origin)),
         inliers: o.inliers,
         iterations: o.iterations,
         stats: o.stats.clone(),
@@ -251,6 +327,9 @@ pub fn outcome_result(o: &Outcome) -> ResultFile {
 /// Run the command; returns the exit code.
 pub fn run(args: &Args) -> Result<u8> {
     check_args(args)?;
+    if let Some(pairs) = &args.pairs {
+        return super::batch::run(args, pairs);
+    }
     if let Some(out) = &args.out {
         io::check_output(out, args.force)?;
     }

@@ -18,7 +18,7 @@
 use crate::error::{Error, Result};
 use crate::io::image::Gray8;
 use crate::io::mesh::RawMesh;
-use crate::io::{clip, parse_finite};
+use crate::io::{clip, parse_finite, parse_finite_f64};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -45,7 +45,7 @@ pub fn read(path: &Path, appearance: bool) -> Result<RawMesh> {
 /// See the module doc.
 pub fn parse(bytes: &[u8], path: &Path, appearance: bool) -> Result<RawMesh> {
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let mut vertices: Vec<[f32; 3]> = Vec::new();
+    let mut vertices: Vec<[f64; 3]> = Vec::new();
     let mut colours: Vec<Option<[f32; 3]>> = Vec::new();
     let mut texcoords: Vec<[f32; 2]> = Vec::new();
     let mut triangles: Vec<[u32; 3]> = Vec::new();
@@ -74,15 +74,17 @@ pub fn parse(bytes: &[u8], path: &Path, appearance: bool) -> Result<RawMesh> {
                         vals.len()
                     )));
                 }
-                let mut f = [0f32; 6];
+                // f64: coordinates may be georeferenced (the map origin is taken off later).
+                let mut f = [0f64; 6];
                 for (k, (slot, tok)) in f.iter_mut().zip(vals.iter()).enumerate() {
-                    *slot = parse_finite(tok, &format!("vertex value {}", k + 1)).map_err(err)?;
+                    *slot =
+                        parse_finite_f64(tok, &format!("vertex value {}", k + 1)).map_err(err)?;
                 }
                 if vertices.len() >= u32::MAX as usize {
                     return Err(err("too many vertices".to_string()));
                 }
                 vertices.push([f[0], f[1], f[2]]);
-                colours.push((vals.len() == 6).then_some([f[3], f[4], f[5]]));
+                colours.push((vals.len() == 6).then_some([f[3] as f32, f[4] as f32, f[5] as f32]));
             }
             "vt" => {
                 let vals: Vec<&str> = toks.collect();
