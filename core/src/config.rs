@@ -43,6 +43,10 @@ pub const MAX_MAP_VERTICES: usize = 1 << 22;
 pub const MAX_MAP_TRIANGLES: usize = 1 << 22;
 /// Largest number of tiles (cells of the x-y tiling grid) in a map product.
 pub const MAX_MAP_TILES: usize = 1 << 16;
+/// Largest magnitude of each coordinate of a map product's origin, metres.
+/// 10⁸ m is beyond every Earth-fixed frame (UTM northings reach 10⁷ m, ECEF
+/// 6.4·10⁶ m) and an f64 there still resolves 15 nm.
+pub const MAX_MAP_ORIGIN_M: f64 = 1.0e8;
 /// Largest texture side (pixels) in a map product.
 pub const MAX_TEXTURE_DIM: usize = 16384;
 /// Largest render window side (pixels): a template.

@@ -118,6 +118,8 @@ failure_codes! {
         "Every triangle of the map has zero area, so there is no surface to render; the map is not used.";
     MapUvOutOfRange = 0x030C, Fatal, NewInput, "MAP_UV_OUT_OF_RANGE",
         "A texture coordinate lies beyond map::MAX_UV_PX texture pixels; the map is not used.";
+    MapOriginOutOfRange = 0x030D, Fatal, NewInput, "MAP_ORIGIN_OUT_OF_RANGE",
+        "The map's origin is not finite or a coordinate exceeds config::MAX_MAP_ORIGIN_M; the map is not used (nothing is encoded).";
     // 0x04xx raster
     RasterWindowInvalid = 0x0401, Degraded, Same, "RASTER_WINDOW_INVALID",
         "The render window is empty, larger than the template cap or outside the guard band; nothing is drawn.";

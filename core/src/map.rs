@@ -5,26 +5,41 @@
 //! ([`MapSource`], encoded by [`encode`] into a caller buffer). Outputs: checked,
 //! panic-free accessors for vertices, triangles (with the M̂ mask bit), per-corner
 //! UVs, tiles with 3D bounds for frustum culling, the gray texture and the list of
-//! mask vertices. Bounds: every count is capped by `config::MAX_MAP_*` and
-//! `config::MAX_TEXTURE_DIM`; validation and encoding are O(vertices + triangles +
-//! tiles + texels), each a loop over a capped count.
+//! mask vertices, and the map's f64 origin. Bounds: every count is capped by
+//! `config::MAX_MAP_*` and `config::MAX_TEXTURE_DIM`; validation and encoding are
+//! O(vertices + triangles + tiles + texels), each a loop over a capped count.
 //!
-//! # Layout (version 1)
+//! # Frames
+//!
+//! Everything in the product (vertices, bounds, tiles) is in the map's *local*
+//! frame: metres, axes parallel to the mesh's own (user) frame, and
+//! `p_user = p_local + origin` with `origin` an f64 triple in the header. The
+//! core works in the local frame only (so f32 keeps sub-millimetre steps even
+//! for a mesh in UTM coordinates); the desktop tools convert poses between the
+//! frames in f64. [`MapView::origin`] reports it; a version-1 product has none
+//! and reads as origin 0.
+//!
+//! # Layout (version 2)
 //!
 //! | offset | field |
 //! |---|---|
 //! | 0 | magic `b"VTSMMAP\0"` |
-//! | 8 | version u32 = 1 |
-//! | 12 | header length u32 = [`HEADER_LEN`] |
-//! | 16..44 | vertex, triangle, tile, mask-vertex counts; texture width, height; tiles_x, tiles_y (u32) |
+//! | 8 | version u32 = 2 |
+//! | 12 | header length u32 = [`HEADER_LEN`] (176) |
+//! | 16..48 | vertex, triangle, tile, mask-vertex counts; texture width, height; tiles_x, tiles_y (u32) |
 //! | 48 | tile size, metres (f32) |
-//! | 52..76 | bounds min xyz, max xyz (f32) |
+//! | 52..76 | bounds min xyz, max xyz (f32, local frame) |
 //! | 76..148 | six sections × (offset u32, length u32, CRC-32 u32) |
-//! | 148 | CRC-32 of bytes 0..148 |
+//! | 148..172 | origin x, y, z (f64, metres in the user frame), finite, each within ±[`MAX_MAP_ORIGIN_M`] |
+//! | 172 | CRC-32 of bytes 0..172 |
+//!
+//! Version 1 is the same without the origin: header length [`HEADER_LEN_V1`]
+//! (152), the header CRC at 148 over bytes 0..148, sections from 152. It is
+//! still read (origin 0); the encoder writes version 2 only.
 //!
 //! Sections follow the header contiguously in this order: tiles (32 B: min xyz,
 //! max xyz f32, first triangle u32, triangle count u32), vertices (12 B: xyz f32,
-//! world metres), triangles (16 B: three vertex indices u32, flags u32 with bit 0 =
+//! local metres), triangles (16 B: three vertex indices u32, flags u32 with bit 0 =
 //! member of M̂, other bits zero), UVs (24 B: three corners × (x, y) f32 in texture
 //! pixels, x right, y down, pixel centres on integers), texture (width·height bytes,
 //! row-major, stride = width), mask vertices (u32 vertex indices, strictly increasing).
@@ -32,17 +47,21 @@
 //! grid holding the triangle's centroid, and its box bounds all its triangles.
 //! Every byte is covered by a CRC, so any single corrupted byte is detected.
 
-use crate::config::{MAX_MAP_TILES, MAX_MAP_TRIANGLES, MAX_MAP_VERTICES, MAX_TEXTURE_DIM};
+use crate::config::{
+    MAX_MAP_ORIGIN_M, MAX_MAP_TILES, MAX_MAP_TRIANGLES, MAX_MAP_VERTICES, MAX_TEXTURE_DIM,
+};
 use crate::failure::FailureCode;
 use crate::geom::Vec3;
 use crate::image::GrayView;
 
 /// First eight bytes of every map product.
 pub const MAGIC: [u8; 8] = *b"VTSMMAP\0";
-/// Format version written and accepted by this build.
-pub const VERSION: u32 = 1;
-/// Length of the header in bytes (including its own CRC).
-pub const HEADER_LEN: usize = 152;
+/// Format version written by this build (version 1 is also read).
+pub const VERSION: u32 = 2;
+/// Length of the version-2 header in bytes (including its own CRC).
+pub const HEADER_LEN: usize = 176;
+/// Length of the version-1 header in bytes (no origin).
+pub const HEADER_LEN_V1: usize = 152;
 /// Bytes per tile record.
 pub const TILE_BYTES: usize = 32;
 /// Bytes per vertex record.
@@ -69,7 +88,7 @@ const SEC_UVS: usize = 3;
 const SEC_TEXTURE: usize = 4;
 const SEC_MASK: usize = 5;
 const OFF_SECTIONS: usize = 76;
-const OFF_HEADER_CRC: usize = 148;
+const OFF_ORIGIN: usize = 148;
 
 // ---- CRC-32 (IEEE 802.3, reflected, poly 0xEDB88320) ------------------------
 
@@ -130,6 +149,29 @@ fn rd_vec3(b: &[u8], off: usize) -> Option<Vec3> {
         rd_f32(b, off + 4)?,
         rd_f32(b, off + 8)?,
     ))
+}
+
+#[inline]
+fn rd_f64(b: &[u8], off: usize) -> Option<f64> {
+    let s = b.get(off..off.checked_add(8)?)?;
+    let mut a = [0u8; 8];
+    a.copy_from_slice(s);
+    Some(f64::from_le_bytes(a))
+}
+
+/// Header length of a format version, `None` for a version this build cannot read.
+fn header_len_of(version: u32) -> Option<usize> {
+    match version {
+        1 => Some(HEADER_LEN_V1),
+        VERSION => Some(HEADER_LEN),
+        _ => None,
+    }
+}
+
+/// Whether a map origin is usable: finite, each coordinate within ±[`MAX_MAP_ORIGIN_M`].
+pub fn origin_ok(o: &[f64; 3]) -> bool {
+    o.iter()
+        .all(|c| c.is_finite() && c.abs() <= MAX_MAP_ORIGIN_M)
 }
 
 #[inline]
@@ -231,7 +273,15 @@ struct Layout {
 }
 
 impl Layout {
-    fn new(v: usize, t: usize, tiles: usize, masks: usize, tw: usize, th: usize) -> Self {
+    fn new(
+        header: usize,
+        v: usize,
+        t: usize,
+        tiles: usize,
+        masks: usize,
+        tw: usize,
+        th: usize,
+    ) -> Self {
         let lens = [
             tiles * TILE_BYTES,
             v * VERTEX_BYTES,
@@ -241,7 +291,7 @@ impl Layout {
             masks * MASK_VERTEX_BYTES,
         ];
         let mut sec = [Section::default(); SECTIONS];
-        let mut off = HEADER_LEN;
+        let mut off = header;
         for (s, len) in sec.iter_mut().zip(lens) {
             *s = Section { off, len };
             off += len;
@@ -270,6 +320,7 @@ pub struct MapView<'a> {
     tile_size_m: f32,
     min: Vec3,
     max: Vec3,
+    origin: [f64; 3],
     texture: GrayView<'a>,
 }
 
@@ -277,8 +328,9 @@ impl<'a> MapView<'a> {
     /// Check a map product and return a view of it.
     ///
     /// Checks, in order: length of the header ([`FailureCode::MapTruncated`]),
-    /// magic ([`FailureCode::MapBadMagic`]), version ([`FailureCode::MapUnsupportedVersion`]),
-    /// header CRC ([`FailureCode::MapCrcMismatch`]), counts against the `config`
+    /// magic ([`FailureCode::MapBadMagic`]), version 1 or 2 ([`FailureCode::MapUnsupportedVersion`]),
+    /// header CRC ([`FailureCode::MapCrcMismatch`]), the origin (version 2:
+    /// [`FailureCode::MapOriginOutOfRange`] unless [`origin_ok`]), counts against the `config`
     /// caps ([`FailureCode::MapCountOutOfRange`]), section table against the
     /// layout implied by the counts ([`FailureCode::MapInconsistent`]), total length
     /// ([`FailureCode::MapTruncated`] if short, [`FailureCode::MapInconsistent`] if
@@ -294,22 +346,34 @@ impl<'a> MapView<'a> {
     /// The first failed check's code, as above.
     pub fn new_checked(bytes: &'a [u8]) -> Result<Self, FailureCode> {
         use FailureCode as F;
-        if bytes.len() < HEADER_LEN {
+        if bytes.len() < HEADER_LEN_V1 {
             return Err(F::MapTruncated);
         }
         if bytes.get(0..8) != Some(&MAGIC[..]) {
             return Err(F::MapBadMagic);
         }
         let h = |off: usize| rd_u32(bytes, off).ok_or(F::MapTruncated);
-        if h(8)? != VERSION {
-            return Err(F::MapUnsupportedVersion);
+        let version = h(8)?;
+        let header_len = header_len_of(version).ok_or(F::MapUnsupportedVersion)?;
+        if bytes.len() < header_len {
+            return Err(F::MapTruncated);
         }
-        let head = bytes.get(..OFF_HEADER_CRC).ok_or(F::MapTruncated)?;
-        if crc32(head) != h(OFF_HEADER_CRC)? {
+        let crc_off = header_len - 4;
+        let head = bytes.get(..crc_off).ok_or(F::MapTruncated)?;
+        if crc32(head) != h(crc_off)? {
             return Err(F::MapCrcMismatch);
         }
-        if h(12)? as usize != HEADER_LEN {
+        if h(12)? as usize != header_len {
             return Err(F::MapInconsistent);
+        }
+        let origin = if version == 1 {
+            [0.0; 3]
+        } else {
+            let c = |k: usize| rd_f64(bytes, OFF_ORIGIN + 8 * k).ok_or(F::MapTruncated);
+            [c(0)?, c(1)?, c(2)?]
+        };
+        if !origin_ok(&origin) {
+            return Err(F::MapOriginOutOfRange);
         }
         let (vc, tc, kc, mc) = (h(16)?, h(20)?, h(24)?, h(28)?);
         let (tw, th, tx, ty) = (h(32)?, h(36)?, h(40)?, h(44)?);
@@ -337,6 +401,7 @@ impl<'a> MapView<'a> {
             return Err(F::MapInconsistent);
         }
         let layout = Layout::new(
+            header_len,
             vc as usize,
             tc as usize,
             kc as usize,
@@ -380,6 +445,7 @@ impl<'a> MapView<'a> {
             tile_size_m,
             min,
             max,
+            origin,
             texture,
         };
         view.check_content()?;
@@ -488,12 +554,27 @@ impl<'a> MapView<'a> {
         (self.tiles_x, self.tiles_y, self.tile_size_m)
     }
 
-    /// Bounds of all vertices (min, max), world metres.
+    /// Bounds of all vertices (min, max), local metres.
     pub fn bounds(&self) -> (Vec3, Vec3) {
         (self.min, self.max)
     }
 
-    /// Vertex `i` in world metres.
+    /// Origin of the local frame in the mesh's own (user) frame, metres:
+    /// `p_user = p_local + origin`, in f64. `[0, 0, 0]` for a version-1 product.
+    pub fn origin(&self) -> [f64; 3] {
+        self.origin
+    }
+
+    /// Format version of the product (1 or 2).
+    pub fn version(&self) -> u32 {
+        if self.layout.off(SEC_TILES) == HEADER_LEN_V1 {
+            1
+        } else {
+            VERSION
+        }
+    }
+
+    /// Vertex `i` in local metres.
     #[inline]
     pub fn vertex(&self, i: u32) -> Option<Vec3> {
         if i >= self.vertex_count {
@@ -524,7 +605,7 @@ impl<'a> MapView<'a> {
         })
     }
 
-    /// The three corners of triangle `i` in world metres (one read of its indices
+    /// The three corners of triangle `i` in local metres (one read of its indices
     /// and vertices, without its UVs and flags).
     #[inline]
     pub fn triangle_vertices(&self, i: u32) -> Option<[Vec3; 3]> {
@@ -592,7 +673,7 @@ impl<'a> MapView<'a> {
 /// A textured mesh in memory, to be encoded into a map product.
 #[derive(Clone, Copy, Debug)]
 pub struct MapSource<'s> {
-    /// Vertex positions, world metres.
+    /// Vertex positions, local metres (user frame minus `origin`).
     pub vertices: &'s [[f32; 3]],
     /// Triangles as vertex indices.
     pub triangles: &'s [[u32; 3]],
@@ -605,6 +686,9 @@ pub struct MapSource<'s> {
     pub texture: GrayView<'s>,
     /// Side of a tile of the x-y grid, metres.
     pub tile_size_m: f32,
+    /// Origin of the local frame in the user frame, metres (see the module doc);
+    /// must pass [`origin_ok`].
+    pub origin: [f64; 3],
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -650,6 +734,9 @@ fn plan(src: &MapSource) -> Result<Plan, FailureCode> {
     }
     if !(src.tile_size_m.is_finite() && src.tile_size_m > 0.0) {
         return Err(F::MapTileSizeOutOfRange);
+    }
+    if !origin_ok(&src.origin) {
+        return Err(F::MapOriginOutOfRange);
     }
     let mut min = Vec3::repeat(f32::INFINITY);
     let mut max = Vec3::repeat(f32::NEG_INFINITY);
@@ -713,7 +800,7 @@ fn plan(src: &MapSource) -> Result<Plan, FailureCode> {
         max,
         tiles_x,
         tiles_y,
-        layout: Layout::new(nv, nt, tiles, masks_max, tw, th),
+        layout: Layout::new(HEADER_LEN, nv, nt, tiles, masks_max, tw, th),
     })
 }
 
@@ -740,6 +827,7 @@ pub fn encoded_len(src: &MapSource) -> Result<usize, FailureCode> {
 /// vertex extent beyond f32), [`FailureCode::MapTileSizeOutOfRange`] (tile size
 /// not positive and finite, or a tile grid above `MAX_MAP_TILES`),
 /// [`FailureCode::MapInconsistent`] (slice lengths disagree),
+/// [`FailureCode::MapOriginOutOfRange`] (origin not finite or beyond ±[`MAX_MAP_ORIGIN_M`]),
 /// [`FailureCode::MapNonFinite`], [`FailureCode::MapUvOutOfRange`] (a UV beyond
 /// ±[`MAX_UV_PX`] texture pixels once converted), [`FailureCode::MapNoSurface`]
 /// (every triangle has zero area), [`FailureCode::MapIndexOutOfRange`],
@@ -860,6 +948,7 @@ pub fn encode(src: &MapSource, out: &mut [u8]) -> Result<usize, FailureCode> {
 
     // Header with the exact mask count.
     let real = Layout::new(
+        HEADER_LEN,
         nv,
         src.triangles.len(),
         tiles,
@@ -888,6 +977,11 @@ pub fn encode(src: &MapSource, out: &mut [u8]) -> Result<usize, FailureCode> {
     }
     wr_vec3(buf, 52, &plan.min)?;
     wr_vec3(buf, 64, &plan.max)?;
+    for (k, c) in src.origin.iter().enumerate() {
+        buf.get_mut(OFF_ORIGIN + 8 * k..OFF_ORIGIN + 8 * k + 8)
+            .ok_or(F::MapEncodeBufferTooSmall)?
+            .copy_from_slice(&c.to_le_bytes());
+    }
     for (i, s) in real.sec.iter().enumerate() {
         let crc = crc32(
             buf.get(s.off..s.off + s.len)
@@ -899,21 +993,25 @@ pub fn encode(src: &MapSource, out: &mut [u8]) -> Result<usize, FailureCode> {
         wr_u32(buf, e + 8, crc)?;
     }
     let hcrc = crc32(
-        buf.get(..OFF_HEADER_CRC)
+        buf.get(..HEADER_LEN - 4)
             .ok_or(F::MapEncodeBufferTooSmall)?,
     );
-    wr_u32(buf, OFF_HEADER_CRC, hcrc)?;
+    wr_u32(buf, HEADER_LEN - 4, hcrc)?;
     Ok(real.total)
 }
 
 /// Recompute every CRC of a product in place (header last). For tools and tests
 /// that edit a product on purpose; a product edited without this is rejected.
+/// The header length follows the version field (an unknown version is treated
+/// as the current one).
 ///
 /// # Errors
 /// [`FailureCode::MapTruncated`] if `bytes` is shorter than its header or sections say.
 pub fn reseal(bytes: &mut [u8]) -> Result<(), FailureCode> {
     use FailureCode as F;
-    if bytes.len() < HEADER_LEN {
+    let version = rd_u32(bytes, 8).ok_or(F::MapTruncated)?;
+    let header_len = header_len_of(version).unwrap_or(HEADER_LEN);
+    if bytes.len() < header_len {
         return Err(F::MapTruncated);
     }
     for i in 0..SECTIONS {
@@ -924,8 +1022,8 @@ pub fn reseal(bytes: &mut [u8]) -> Result<(), FailureCode> {
         let crc = crc32(bytes.get(off..end).ok_or(F::MapTruncated)?);
         wr_u32(bytes, e + 8, crc).map_err(|_| F::MapTruncated)?;
     }
-    let hcrc = crc32(bytes.get(..OFF_HEADER_CRC).ok_or(F::MapTruncated)?);
-    wr_u32(bytes, OFF_HEADER_CRC, hcrc).map_err(|_| F::MapTruncated)
+    let hcrc = crc32(bytes.get(..header_len - 4).ok_or(F::MapTruncated)?);
+    wr_u32(bytes, header_len - 4, hcrc).map_err(|_| F::MapTruncated)
 }
 
 #[cfg(test)]

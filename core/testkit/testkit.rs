@@ -111,6 +111,7 @@ pub fn build_map(seed: u64) -> Vec<u8> {
         mask: &mask,
         texture: GrayView::new(&texture, TEX, TEX, TEX).unwrap(),
         tile_size_m: 1.0,
+        origin: [0.0; 3],
     };
     let mut out = vec![0u8; vtsm_core::map::encoded_len(&src).unwrap()];
     vtsm_core::map::encode(&src, &mut out).unwrap();

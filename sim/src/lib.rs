@@ -3,7 +3,8 @@
 //! Desktop side of VTSM (std): procedural depots ([`terrain`]), a photometric
 //! renderer of its own ([`render`]), photogrammetry-like map products
 //! ([`mapping`]), capture grids and scenes ([`scene`]), HAL implementations with
-//! seeded fault injection ([`devices`]), file formats ([`io`]), evaluation suites
+//! seeded fault injection ([`devices`]), file formats ([`io`]), the user and
+//! map-local frames ([`frame`]), evaluation suites
 //! ([`eval`]), the local-feature baseline ([`features`]) and the `vtsm`
 //! command line ([`cli`]).
 #![forbid(unsafe_code)]
@@ -13,6 +14,7 @@ pub mod devices;
 pub mod error;
 pub mod eval;
 pub mod features;
+pub mod frame;
 pub mod io;
 pub mod locate;
 pub mod mapping;

@@ -136,6 +136,7 @@ pub fn build_map(terrain: &Terrain, light: &Lighting, opts: &MappingOptions) -> 
             height: th as u32,
             pixels: tex,
         },
+        origin: [0.0; 3],
     }
 }
 

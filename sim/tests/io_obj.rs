@@ -64,7 +64,17 @@ fn textured_obj_round_trips_through_the_map_product() {
     let (nx, ny) = (6, 5);
     let (p, verts, tex) = write_grid(&d, nx, ny);
     let m = mesh::load_mesh(&p).unwrap();
-    assert_eq!(m.vertices, verts);
+    // Vertices are local to the map origin (the box centre rounded to metres).
+    assert_eq!(m.vertices.len(), verts.len());
+    for (a, b) in m.vertices.iter().zip(&verts) {
+        let user = [0, 1, 2].map(|k| f64::from(a[k]) + m.origin[k]);
+        assert!(
+            user.iter()
+                .zip(b)
+                .all(|(x, y)| (x - f64::from(*y)).abs() <= 1e-6),
+            "{user:?} {b:?}"
+        );
+    }
     assert_eq!(m.triangles.len(), 2 * (nx - 1) * (ny - 1));
     assert_eq!(m.texture, tex);
     assert!(m.mask.iter().all(|&b| b));
@@ -81,7 +91,9 @@ fn textured_obj_round_trips_through_the_map_product() {
     let map = MapView::new_checked(&bytes).unwrap();
     assert_eq!(map.vertex_count() as usize, verts.len());
     assert_eq!(map.triangle_count() as usize, m.triangles.len());
-    for (i, v) in verts.iter().enumerate() {
+    // The product holds the mesh's local vertices and its origin.
+    assert_eq!(map.origin(), m.origin);
+    for (i, v) in m.vertices.iter().enumerate() {
         let got = map.vertex(i as u32).unwrap();
         assert_eq!([got.x, got.y, got.z], *v);
     }
@@ -279,10 +291,16 @@ fn mask_matches_triangles_in_any_corner_order_and_vertex_numbering() {
     // coordinates perturbed by far less than the tolerance.
     let chosen: Vec<usize> = (0..m.triangles.len()).step_by(3).collect();
     let n = verts.len() as u32;
-    let mask_vertices: Vec<[f32; 3]> = verts
+    let mask_vertices: Vec<[f64; 3]> = verts
         .iter()
         .rev()
-        .map(|v| [v[0] + 1e-6, v[1] - 1e-6, v[2]])
+        .map(|v| {
+            [
+                f64::from(v[0]) + 1e-6,
+                f64::from(v[1]) - 1e-6,
+                f64::from(v[2]),
+            ]
+        })
         .collect();
     let mut mask_tris = Vec::new();
     for &k in chosen.iter().rev() {
@@ -430,6 +448,7 @@ fn scene_export_obj_files_read_back_as_the_simulated_map() {
         uvs: uvs.clone(),
         mask: mask.clone(),
         texture: tex.clone(),
+        origin: [0.0; 3],
     };
 
     write_png(&d.join("map_texture.png"), &tex, true).unwrap();
@@ -444,9 +463,12 @@ fn scene_export_obj_files_read_back_as_the_simulated_map() {
     assert_eq!(back.texture, tex);
     // The exporter rounds positions to 1e-5 m and uvs to 1e-6.
     for (a, b) in back.vertices.iter().zip(&verts) {
+        let user = [0, 1, 2].map(|k| f64::from(a[k]) + back.origin[k]);
         assert!(
-            a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 6e-6),
-            "{a:?} {b:?}"
+            user.iter()
+                .zip(b)
+                .all(|(x, y)| (x - f64::from(*y)).abs() <= 7e-6),
+            "{user:?} {b:?}"
         );
     }
     for (a, b) in back.uvs.iter().zip(&uvs) {

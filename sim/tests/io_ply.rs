@@ -96,7 +96,8 @@ fn ascii_and_both_binary_orders_read_the_same_mesh() {
         .map(|f| ply::parse(&ply_bytes(f), p, true).unwrap())
         .collect();
     for m in &meshes {
-        assert_eq!(m.vertices, VERTS.to_vec());
+        let want: Vec<[f64; 3]> = VERTS.iter().map(|v| v.map(f64::from)).collect();
+        assert_eq!(m.vertices, want);
         assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3], [3, 2, 4]]);
         let expect: Vec<u8> = RGB.iter().map(|c| luma_ref(*c)).collect();
         assert_eq!(m.vertex_gray.as_deref(), Some(&expect[..]));

@@ -75,13 +75,15 @@ fn args(dir: &Path, prior: &str, out: Option<PathBuf>) -> Args {
         mask: Some(dir.join("mask.obj")),
         map: None,
         calib: dir.join("calib.json"),
-        left: dir.join("left.png"),
-        right: dir.join("right.png"),
-        prior: dir.join(prior),
+        left: Some(dir.join("left.png")),
+        right: Some(dir.join("right.png")),
+        prior: Some(dir.join(prior)),
+        pairs: None,
         seed: SEED,
         out,
         force: false,
         tile_size_m: DEFAULT_TILE_SIZE_M,
+        origin: None,
     }
 }
 
@@ -191,6 +193,7 @@ fn exporter_floats_round_trip() {
             height: 1,
             pixels: vec![0],
         },
+        origin: [0.0; 3],
     };
     let text = obj_text(&mesh, None, false);
     let read: Vec<[f32; 3]> = text
@@ -285,8 +288,8 @@ fn relocalize_exit_codes() {
     let gray = vec![128u8; (w * h) as usize];
     vtsm_sim::scene::export::write_png_gray(&e.dir.join("blank.png"), w, h, &gray).unwrap();
     let mut blank = args(&e.dir, "prior.json", Some(out_dir.join("blank.json")));
-    blank.left = e.dir.join("blank.png");
-    blank.right = e.dir.join("blank.png");
+    blank.left = Some(e.dir.join("blank.png"));
+    blank.right = Some(e.dir.join("blank.png"));
     assert_eq!(relocalize::run(&blank).unwrap(), EXIT_RELOC_FAILED);
     let text = std::fs::read_to_string(out_dir.join("blank.json")).unwrap();
     assert!(text.contains("\"failed\""), "{text}");

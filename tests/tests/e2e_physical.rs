@@ -23,13 +23,15 @@ fn args(dir: &Path) -> Args {
         mask: Some(dir.join("mask.obj")),
         map: None,
         calib: dir.join("calib.json"),
-        left: dir.join("left.png"),
-        right: dir.join("right.png"),
-        prior: dir.join("prior.json"),
+        left: Some(dir.join("left.png")),
+        right: Some(dir.join("right.png")),
+        prior: Some(dir.join("prior.json")),
+        pairs: None,
         seed: SEED,
         out: None,
         force: false,
         tile_size_m: DEFAULT_TILE_SIZE_M,
+        origin: None,
     }
 }
 
@@ -39,7 +41,13 @@ fn relocalize(dir: &Path, truth: &Pose) -> (f32, f32, Pose) {
     let inputs = load_inputs(&args(dir)).unwrap();
     let out = run_engine(&inputs).unwrap();
     assert_eq!(out.failure, None, "{}", dir.display());
-    let pose = out.pose.unwrap();
+    // The outcome is in the map's local frame; the truth in the mesh's.
+    let local = out.pose.unwrap();
+    let o = out.origin;
+    let pose = Pose::new(
+        local.rotation(),
+        local.translation() + vtsm_core::geom::Vec3::new(o[0] as f32, o[1] as f32, o[2] as f32),
+    );
     let (t, r) = pose.error_to(truth);
     (t, r.to_degrees(), pose)
 }

@@ -64,6 +64,7 @@ impl Mesh {
             mask: &self.mask,
             texture: GrayView::new(&self.tex, self.tex_w, self.tex_h, self.tex_w).unwrap(),
             tile_size_m,
+            origin: [0.0; 3],
         }
     }
 
@@ -218,7 +219,7 @@ fn each_kind_of_inconsistency_has_its_own_code() {
     type Edit = fn(&mut Vec<u8>, usize, usize, usize, u32);
     let cases: &[(Edit, FailureCode)] = &[
         (|b, _, _, _, _| b[0] = b'X', FailureCode::MapBadMagic),
-        (|b, _, _, _, _| b[8] = 2, FailureCode::MapUnsupportedVersion),
+        (|b, _, _, _, _| b[8] = 3, FailureCode::MapUnsupportedVersion),
         (
             |b, t, _, _, nv| wr_u32(b, t + 4, nv).unwrap(),
             FailureCode::MapIndexOutOfRange,
@@ -420,4 +421,149 @@ fn resealed_products_with_absurd_uvs_or_no_surface_are_rejected() {
         }),
         Some(FailureCode::MapNoSurface)
     );
+}
+
+/// The same product in the version-1 layout: no origin, header of
+/// [`HEADER_LEN_V1`] bytes, sections moved up by the 24 origin bytes.
+fn as_version_1(v2: &[u8]) -> Vec<u8> {
+    let shift = HEADER_LEN - HEADER_LEN_V1;
+    let mut b = Vec::with_capacity(v2.len() - shift);
+    b.extend_from_slice(&v2[..OFF_ORIGIN]);
+    b.extend_from_slice(&[0; 4]); // header CRC, resealed below
+    b.extend_from_slice(&v2[HEADER_LEN..]);
+    wr_u32(&mut b, 8, 1).unwrap();
+    wr_u32(&mut b, 12, HEADER_LEN_V1 as u32).unwrap();
+    for i in 0..SECTIONS {
+        let e = OFF_SECTIONS + 12 * i;
+        let off = rd_u32(&b, e).unwrap();
+        wr_u32(&mut b, e, off - shift as u32).unwrap();
+    }
+    reseal(&mut b).unwrap();
+    b
+}
+
+/// The origin is stored as three f64 bit for bit, the local vertices as given,
+/// and the header records version 2.
+///
+/// Verifies: VTSM-MAP-009
+#[test]
+fn origin_round_trips_in_f64() {
+    let mesh = Mesh::grid(4, 0.5);
+    let origin = [391_234.567_8, 3_784_321.987_6, 312.25];
+    let src = MapSource {
+        origin,
+        ..mesh.source(1.0)
+    };
+    let mut out = vec![0u8; encoded_len(&src).unwrap()];
+    let n = encode(&src, &mut out).unwrap();
+    let map = MapView::new_checked(&out[..n]).unwrap();
+    assert_eq!(map.origin().map(f64::to_bits), origin.map(f64::to_bits));
+    assert_eq!(map.version(), VERSION);
+    assert_eq!(rd_u32(&out, 8), Some(2));
+    assert_eq!(rd_u32(&out, 12), Some(HEADER_LEN as u32));
+    for (i, p) in mesh.vertices.iter().enumerate() {
+        assert_eq!(map.vertex(i as u32).unwrap(), Vec3::new(p[0], p[1], p[2]));
+    }
+    // Only the origin bytes differ from the same mesh at origin 0 (and the header CRC).
+    let zero = mesh.encode(1.0);
+    assert_eq!(zero.len(), n);
+    let differing: Vec<usize> = (0..n).filter(|&k| zero[k] != out[k]).collect();
+    assert!(
+        differing
+            .iter()
+            .all(|&k| (OFF_ORIGIN..HEADER_LEN).contains(&k)),
+        "{differing:?}"
+    );
+}
+
+/// A version-1 product (no origin) is still read, with origin 0 and the same
+/// content as the version-2 product it was made from.
+///
+/// Verifies: VTSM-MAP-010
+#[test]
+fn version_1_product_reads_with_origin_zero() {
+    let v2 = Mesh::grid(5, 0.4).encode(0.5);
+    let v1 = as_version_1(&v2);
+    assert_eq!(v1.len(), v2.len() - (HEADER_LEN - HEADER_LEN_V1));
+    let (a, b) = (
+        MapView::new_checked(&v2).unwrap(),
+        MapView::new_checked(&v1).unwrap(),
+    );
+    assert_eq!(b.version(), 1);
+    assert_eq!(b.origin(), [0.0; 3]);
+    assert_eq!(a.vertex_count(), b.vertex_count());
+    for i in 0..a.vertex_count() {
+        assert_eq!(a.vertex(i), b.vertex(i));
+    }
+    for i in 0..a.triangle_count() {
+        assert_eq!(a.triangle(i), b.triangle(i));
+    }
+    for i in 0..a.tile_count() {
+        assert_eq!(a.tile(i), b.tile(i));
+    }
+    assert_eq!(a.texture_bytes(), b.texture_bytes());
+    // Truncations and byte flips of the old layout are caught as well.
+    for len in 0..v1.len() {
+        assert_eq!(
+            MapView::new_checked(&v1[..len]).err(),
+            Some(FailureCode::MapTruncated),
+            "len {len}"
+        );
+    }
+    for pos in 0..HEADER_LEN_V1 {
+        let mut c = v1.clone();
+        c[pos] ^= 0x5A;
+        assert!(MapView::new_checked(&c).is_err(), "byte {pos} accepted");
+    }
+}
+
+/// A non-finite or absurd origin is refused by the encoder (nothing written)
+/// and by the reader, with its own code.
+///
+/// Verifies: VTSM-MAP-009
+#[test]
+fn non_finite_or_huge_origin_is_rejected() {
+    let mesh = Mesh::grid(3, 0.5);
+    for bad in [
+        [f64::NAN, 0.0, 0.0],
+        [0.0, f64::INFINITY, 0.0],
+        [0.0, 0.0, -f64::INFINITY],
+        [MAX_MAP_ORIGIN_M * 1.5, 0.0, 0.0],
+    ] {
+        let src = MapSource {
+            origin: bad,
+            ..mesh.source(1.0)
+        };
+        assert_eq!(encoded_len(&src), Err(FailureCode::MapOriginOutOfRange));
+        let mut out = vec![0xAAu8; 1 << 16];
+        assert_eq!(
+            encode(&src, &mut out),
+            Err(FailureCode::MapOriginOutOfRange)
+        );
+        assert!(out.iter().all(|&b| b == 0xAA), "encoder wrote on refusal");
+        let mut b = mesh.encode(1.0);
+        b[OFF_ORIGIN..OFF_ORIGIN + 24].copy_from_slice(
+            &[
+                bad[0].to_le_bytes(),
+                bad[1].to_le_bytes(),
+                bad[2].to_le_bytes(),
+            ]
+            .concat(),
+        );
+        assert_eq!(
+            MapView::new_checked(&b).err(),
+            Some(FailureCode::MapCrcMismatch)
+        );
+        reseal(&mut b).unwrap();
+        assert_eq!(
+            MapView::new_checked(&b).err(),
+            Some(FailureCode::MapOriginOutOfRange)
+        );
+    }
+    // The largest allowed origin is accepted.
+    let src = MapSource {
+        origin: [-MAX_MAP_ORIGIN_M, MAX_MAP_ORIGIN_M, 0.0],
+        ..mesh.source(1.0)
+    };
+    assert!(encoded_len(&src).is_ok());
 }

@@ -43,6 +43,7 @@ impl Scene {
             mask: &self.mask,
             texture: GrayView::new(&self.tex, self.tw, self.th, self.tw).unwrap(),
             tile_size_m,
+            origin: [0.0; 3],
         };
         let mut out = vec![0u8; encoded_len(&src).unwrap()];
         let n = encode(&src, &mut out).unwrap();

@@ -16,7 +16,7 @@ struct Cli {
 enum Command {
     /// Build a simulated depot, relocalize one stereo pair from a perturbed prior, report.
     Demo(cli::demo::Args),
-    /// Relocalize a stereo pair against a mesh or map product.
+    /// Relocalize a stereo pair (or, with --pairs, a batch of pairs) against a mesh or map product.
     Relocalize(cli::relocalize::Args),
     /// Match one template in one image by integer zero-mean NCC; prints one JSON line.
     Ncc(cli::ncc::Args),

@@ -18,6 +18,15 @@
 //! - `stepsize`: maps restricted to what sub-sampled wave and forward mapping
 //!   paths see (see [`restrict_to_views`]); reports range to the nearest view.
 //!
+//! `--origin X,Y,Z` offsets the whole scene (mesh, priors, truths) by that
+//! vector: maps are built from the offset mesh through the file readers' path
+//! (f64 vertices, f32 local vertices about the map origin; [`offset_mesh`]),
+//! with the map origin at X,Y,Z, as `vtsm map build --origin X,Y,Z` would;
+//! priors go into the map's local frame and estimates come back in f64, and
+//! errors are measured in the offset frame. The local frame is then the
+//! simulator's (`f64(v) + X − X = v` wherever the sum is exact), so the results
+//! do not depend on the offset.
+//!
 //! "Mapping views" for the distance/angle columns of `paper`, `baseline` and
 //! `uncertainty50` are the 60 viewpoints of the wave mapping path
 //! ([`mapping_trajectory`] with step 1); for `stepsize` they are the
@@ -99,6 +108,10 @@ pub struct Args {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// Offset X,Y,Z (metres) of the whole scene: mesh, priors and truths, e.g.
+    /// UTM coordinates; the results are the same.
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub origin: Option<String>,
 }
 
 /// A relocalizer evaluated on the suite's trials.
@@ -187,6 +200,8 @@ pub struct SuiteConfig {
     pub baseline: Option<Method>,
     /// Show a progress bar.
     pub progress: bool,
+    /// Offset of the whole scene (`--origin`), `None` for the simulator's frame.
+    pub origin: Option<[f64; 3]>,
 }
 
 impl SuiteConfig {
@@ -208,6 +223,7 @@ impl SuiteConfig {
             seeds_k: 16,
             baseline: None,
             progress: false,
+            origin: None,
         }
     }
 }
@@ -247,6 +263,52 @@ struct Group {
 struct MapEntry {
     bytes: std::result::Result<Vec<u8>, String>,
     views: Vec<Pose>,
+    /// The map's origin (user frame = the scene offset by `--origin`).
+    origin: [f64; 3],
+}
+
+/// `mesh` (simulator frame) offset by `offset` and re-expressed as the file
+/// readers do: f64 vertices in the offset frame, f32 vertices relative to
+/// `origin` (`None`: the default origin, [`crate::frame::default_origin`]).
+///
+/// # Errors
+/// An unusable origin, or a vertex out of f32 range about it.
+pub fn offset_mesh(
+    mesh: &MeshData,
+    offset: [f64; 3],
+    origin: Option<[f64; 3]>,
+) -> Result<MeshData> {
+    let user: Vec<[f64; 3]> = mesh
+        .vertices
+        .iter()
+        .map(|v| [0, 1, 2].map(|k| f64::from(v[k]) + mesh.origin[k] + offset[k]))
+        .collect();
+    let origin = origin.unwrap_or_else(|| crate::frame::default_origin(&user));
+    let vertices = crate::frame::local_vertices(&user, origin).map_err(Error::msg)?;
+    Ok(MeshData {
+        vertices,
+        origin,
+        ..mesh.clone()
+    })
+}
+
+/// Encode a suite's map, offset by `--origin` when given; the bytes (or why
+/// not) and the map's origin.
+fn encode_entry(
+    mesh: &MeshData,
+    offset: Option<[f64; 3]>,
+) -> (std::result::Result<Vec<u8>, String>, [f64; 3]) {
+    let mesh = match offset {
+        None => std::borrow::Cow::Borrowed(mesh),
+        Some(o) => match offset_mesh(mesh, o, Some(o)) {
+            Ok(m) => std::borrow::Cow::Owned(m),
+            Err(e) => return (Err(e.to_string()), [0.0; 3]),
+        },
+    };
+    (
+        mesh.encode_map(TILE_M).map_err(|e| e.to_string()),
+        mesh.origin,
+    )
 }
 
 #[derive(Clone, Copy)]
@@ -340,6 +402,7 @@ pub fn restrict_to_views(mesh: &MeshData, cam: &Camera, views: &[Pose]) -> MeshD
         uvs: Vec::new(),
         mask: Vec::new(),
         texture: mesh.texture.clone(),
+        origin: mesh.origin,
     };
     let vert = |i: u32| {
         mesh.vertices
@@ -436,6 +499,11 @@ pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
         cfg.baseline = Some(m);
     }
     cfg.progress = !args.quiet;
+    cfg.origin = args
+        .origin
+        .as_deref()
+        .map(crate::frame::parse_origin)
+        .transpose()?;
     Ok(cfg)
 }
 
@@ -485,9 +553,13 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
             let full: Vec<MapEntry> = scenes
                 .par_iter()
                 .zip(&full_meshes)
-                .map(|(s, m)| MapEntry {
-                    bytes: m.encode_map(TILE_M).map_err(|e| e.to_string()),
-                    views: wave_views(s),
+                .map(|(s, m)| {
+                    let (bytes, origin) = encode_entry(m, cfg.origin);
+                    MapEntry {
+                        bytes,
+                        views: wave_views(s),
+                        origin,
+                    }
                 })
                 .collect();
             maps = full;
@@ -543,9 +615,11 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
                     let s = &scenes[t];
                     let views = mapping_trajectory(&s.terrain, traj, step);
                     let mesh = restrict_to_views(&full_meshes[t], &s.camera(), &views);
+                    let (bytes, origin) = encode_entry(&mesh, cfg.origin);
                     MapEntry {
-                        bytes: mesh.encode_map(TILE_M).map_err(|e| e.to_string()),
+                        bytes,
                         views,
+                        origin,
                     }
                 })
                 .collect();
@@ -624,6 +698,7 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
             "map_view_range_m": MAP_VIEW_RANGE_M,
             "tile_m": TILE_M,
             "baseline": cfg.baseline.map(Method::name),
+            "origin": cfg.origin,
             "features": cfg.baseline.map(|_| {
                 format!("{:?}", crate::features::FeatureParams::for_width(scenes[0].camera().width))
             }),
@@ -663,7 +738,38 @@ fn run_trial(
     let (scene, light, map) = (&scenes[g.terrain], &lights[g.light], &maps[g.map]);
     let (rig, truth, pair) = scene.capture(light, &capture);
     let prior = prior_in_range(&truth, seed, g.prior_m);
-    let (t0, r0) = prior.error_to(&truth);
+    // With --origin: truth and prior in the offset (user) frame, the prior given
+    // to the relocalizer in the map's local frame, errors measured in f64.
+    let truth_user = cfg
+        .origin
+        .map(|o| crate::frame::offset(&crate::frame::to_user(&truth, [0.0; 3]), o));
+    let error = |est: &Pose| -> (f64, f64) {
+        match &truth_user {
+            None => {
+                let (t, r) = est.error_to(&truth);
+                (f64::from(t), f64::from(r))
+            }
+            Some(tu) => crate::frame::error_to(&crate::frame::to_user(est, map.origin), tu),
+        }
+    };
+    let (prior, prior_rejected) = match cfg.origin {
+        None => (prior, None),
+        Some(o) => {
+            // Translation through the offset frame in f64; the rotation is the
+            // same in every frame, so it is kept as is (no renormalisation).
+            let user = crate::frame::local_to_json(&prior, o);
+            let t = [0, 1, 2].map(|k| (user.t[k] - map.origin[k]) as f32);
+            if t.iter().all(|c| c.is_finite()) {
+                (
+                    Pose::new(prior.rotation(), Vec3::new(t[0], t[1], t[2])),
+                    None,
+                )
+            } else {
+                (prior, Some(vtsm_core::FailureCode::MapOriginOutOfRange))
+            }
+        }
+    };
+    let (t0, r0) = error(&prior);
     let mut extra: BTreeMap<String, f64> = g
         .extra
         .iter()
@@ -685,10 +791,10 @@ fn run_trial(
         seed,
         success: false,
         failure: None,
-        init_t_mm: f64::from(t0) * 1e3,
-        init_r_deg: f64::from(r0).to_degrees(),
-        final_t_mm: f64::from(t0) * 1e3,
-        final_r_deg: f64::from(r0).to_degrees(),
+        init_t_mm: t0 * 1e3,
+        init_r_deg: r0.to_degrees(),
+        final_t_mm: t0 * 1e3,
+        final_r_deg: r0.to_degrees(),
         inliers: 0,
         iterations: 0,
         time_s: 0.0,
@@ -701,6 +807,10 @@ fn run_trial(
             return o;
         }
     };
+    if let Some(c) = prior_rejected {
+        o.failure = Some(format!("prior in the map's frame: {}", c.name()));
+        return o;
+    }
     let mut params = locate::params_for_width(rig.cam.width);
     params.seeds = g.seeds;
     let req = Request {
@@ -716,11 +826,11 @@ fn run_trial(
         let fp = crate::features::FeatureParams::for_width(rig.cam.width);
         match crate::features::relocalize_features(&req, &fp) {
             Ok(r) => {
-                let (t1, r1) = r.pose.error_to(&truth);
+                let (t1, r1) = error(&r.pose);
                 o.success = r.failure.is_none();
                 o.failure = r.failure;
-                o.final_t_mm = f64::from(t1) * 1e3;
-                o.final_r_deg = f64::from(r1).to_degrees();
+                o.final_t_mm = t1 * 1e3;
+                o.final_r_deg = r1.to_degrees();
                 o.inliers = r.inliers;
                 o.iterations = r.iterations;
                 o.time_s = r.elapsed.as_secs_f64();
@@ -740,11 +850,11 @@ fn run_trial(
     match locate::relocalize(&req) {
         Ok(r) => {
             let out = &r.outcome;
-            let (t1, r1) = out.pose.error_to(&truth);
+            let (t1, r1) = error(&out.pose);
             o.success = out.failure.is_none();
             o.failure = out.failure.map(|c| c.name().to_string());
-            o.final_t_mm = f64::from(t1) * 1e3;
-            o.final_r_deg = f64::from(r1).to_degrees();
+            o.final_t_mm = t1 * 1e3;
+            o.final_r_deg = r1.to_degrees();
             o.inliers = u32::from(out.quality.inliers);
             o.iterations = u32::from(out.stats.successes);
             o.time_s = r.elapsed.as_secs_f64();
@@ -1319,6 +1429,7 @@ mod tests {
             seeds_k: 4,
             baseline: Some("features".into()),
             quiet: true,
+            origin: None,
         };
         assert!(config_from_args(&args).is_err());
         args.suite = "baseline".into();
@@ -1328,6 +1439,79 @@ mod tests {
         );
         args.baseline = Some("sift".into());
         assert!(config_from_args(&args).is_err());
+    }
+
+    /// The paper suite with the whole scene offset to UTM-sized coordinates
+    /// gives the same trials: same successes, seeds, inliers and iterations,
+    /// errors within 1 µm / 10⁻⁴° (well inside 1 mm / 0.01°): the maps' origin
+    /// is the offset, so the core's local inputs are the unshifted ones.
+    ///
+    /// Verifies: VTSM-CLI-037
+    #[test]
+    fn origin_offset_leaves_suite_results_unchanged() {
+        let cfg = SuiteConfig {
+            trials: 2,
+            ..small(Suite::Paper)
+        };
+        let plain = run_suite(&cfg, "test").unwrap();
+        let offset = [391_234.567_8, 3_784_321.987_6, 312.25];
+        let moved = run_suite(
+            &SuiteConfig {
+                origin: Some(offset),
+                ..cfg.clone()
+            },
+            "test",
+        )
+        .unwrap();
+        assert_eq!(plain.outcomes.len(), moved.outcomes.len());
+        assert!(
+            plain.outcomes.iter().any(|o| o.success),
+            "nothing to compare"
+        );
+        for (a, b) in plain.outcomes.iter().zip(&moved.outcomes) {
+            assert_eq!(
+                (a.seed, a.success, &a.failure),
+                (b.seed, b.success, &b.failure)
+            );
+            assert!((a.init_t_mm - b.init_t_mm).abs() < 1e-3, "{a:?} {b:?}");
+            // The core saw the same inputs: only the f64 error arithmetic differs.
+            assert_eq!((a.inliers, a.iterations), (b.inliers, b.iterations));
+            assert!((a.final_t_mm - b.final_t_mm).abs() < 1e-3, "{a:?} {b:?}");
+            assert!((a.final_r_deg - b.final_r_deg).abs() < 1e-4, "{a:?} {b:?}");
+            eprintln!(
+                "trial {}: final {:.6} mm / {:.6}° vs {:.6} mm / {:.6}° (inliers {} vs {})",
+                a.trial,
+                a.final_t_mm,
+                a.final_r_deg,
+                b.final_t_mm,
+                b.final_r_deg,
+                a.inliers,
+                b.inliers
+            );
+        }
+        assert_eq!(moved.meta.params["origin"][0].as_f64(), Some(offset[0]));
+        // The offset mesh at the offset's origin has the simulator's vertices
+        // (all but coordinates within millimetres of 0 bit for bit); with the
+        // default origin it gets one within a metre of the offset.
+        let scene = Scene::new(TerrainKind::Flagstone, cfg.seed, cfg.profile);
+        let map = scene.map(&scene.lighting(MAP_HOURS));
+        let m = offset_mesh(&map, offset, Some(offset)).unwrap();
+        let same = m
+            .vertices
+            .iter()
+            .zip(&map.vertices)
+            .filter(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits))
+            .count();
+        eprintln!("{same} of {} vertices bit for bit", map.vertices.len());
+        assert!(same * 1000 >= map.vertices.len() * 999);
+        for (a, b) in m.vertices.iter().zip(&map.vertices) {
+            assert!(a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-8));
+        }
+        let d = offset_mesh(&map, offset, None).unwrap();
+        for (o, s) in d.origin.iter().zip(offset) {
+            assert!((o - s).abs() <= 1.0, "{:?}", d.origin);
+            assert_eq!(o.fract(), 0.0);
+        }
     }
 
     /// Verifies: VTSM-CLI-019, VTSM-CLI-021
@@ -1390,6 +1574,7 @@ mod tests {
                 height: 1,
                 pixels: vec![0],
             },
+            origin: [0.0; 3],
         };
         for (i, x) in [0.0f32, 0.3, 0.8, 5.0].iter().enumerate() {
             let n = mesh.vertices.len() as u32;

@@ -34,6 +34,10 @@ pub struct Args {
     /// Edge of the square culling tiles, metres.
     #[arg(long, value_name = "S", default_value_t = DEFAULT_TILE_SIZE_M)]
     pub tile_size_m: f32,
+    /// Origin X,Y,Z of the map's local frame, metres in the mesh's frame
+    /// (default: the bounding-box centre rounded to whole metres).
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub origin: Option<String>,
 }
 
 /// Load, mask and encode: the product bytes and a one-line summary.
@@ -48,9 +52,14 @@ pub fn build(args: &Args) -> crate::Result<(Vec<u8>, String)> {
         ))
         .with_code(vtsm_core::FailureCode::MapTileSizeOutOfRange));
     }
+    let origin = args
+        .origin
+        .as_deref()
+        .map(crate::frame::parse_origin)
+        .transpose()?;
     let bar = progress_bar();
     bar.set_message("reading");
-    let loaded = mesh::load_mesh_with_progress(&args.mesh, &bar);
+    let loaded = mesh::load_mesh_with_progress(&args.mesh, origin, &bar);
     let mut m = match loaded {
         Ok(m) => m,
         Err(e) => {
@@ -110,13 +119,16 @@ fn finish(
         e
     })?;
     let summary = format!(
-        "{}: {} vertices, {} triangles ({} in mask{mask_note}), texture {}x{}, {} bytes",
+        "{}: {} vertices, {} triangles ({} in mask{mask_note}), texture {}x{}, origin ({}, {}, {}) m, {} bytes",
         args.out.display(),
         m.vertices.len(),
         m.triangles.len(),
         m.mask_count(),
         m.texture.width,
         m.texture.height,
+        m.origin[0],
+        m.origin[1],
+        m.origin[2],
         bytes.len()
     );
     Ok((bytes, summary))

@@ -3,6 +3,7 @@
 
 use crate::error::{Error, EXIT_BAD_INPUT};
 
+pub mod batch;
 pub mod budget;
 pub mod demo;
 pub mod eval;

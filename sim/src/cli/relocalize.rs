@@ -4,12 +4,17 @@
 //! the engine ([`run_engine`]) and writes `result.json` ([`outcome_result`]).
 //! Any bad input gives a one-line error naming the file, exit code 2, and no
 //! output; a clean relocalization failure gives exit code 1 and a result with
-//! `"status": "failed"`.
+//! `"status": "failed"`. With `--pairs` it relocalizes a batch against one map
+//! ([`super::batch`]).
+//!
+//! Poses in and out (prior, result) are f64 in the mesh's own frame; the map's
+//! origin ([`MapView::origin`]) is subtracted on the way into the core and added
+//! on the way out ([`crate::frame`]).
 
 use crate::error::{Error, Result, EXIT_RELOC_FAILED};
 use crate::io::calib_opencv::{self, CalibFile};
 use crate::io::image::{self as img, Gray8};
-use crate::io::json::{self, Calib, PoseJson, ResultFile};
+use crate::io::json::{self, Calib, ResultFile};
 use crate::io::{self, mesh};
 use crate::rectify::Rectifier;
 use std::collections::BTreeMap;
@@ -42,14 +47,19 @@ pub struct Args {
     #[arg(long, value_name = "calib.json")]
     pub calib: PathBuf,
     /// Left image (PNG, JPEG, TIFF or PGM; 8 or 16 bit; colour is converted to gray).
-    #[arg(long, value_name = "L.png")]
-    pub left: PathBuf,
+    #[arg(long, value_name = "L.png", required_unless_present = "pairs")]
+    pub left: Option<PathBuf>,
     /// Right image, same size as the left one and as the calibration.
-    #[arg(long, value_name = "R.png")]
-    pub right: PathBuf,
+    #[arg(long, value_name = "R.png", required_unless_present = "pairs")]
+    pub right: Option<PathBuf>,
     /// Prior pose JSON file: `world_from_left` with translation `t` (x, y, z) and quaternion `q` (w, x, y, z).
-    #[arg(long, value_name = "prior.json")]
-    pub prior: PathBuf,
+    #[arg(long, value_name = "prior.json", required_unless_present = "pairs")]
+    pub prior: Option<PathBuf>,
+    /// Batch: a JSON-lines file (or a directory of `*.json` pair files) naming
+    /// left, right, prior (and optionally calib, out, truth, seed) per pair; the
+    /// map is loaded once and one JSON line per pair is written to --out or stdout.
+    #[arg(long, value_name = "pairs.jsonl", conflicts_with_all = ["left", "right", "prior"])]
+    pub pairs: Option<PathBuf>,
     /// Seed of the relocalizer's random draws (same inputs + seed = same result).
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub seed: u64,
@@ -62,6 +72,15 @@ pub struct Args {
     /// Tile edge (metres) of the map product built from --mesh.
     #[arg(long, value_name = "S", default_value_t = super::map_build::DEFAULT_TILE_SIZE_M)]
     pub tile_size_m: f32,
+    /// Origin X,Y,Z (metres, mesh frame) of the map built from --mesh
+    /// (default: the mesh's bounding-box centre rounded to whole metres).
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        requires = "mesh",
+        allow_hyphen_values = true
+    )]
+    pub origin: Option<String>,
 }
 
 /// Every input of one relocalization, loaded and checked.
@@ -77,14 +96,17 @@ pub struct Inputs {
     pub left: Gray8,
     /// Right image, calibration size.
     pub right: Gray8,
-    /// Prior `world_from_left` of the camera the core sees (for a physical
-    /// pair: the rectified left camera).
+    /// Prior `world_from_left` in the map's local frame (user frame minus
+    /// `origin`) of the camera the core sees (for a physical pair: the
+    /// rectified left camera).
     pub prior: Pose,
     /// Seed.
     pub seed: u64,
     /// The rectifier of a physical pair (OpenCV form of `calib.json`); the
     /// images above are already rectified.
     pub physical: Option<Rectifier>,
+    /// The map's origin in the user frame ([`MapView::origin`]).
+    pub origin: [f64; 3],
 }
 
 impl Inputs {
@@ -119,6 +141,27 @@ pub fn check_args(args: &Args) -> Result<()> {
 /// The first bad input, as a one-line error naming its file.
 pub fn load_inputs(args: &Args) -> Result<Inputs> {
     check_args(args)?;
+    let map = load_map(args)?;
+    load_inputs_with_map(args, map)
+}
+
+/// A required single-pair path (clap requires it unless `--pairs` is given).
+fn required<'a>(p: &'a Option<PathBuf>, name: &str) -> Result<&'a PathBuf> {
+    p.as_ref()
+        .ok_or_else(|| Error::msg(format!("--{name} is required (or give --pairs)")))
+}
+
+/// Load and validate the calibration, images and prior named by `args`
+/// against a map product already loaded by [`load_map`].
+///
+/// # Errors
+/// The first bad input, as a one-line error naming its file.
+pub fn load_inputs_with_map(args: &Args, map: Vec<u8>) -> Result<Inputs> {
+    let (left_path, right_path, prior_path) = (
+        required(&args.left, "left")?,
+        required(&args.right, "right")?,
+        required(&args.prior, "prior")?,
+    );
     let (calib, physical) = match calib_opencv::read_calib_any(&args.calib)? {
         CalibFile::Rectified(c) => (c, None),
         CalibFile::OpenCv(c) => {
@@ -129,13 +172,23 @@ pub fn load_inputs(args: &Args) -> Result<Inputs> {
     let rig = calib.rig().map_err(|c| {
         Error::file(&args.calib, format!("rejected: {}", c.description())).with_code(c)
     })?;
-    let prior = json::read_pose(&args.prior)?;
+    let origin = MapView::new_checked(&map).map_err(Error::from)?.origin();
+    let prior = json::parse_pose_json(&io::read_file(prior_path)?, prior_path)?;
+    let prior = crate::frame::json_to_local(&prior, origin).map_err(|c| {
+        Error::file(
+            prior_path,
+            format!("pose rejected in the map's local frame: {}", c.name()),
+        )
+        .with_code(c)
+    })?;
     let (w, h) = physical
         .as_ref()
         .map_or((calib.width, calib.height), |p| p.1);
-    let left = img::read_gray_sized(&args.left, w, h)?;
-    let right = img::read_gray_sized(&args.right, w, h)?;
+    let left = img::read_gray_sized(left_path, w, h)?;
+    let right = img::read_gray_sized(right_path, w, h)?;
     let physical = physical.map(|p| p.0);
+    // A physical pair: the core sees the rectified left camera (a rotation
+    // of the physical one about its centre, so the origin shift commutes).
     let (left, right, prior) = match &physical {
         Some(r) => {
             let (l, rr) = r.rectify_pair(&left, &right);
@@ -143,6 +196,31 @@ pub fn load_inputs(args: &Args) -> Result<Inputs> {
         }
         None => (left, right, prior),
     };
+    Ok(Inputs {
+        map,
+        calib,
+        rig,
+        left,
+        right,
+        prior,
+        seed: args.seed,
+        physical,
+        origin,
+    })
+}
+
+/// Load the map product named by `args`: read and check `--map`, or build it
+/// from `--mesh` (and `--mask`, `--origin`, `--tile-size-m`).
+///
+/// # Errors
+/// The first bad input, as a one-line error naming its file.
+pub fn load_map(args: &Args) -> Result<Vec<u8>> {
+    check_args(args)?;
+    let origin = args
+        .origin
+        .as_deref()
+        .map(crate::frame::parse_origin)
+        .transpose()?;
     let map = match (&args.map, &args.mesh) {
         (Some(path), None) => {
             let bytes = io::read_file(path)?;
@@ -160,7 +238,7 @@ pub fn load_inputs(args: &Args) -> Result<Inputs> {
             bytes
         }
         (None, Some(path)) => {
-            let mut m = mesh::load_mesh(path)?;
+            let mut m = mesh::load_mesh_at(path, origin)?;
             if let Some(k) = &args.mask {
                 let geo = mesh::load_geometry(k)?;
                 m.apply_mask(&geo, k)?;
@@ -174,16 +252,7 @@ pub fn load_inputs(args: &Args) -> Result<Inputs> {
         }
         _ => return Err(Error::msg("give exactly one of --mesh and --map")),
     };
-    Ok(Inputs {
-        map,
-        calib,
-        rig,
-        left,
-        right,
-        prior,
-        seed: args.seed,
-        physical,
-    })
+    Ok(map)
 }
 
 /// What the engine reports for one relocalization.
@@ -191,8 +260,11 @@ pub fn load_inputs(args: &Args) -> Result<Inputs> {
 pub struct Outcome {
     /// The failure code when the relocalization failed cleanly, `None` on success.
     pub failure: Option<FailureCode>,
-    /// Final estimate (the last estimate on failure), if any.
+    /// Final estimate (the last estimate on failure), if any, in the map's
+    /// local frame.
     pub pose: Option<Pose>,
+    /// The map's origin: `pose` plus this is the estimate in the user frame.
+    pub origin: [f64; 3],
     /// RANSAC inliers of the final estimate.
     pub inliers: u32,
     /// Successful iterations.
@@ -221,7 +293,10 @@ pub fn run_engine(inputs: &Inputs) -> Result<Outcome> {
         seed: inputs.seed,
     };
     let report = crate::locate::relocalize(&req)?;
-    let mut outcome = outcome_from_core(&report.outcome);
+    let mut outcome = Outcome {
+        origin: inputs.origin,
+        ..outcome_from_core(&report.outcome)
+    };
     // The core solved for the rectified left camera; report the physical one.
     if let (Some(r), Some(p)) = (&inputs.physical, outcome.pose.as_mut()) {
         *p = r.to_physical(p);
@@ -230,7 +305,7 @@ pub fn run_engine(inputs: &Inputs) -> Result<Outcome> {
 }
 
 /// The command-line view of a core outcome (pose, inliers, iterations and
-/// every work counter by name).
+/// every work counter by name), for a map at origin 0.
 pub fn outcome_from_core(o: &vtsm_core::reloc::Outcome) -> Outcome {
     let s = &o.stats;
     let p = &s.pipeline;
@@ -266,6 +341,7 @@ pub fn outcome_from_core(o: &vtsm_core::reloc::Outcome) -> Outcome {
     Outcome {
         failure: o.failure,
         pose: Some(o.pose),
+        origin: [0.0; 3],
         inliers: u32::from(o.quality.inliers),
         iterations: u32::from(s.successes),
         stats,
@@ -273,12 +349,15 @@ pub fn outcome_from_core(o: &vtsm_core::reloc::Outcome) -> Outcome {
     }
 }
 
-/// The `result.json` content of an outcome.
+/// The `result.json` content of an outcome (pose in the user frame).
 pub fn outcome_result(o: &Outcome) -> ResultFile {
     ResultFile {
         status: if o.failure.is_none() { "ok" } else { "failed" }.to_string(),
         failure: o.failure.map(|c| c.name().to_string()),
-        world_from_left: o.pose.as_ref().map(PoseJson::from_pose),
+        world_from_left: o
+            .pose
+            .as_ref()
+            .map(|p| crate::frame::local_to_json(p, o.origin)),
         inliers: o.inliers,
         iterations: o.iterations,
         stats: o.stats.clone(),
@@ -291,6 +370,9 @@ pub fn outcome_result(o: &Outcome) -> ResultFile {
 /// Run the command; returns the exit code.
 pub fn run(args: &Args) -> Result<u8> {
     check_args(args)?;
+    if let Some(pairs) = &args.pairs {
+        return super::batch::run(args, pairs);
+    }
     if let Some(out) = &args.out {
         io::check_output(out, args.force)?;
     }

@@ -143,6 +143,17 @@ impl PoseJson {
         }
     }
 
+    /// From a user-frame (f64) pose.
+    pub fn from_user(p: &crate::frame::UserPose) -> Self {
+        let (t, q) = crate::frame::user_t_q(p);
+        Self { t, q }
+    }
+
+    /// The user-frame (f64) pose (quaternion renormalised).
+    pub fn user(&self) -> crate::frame::UserPose {
+        crate::frame::user_pose(self.t, self.q)
+    }
+
     /// Check finiteness and unit norm; returns the reason.
     pub fn validate(&self) -> std::result::Result<(), String> {
         if !self
@@ -262,6 +273,17 @@ pub fn read_calib(path: &Path) -> Result<Calib> {
 /// Malformed JSON, a missing or unknown field, non-finite numbers, or a
 /// quaternion not within [`QUAT_NORM_TOL`] of unit norm.
 pub fn parse_pose(bytes: &[u8], path: &Path) -> Result<Pose> {
+    parse_pose_json(bytes, path)?
+        .pose()
+        .map_err(|c| Error::file(path, format!("pose rejected: {}", c.name())).with_code(c))
+}
+
+/// Parse and validate `prior.json` / `truth.json` bytes, keeping the f64
+/// numbers as written (user frame; see [`crate::frame`]).
+///
+/// # Errors
+/// As [`parse_pose`].
+pub fn parse_pose_json(bytes: &[u8], path: &Path) -> Result<PoseJson> {
     let f: PoseFile = parse_json(bytes, path)?;
     f.world_from_left.validate().map_err(|why| {
         let key = if why.contains("`t`") { "t" } else { "q" };
@@ -271,9 +293,15 @@ pub fn parse_pose(bytes: &[u8], path: &Path) -> Result<Pose> {
             None => Error::file(path, why),
         }
     })?;
-    f.world_from_left
-        .pose()
-        .map_err(|c| Error::file(path, format!("pose rejected: {}", c.name())).with_code(c))
+    Ok(f.world_from_left)
+}
+
+/// Read and validate `prior.json` / `truth.json` as a user-frame (f64) pose.
+///
+/// # Errors
+/// As [`parse_pose`], plus I/O errors.
+pub fn read_user_pose(path: &Path) -> Result<crate::frame::UserPose> {
+    Ok(parse_pose_json(&super::read_file(path)?, path)?.user())
 }
 
 /// Read and validate `prior.json` / `truth.json`.

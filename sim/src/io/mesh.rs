@@ -17,6 +17,11 @@
 //! of the texture image, `v = 0` its bottom edge; texel `(i, j)` (column,
 //! row from the top) has its centre at `u = (i + 0.5) / W`, `v = 1 − (j + 0.5) / H`.
 //!
+//! Readers keep vertex coordinates in f64, in the file's own (user) frame;
+//! [`MeshData::from_raw_at`] chooses the map origin (given, or
+//! [`crate::frame::default_origin`]) and stores the vertices relative to it as
+//! f32 ([`crate::frame::local_vertices`]), the only f64 → f32 conversion.
+//!
 //! The sampling mask M̂ ([`MeshData::apply_mask`]) marks the triangles of the
 //! mesh that coincide with a triangle of a mask mesh K: vertices are matched by
 //! position within [`MASK_MATCH_TOL_M`], triangles as unordered vertex triples.
@@ -45,8 +50,8 @@ pub type CornerUvs = [[f32; 2]; 3];
 /// A mesh as read from a file, before it is given a texture.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct RawMesh {
-    /// Vertex positions, world metres.
-    pub vertices: Vec<[f32; 3]>,
+    /// Vertex positions, metres in the file's own (user) frame, as read (f64).
+    pub vertices: Vec<[f64; 3]>,
     /// Triangles as vertex indices (polygons already fan-triangulated).
     pub triangles: Vec<[u32; 3]>,
     /// Per-corner texture coordinates (normalised, OBJ convention), one entry
@@ -67,7 +72,7 @@ pub struct RawMesh {
 /// per side, and holds `width · height` bytes.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MeshData {
-    /// Vertex positions, world metres (z up).
+    /// Vertex positions, metres (z up) in the local frame: user frame minus `origin`.
     pub vertices: Vec<[f32; 3]>,
     /// Triangles as vertex indices.
     pub triangles: Vec<[u32; 3]>,
@@ -77,6 +82,9 @@ pub struct MeshData {
     pub mask: Vec<bool>,
     /// Gray texture, row 0 at the top.
     pub texture: Gray8,
+    /// Origin of the local frame in the user frame, metres (`[0, 0, 0]` for
+    /// the simulator's own scenes): `p_user = vertex + origin`, in f64.
+    pub origin: [f64; 3],
 }
 
 /// What [`MeshData::apply_mask`] matched.
@@ -98,6 +106,16 @@ impl MeshData {
     /// No texture and no vertex colour, a texture without texture coordinates,
     /// an atlas that would exceed `MAX_IMAGE_DIM`, or a failed [`MeshData::check`].
     pub fn from_raw(raw: RawMesh, path: &Path) -> Result<Self> {
+        Self::from_raw_at(raw, path, None)
+    }
+
+    /// [`MeshData::from_raw`] with the map origin given (`None`:
+    /// [`crate::frame::default_origin`] of the vertices).
+    ///
+    /// # Errors
+    /// As [`MeshData::from_raw`], plus an unusable origin or a vertex out of f32
+    /// range about it.
+    pub fn from_raw_at(raw: RawMesh, path: &Path, origin: Option<[f64; 3]>) -> Result<Self> {
         let RawMesh {
             vertices,
             triangles,
@@ -109,6 +127,9 @@ impl MeshData {
             return Err(Error::file(path, "mesh has no faces"));
         }
         check_capacity(path, vertices.len(), triangles.len())?;
+        let origin = origin.unwrap_or_else(|| crate::frame::default_origin(&vertices));
+        let vertices = crate::frame::local_vertices(&vertices, origin)
+            .map_err(|m| Error::file(path, m).with_code(FailureCode::MapOriginOutOfRange))?;
         let (uvs, texture) =
             match (texture, uvs, vertex_gray) {
                 (Some(tex), Some(uvs), _) => (uvs, tex),
@@ -132,6 +153,7 @@ impl MeshData {
             triangles,
             uvs,
             texture,
+            origin,
         };
         mesh.check().map_err(|m| Error::file(path, m))?;
         Ok(mesh)
@@ -222,6 +244,9 @@ impl MeshData {
     /// When a triangle of `mask` is not found in the mesh, or `mask` has no
     /// triangle (`path` names the mask file; the message names the triangle).
     pub fn apply_mask(&mut self, mask: &RawMesh, path: &Path) -> Result<MaskStats> {
+        // The mask's vertices in this mesh's local frame, converted exactly as its own.
+        let mask_local = crate::frame::local_vertices(&mask.vertices, self.origin)
+            .map_err(|m| Error::file(path, m))?;
         let index = VertexIndex::new(&self.vertices);
         // Canonical id of each mesh vertex: the lowest-numbered vertex at the same place,
         // so duplicated vertices (seams) do not split a triangle's identity.
@@ -240,7 +265,7 @@ impl MeshData {
             .triangles
             .iter()
             .map(|t| {
-                let ids = |k: u32| mask.vertices.get(k as usize).and_then(|p| index.find(p));
+                let ids = |k: u32| mask_local.get(k as usize).and_then(|p| index.find(p));
                 key_of(t, &ids)
             })
             .collect();
@@ -267,7 +292,8 @@ impl MeshData {
                 .iter()
                 .find_map(|&v| {
                     let p = mask.vertices.get(v as usize)?;
-                    index.find(p).is_none().then(|| {
+                    let local = mask_local.get(v as usize)?;
+                    index.find(local).is_none().then(|| {
                         format!(
                             "its vertex {} at ({}, {}, {}) is not a mesh vertex",
                             v + 1,
@@ -399,6 +425,7 @@ fn encode_with_core(mesh: &MeshData, tile_size_m: f32) -> Result<Vec<u8>> {
         mask: &mesh.mask,
         texture,
         tile_size_m,
+        origin: mesh.origin,
     };
     let len = map::encoded_len(&src).map_err(Error::from)?;
     let mut out = vec![0u8; len];
@@ -566,16 +593,28 @@ pub fn synthesize_atlas(
 /// # Errors
 /// Unknown extension or any reader error.
 pub fn load_mesh(path: &Path) -> Result<MeshData> {
-    load_mesh_with_progress(path, &ProgressBar::hidden())
+    load_mesh_at(path, None)
 }
 
-/// [`load_mesh`], reporting the bytes of the file parsed so far on `bar`.
+/// [`load_mesh`] with the map origin given (`None`: the default origin).
+///
+/// # Errors
+/// As [`MeshData::from_raw_at`].
+pub fn load_mesh_at(path: &Path, origin: Option<[f64; 3]>) -> Result<MeshData> {
+    load_mesh_with_progress(path, origin, &ProgressBar::hidden())
+}
+
+/// [`load_mesh_at`], reporting the bytes of the file parsed so far on `bar`.
 ///
 /// # Errors
 /// Unknown extension or any reader error.
-pub fn load_mesh_with_progress(path: &Path, bar: &ProgressBar) -> Result<MeshData> {
+pub fn load_mesh_with_progress(
+    path: &Path,
+    origin: Option<[f64; 3]>,
+    bar: &ProgressBar,
+) -> Result<MeshData> {
     let raw = load_raw(path, true, bar)?;
-    MeshData::from_raw(raw, path)
+    MeshData::from_raw_at(raw, path, origin)
 }
 
 /// Load only the geometry of a mesh (for a mask mesh: textures are not read).

@@ -130,6 +130,18 @@ pub(crate) fn parse_finite(tok: &str, what: &str) -> std::result::Result<f32, St
     Ok(v)
 }
 
+/// Parse one finite `f64` token (mesh vertex coordinates, which may be
+/// georeferenced); `what` names the field in the error message.
+pub(crate) fn parse_finite_f64(tok: &str, what: &str) -> std::result::Result<f64, String> {
+    let v: f64 = tok
+        .parse()
+        .map_err(|_| format!("{what}: `{}` is not a number", clip(tok)))?;
+    if !v.is_finite() {
+        return Err(format!("{what}: `{}` is not finite", clip(tok)));
+    }
+    Ok(v)
+}
+
 /// A token clipped for an error message, so a garbage line cannot flood the terminal.
 pub(crate) fn clip(s: &str) -> String {
     const MAX: usize = 40;

@@ -24,7 +24,7 @@ use crate::error::{Error, Result};
 use crate::io::atlas;
 use crate::io::image::Gray8;
 use crate::io::mesh::{CornerUvs, RawMesh};
-use crate::io::{clip, parse_finite};
+use crate::io::{clip, parse_finite, parse_finite_f64};
 use indicatif::ProgressBar;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -88,7 +88,7 @@ fn parse_with_progress(
     bar.set_length(bytes.len() as u64);
     let mut done = 0usize;
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let mut vertices: Vec<[f32; 3]> = Vec::new();
+    let mut vertices: Vec<[f64; 3]> = Vec::new();
     let mut colours: Vec<Option<[f32; 3]>> = Vec::new();
     let mut texcoords: Vec<[f32; 2]> = Vec::new();
     let mut triangles: Vec<[u32; 3]> = Vec::new();
@@ -121,15 +121,17 @@ fn parse_with_progress(
                         vals.len()
                     )));
                 }
-                let mut f = [0f32; 6];
+                // f64: coordinates may be georeferenced (the map origin is taken off later).
+                let mut f = [0f64; 6];
                 for (k, (slot, tok)) in f.iter_mut().zip(vals.iter()).enumerate() {
-                    *slot = parse_finite(tok, &format!("vertex value {}", k + 1)).map_err(err)?;
+                    *slot =
+                        parse_finite_f64(tok, &format!("vertex value {}", k + 1)).map_err(err)?;
                 }
                 if vertices.len() >= u32::MAX as usize {
                     return Err(err("too many vertices".to_string()));
                 }
                 vertices.push([f[0], f[1], f[2]]);
-                colours.push((vals.len() == 6).then_some([f[3], f[4], f[5]]));
+                colours.push((vals.len() == 6).then_some([f[3] as f32, f[4] as f32, f[5] as f32]));
             }
             "vt" => {
                 let vals: Vec<&str> = toks.collect();

@@ -405,7 +405,7 @@ fn parse_with_progress(
         line: h.header_lines,
     };
 
-    let mut vertices: Vec<[f32; 3]> = Vec::new();
+    let mut vertices: Vec<[f64; 3]> = Vec::new();
     let mut gray: Vec<u8> = Vec::new();
     let mut vuv: Vec<[f32; 2]> = Vec::new();
     let mut has_colour = false;
@@ -525,12 +525,10 @@ fn parse_with_progress(
             body.end_instance().map_err(|m| fail(&body, m))?;
             let get = |i: usize| vals.get(i).copied().unwrap_or(0.0);
             if let Some([x, y, z]) = xyz {
-                let p = [get(x) as f32, get(y) as f32, get(z) as f32];
+                // f64: coordinates may be georeferenced (the map origin is taken off later).
+                let p = [get(x), get(y), get(z)];
                 if !p.iter().all(|c| c.is_finite()) {
-                    return Err(fail(
-                        &body,
-                        "vertex coordinate out of f32 range".to_string(),
-                    ));
+                    return Err(fail(&body, "vertex coordinate is not finite".to_string()));
                 }
                 vertices.push(p);
                 if let Some([r, g, b]) = rgb {

@@ -47,8 +47,17 @@ pub fn obj_text(mesh: &MeshData, mtl: Option<&str>, masked_only: bool) -> String
     if let Some(m) = mtl {
         let _ = writeln!(s, "mtllib {m}\nusemtl depot");
     }
-    for v in &mesh.vertices {
-        let _ = writeln!(s, "v {} {} {}", v[0], v[1], v[2]);
+    if mesh.origin == [0.0; 3] {
+        for v in &mesh.vertices {
+            let _ = writeln!(s, "v {} {} {}", v[0], v[1], v[2]);
+        }
+    } else {
+        // Georeferenced: the user-frame coordinates, in f64.
+        let o = mesh.origin;
+        for v in &mesh.vertices {
+            let u = [0, 1, 2].map(|k| f64::from(v[k]) + o[k]);
+            let _ = writeln!(s, "v {} {} {}", u[0], u[1], u[2]);
+        }
     }
     let mut vt = 0usize;
     for (k, tri) in mesh.triangles.iter().enumerate() {

@@ -258,6 +258,7 @@ fn crop(
         mask: &mask,
         texture,
         tile_size_m: map.tile_grid().2,
+        origin: map.origin(),
     };
     let mut bytes = vec![0u8; vtsm_core::map::encoded_len(&src).map_err(|c| format!("{c:?}"))?];
     let n = vtsm_core::map::encode(&src, &mut bytes).map_err(|c| format!("encode: {c:?}"))?;
