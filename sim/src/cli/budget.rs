@@ -67,7 +67,8 @@ pub struct ImageSections {
     pub rodata: u64,
     /// Initialised data (`.data`): in flash, copied to RAM at start-up.
     pub data: u64,
-    /// Zeroed data (`.bss`, `.uninit`): RAM only.
+    /// Zeroed data (`.bss`, `.uninit`): RAM only. Reserved stack and heap
+    /// regions are not counted.
     pub bss: u64,
 }
 
@@ -96,7 +97,9 @@ pub fn image_sections(elf: &[u8]) -> std::result::Result<ImageSections, String> 
             continue;
         };
         const ALLOC: u64 = 0x2;
-        if sh_flags & ALLOC == 0 {
+        // Reserved regions (riscv-rt's `.stack` and `.heap`) are not static
+        // data: the stack is measured by the image itself (high-water mark).
+        if sh_flags & ALLOC == 0 || matches!(sec.name(), Ok(".stack" | ".heap")) {
             continue;
         }
         let size = sec.size();

@@ -49,7 +49,9 @@ pub struct FlightSummary {
 
 fn pose(p: ([f32; 3], [f32; 4])) -> Pose {
     let (t, q) = p;
-    let q = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]));
+    // The bundle holds the unit quaternion's own bits: no renormalization,
+    // which could move the last bit and with it the engine's draws.
+    let q = nalgebra::UnitQuaternion::new_unchecked(nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]));
     Pose::new(q, Vec3::new(t[0], t[1], t[2]))
 }
 
