@@ -69,8 +69,8 @@ fn run(scene: &Path, out: &Path) -> Result<(), String> {
     let params = locate::params_for_width(w);
 
     let cropped = crop(&map, &rig, &prior, params.t0_m)?;
-    let full_req = Request {
-        map: &full_bytes,
+    let request = |map| Request {
+        map,
         left: &left.pixels,
         right: &right.pixels,
         rig,
@@ -78,7 +78,9 @@ fn run(scene: &Path, out: &Path) -> Result<(), String> {
         prior,
         seed: SEED,
     };
-    let full = locate::relocalize(&full_req).map_err(s)?.outcome;
+    let full = locate::relocalize(&request(&full_bytes))
+        .map_err(s)?
+        .outcome;
     let (f1, fr1) = full.pose.error_to(&truth);
     println!(
         "host, full map: failure {:?}, final error {:.1} mm ({:.3}°), {} attempts",
@@ -87,16 +89,7 @@ fn run(scene: &Path, out: &Path) -> Result<(), String> {
         fr1.to_degrees(),
         full.stats.attempts
     );
-    let req = Request {
-        map: &cropped,
-        left: &left.pixels,
-        right: &right.pixels,
-        rig,
-        params,
-        prior,
-        seed: SEED,
-    };
-    let report = locate::relocalize(&req).map_err(s)?;
+    let report = locate::relocalize(&request(&cropped)).map_err(s)?;
     let o = &report.outcome;
     let digest = vtsm_tests::outcome_digest(o);
     let (e0, _) = prior.error_to(&truth);
