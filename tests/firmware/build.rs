@@ -27,9 +27,11 @@ fn main() {
             let memory = if flight.is_some() {
                 "memory-flight.x"
             } else {
-                "memory.x"
+                "memory-m7.x"
             };
-            let _ = fs::copy(memory, out.join("memory.x"));
+            if let Err(e) = fs::copy(memory, out.join("memory.x")) {
+                panic!("cannot copy {memory} to {}: {e}", out.display());
+            }
             println!("cargo:rustc-link-search={}", out.display());
             println!("cargo:rustc-link-arg-bins=-Tlink.x");
         }

@@ -141,6 +141,9 @@ pub fn check_args(args: &Args) -> Result<()> {
 /// The first bad input, as a one-line error naming its file.
 pub fn load_inputs(args: &Args) -> Result<Inputs> {
     check_args(args)?;
+    // The small file first: a bad calibration is reported before a map
+    // product is read or built from a mesh.
+    calib_opencv::read_calib_any(&args.calib)?;
     let map = load_map(args)?;
     load_inputs_with_map(args, map)
 }
