@@ -301,8 +301,8 @@ fn four_png_pages_render_like_the_single_texture_original() {
         _ => write_png(p, img, true).unwrap(),
     };
     let (one, four) = write_pair(&d, &name, &write);
-    let a = mesh::load_mesh(&one).unwrap();
-    let b = mesh::load_mesh(&four).unwrap();
+    let a = mesh::load_mesh_at(&one, Some([0.0; 3])).unwrap();
+    let b = mesh::load_mesh_at(&four, Some([0.0; 3])).unwrap();
     assert_eq!(a.vertices, b.vertices);
     assert_eq!(a.triangles, b.triangles);
     // The faces' corners lie at page texels 0.5..=62.5, so bilinear sampling reads
@@ -329,8 +329,8 @@ fn four_jpeg_pages_render_like_the_original_up_to_jpeg_loss() {
     let (one, four) = write_pair(&d, &|q| format!("page{q}.jpg"), &|p, img, _| {
         write_jpeg(p, img, 95)
     });
-    let a = mesh::load_mesh(&one).unwrap();
-    let b = mesh::load_mesh(&four).unwrap();
+    let a = mesh::load_mesh_at(&one, Some([0.0; 3])).unwrap();
+    let b = mesh::load_mesh_at(&four, Some([0.0; 3])).unwrap();
     let (worst, pixels) = compare_renders(&a, &b);
     println!("jpeg q95 pages: {pixels} pixels compared, max |difference| {worst} gray levels");
     assert!(pixels > 20_000, "{pixels}");
@@ -370,8 +370,8 @@ fn mask_matching_is_unchanged_by_pages_and_per_corner_uvs() {
     let k = d.join("mask.obj");
     std::fs::write(&k, s).unwrap();
     let geo = mesh::load_geometry(&k).unwrap();
-    let mut a = mesh::load_mesh(&one).unwrap();
-    let mut b = mesh::load_mesh(&four).unwrap();
+    let mut a = mesh::load_mesh_at(&one, Some([0.0; 3])).unwrap();
+    let mut b = mesh::load_mesh_at(&four, Some([0.0; 3])).unwrap();
     let sa = a.apply_mask(&geo, &k).unwrap();
     let sb = b.apply_mask(&geo, &k).unwrap();
     assert_eq!(sa, sb);
@@ -407,7 +407,7 @@ fn no_gray_bleeds_across_page_borders() {
         usemtl light\nf 2/1 5/2 6/3 3/4\n";
     let p = d.join("m.obj");
     std::fs::write(&p, obj).unwrap();
-    let m = mesh::load_mesh(&p).unwrap();
+    let m = mesh::load_mesh_at(&p, Some([0.0; 3])).unwrap();
     // Both 16² pages are in the atlas, each in a 20² rectangle (2 gutter texels a
     // side), the two rectangles touching.
     let (w, h) = (m.texture.width, m.texture.height);
@@ -468,8 +468,8 @@ fn ply_texnumber_pages_build_the_same_map_as_the_obj() {
     }
     let ply = four.parent().unwrap().join("m.ply");
     std::fs::write(&ply, &s).unwrap();
-    let a = mesh::load_mesh(&four).unwrap();
-    let b = mesh::load_mesh(&ply).unwrap();
+    let a = mesh::load_mesh_at(&four, Some([0.0; 3])).unwrap();
+    let b = mesh::load_mesh_at(&ply, Some([0.0; 3])).unwrap();
     assert_eq!(a.vertices, b.vertices);
     assert_eq!(a.triangles, b.triangles);
     assert_eq!(a.texture, b.texture);
@@ -497,7 +497,7 @@ fn ply_texnumber_pages_build_the_same_map_as_the_obj() {
         .join("\n")
         + "\n";
     std::fs::write(&ply, no_tn).unwrap();
-    let e = mesh::load_mesh(&ply).unwrap_err();
+    let e = mesh::load_mesh_at(&ply, Some([0.0; 3])).unwrap_err();
     assert!(e.msg.contains("no `texnumber`"), "{e}");
     let bad = s.replacen(" 3\n", " 4\n", 1);
     let first_bad = bad
@@ -505,7 +505,7 @@ fn ply_texnumber_pages_build_the_same_map_as_the_obj() {
         .position(|l| l.starts_with("3 ") && l.ends_with(" 4"))
         .unwrap();
     std::fs::write(&ply, bad).unwrap();
-    let e = mesh::load_mesh(&ply).unwrap_err();
+    let e = mesh::load_mesh_at(&ply, Some([0.0; 3])).unwrap_err();
     assert!(e.msg.contains("texnumber 4 out of range"), "{e}");
     assert_eq!(e.line, Some(first_bad + 1), "{e}");
 }
@@ -524,11 +524,11 @@ fn map_kd_scale_and_offset_are_applied_and_unsupported_options_refused() {
         "newmtl a\nmap_Kd -s 0.5 0.25 1 -o 0.25 0.5 t.png\n",
     )
     .unwrap();
-    let m = mesh::load_mesh(&p).unwrap();
+    let m = mesh::load_mesh_at(&p, Some([0.0; 3])).unwrap();
     assert_eq!(m.uvs[0], [[0.25, 0.5], [0.75, 0.5], [0.75, 0.75]]);
     for (opt, why) in [("-mm 0 1", "gray levels"), ("-imfchan r", "channel")] {
         std::fs::write(d.join("m.mtl"), format!("newmtl a\n\nmap_Kd {opt} t.png\n")).unwrap();
-        let e = mesh::load_mesh(&p).unwrap_err();
+        let e = mesh::load_mesh_at(&p, Some([0.0; 3])).unwrap_err();
         assert_eq!(e.file.as_deref(), Some(d.join("m.mtl").as_path()), "{e}");
         assert_eq!(e.line, Some(3), "{e}");
         assert!(
@@ -558,7 +558,7 @@ fn multi_page_obj_refuses_untextured_faces() {
         ),
     )
     .unwrap();
-    let e = mesh::load_mesh(&p).unwrap_err();
+    let e = mesh::load_mesh_at(&p, Some([0.0; 3])).unwrap_err();
     assert_eq!(e.line, Some(11), "{e}");
     assert!(
         e.msg.contains("without map_Kd") && e.msg.contains("2 texture pages"),
@@ -566,7 +566,7 @@ fn multi_page_obj_refuses_untextured_faces() {
     );
     // Without usemtl, two textured materials cannot be assigned to faces.
     std::fs::write(&p, format!("{head}f 1/1 2/2 3/3\n")).unwrap();
-    let e = mesh::load_mesh(&p).unwrap_err();
+    let e = mesh::load_mesh_at(&p, Some([0.0; 3])).unwrap_err();
     assert!(e.msg.contains("no face selects one"), "{e}");
 }
 
@@ -597,7 +597,7 @@ fn meshes_above_the_product_capacity_are_refused_with_a_code() {
 fn icd_two_page_example_builds_a_map() {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../fsw-docs/interfaces/examples/two-pages/m.obj");
-    let m = mesh::load_mesh(&p).unwrap();
+    let m = mesh::load_mesh_at(&p, Some([0.0; 3])).unwrap();
     assert_eq!(m.triangles.len(), 4);
     // Two 8² pages used to their edges: two 12² rectangles.
     let (w, h) = (m.texture.width, m.texture.height);
