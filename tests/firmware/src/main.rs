@@ -41,9 +41,8 @@ mod flight {
     include!("flight.rs");
 }
 
-macro_rules! out {
-    ($($arg:tt)*) => { start::print(format_args!($($arg)*)) };
-}
+mod console;
+use console::Line;
 
 const CAL_LOOPS: u32 = 50_000_000;
 
@@ -58,13 +57,13 @@ const PAINT_MARGIN: usize = 256;
 /// pointer with `PAINT`; returns the end of the painted region.
 #[inline(never)]
 fn paint_stack(bottom: usize) -> usize {
-    let limit = (start::stack_pointer() - PAINT_MARGIN) & !3;
-    let mut p = (bottom + 3) & !3;
+    let limit = start::stack_pointer().saturating_sub(PAINT_MARGIN) & !3;
+    let mut p = bottom.saturating_add(3) & !3;
     while p < limit {
         // SAFETY: [bottom, limit) is the stack's unused part, below every live
         // frame (this function is a leaf); no Rust object lives there.
         unsafe { (p as *mut u32).write_volatile(PAINT) };
-        p += 4;
+        p = p.wrapping_add(4);
     }
     limit
 }
@@ -73,12 +72,12 @@ fn paint_stack(bottom: usize) -> usize {
 /// longer holds `PAINT`.
 #[inline(never)]
 fn stack_used(bottom: usize, top: usize) -> usize {
-    let mut p = (bottom + 3) & !3;
+    let mut p = bottom.saturating_add(3) & !3;
     // SAFETY: reads of the stack region given by the linker script, word-aligned.
     while p < top && unsafe { (p as *const u32).read_volatile() } == PAINT {
-        p += 4;
+        p = p.wrapping_add(4);
     }
-    top - p
+    top.saturating_sub(p)
 }
 
 /// The shared body, called by each target's start-up once its clock and
@@ -90,7 +89,7 @@ pub fn run() -> ! {
     // Calibration: a loop of exactly 2·CAL_LOOPS instructions.
     let c0 = start::ticks();
     start::calibration_loop(CAL_LOOPS);
-    let cal_ticks = start::ticks() - c0;
+    let cal_ticks = start::ticks().wrapping_sub(c0);
     #[cfg(vtsm_flight)]
     run_flight(bottom, top, cal_ticks);
     #[cfg(not(vtsm_flight))]
@@ -106,49 +105,68 @@ fn run_workload(bottom: usize, top: usize, painted_to: usize, cal_ticks: u64) ->
     let s = workload_mod::relocalization(&start::ticks);
     let t2 = start::ticks();
     let used = stack_used(bottom, top);
-    out!("VTSM-TARGET {}\n", start::NAME);
-    out!("VTSM-DIGEST {:016x}\n", digest);
-    out!(
-        "relocalization: success {} (code 0x{:04x}), error {} um -> {} um, {} attempts\n",
-        s.success,
-        s.failure,
-        s.initial_error_um,
-        s.final_error_um,
-        s.attempts
-    );
-    out!(
-        "VTSM-RUNNER {} engine steps, {} telemetry frames ({} payload bytes)\n",
-        s.steps,
-        s.telemetry_frames,
-        s.telemetry_bytes
-    );
+    Line::new().s("VTSM-TARGET ").s(start::NAME).end();
+    Line::new().s("VTSM-DIGEST ").hex(digest, 16).end();
+    Line::new()
+        .s("relocalization: success ")
+        .s(if s.success { "true" } else { "false" })
+        .s(" (code 0x")
+        .hex(u64::from(s.failure), 4)
+        .s("), error ")
+        .u(u64::from(s.initial_error_um))
+        .s(" um -> ")
+        .u(u64::from(s.final_error_um))
+        .s(" um, ")
+        .u(u64::from(s.attempts))
+        .s(" attempts")
+        .end();
+    Line::new()
+        .s("VTSM-RUNNER ")
+        .u(u64::from(s.steps))
+        .s(" engine steps, ")
+        .u(u64::from(s.telemetry_frames))
+        .s(" telemetry frames (")
+        .u(u64::from(s.telemetry_bytes))
+        .s(" payload bytes)")
+        .end();
     let cal_instructions = 2 * u64::from(CAL_LOOPS);
-    out!(
-        "VTSM-TICKS calibration {} per {} instructions; workload {} relocalization-block {}\n",
-        cal_ticks,
-        cal_instructions,
-        t1 - t0,
-        t2 - t1
-    );
+    Line::new()
+        .s("VTSM-TICKS calibration ")
+        .u(cal_ticks)
+        .s(" per ")
+        .u(cal_instructions)
+        .s(" instructions; workload ")
+        .u(t1.wrapping_sub(t0))
+        .s(" relocalization-block ")
+        .u(t2.wrapping_sub(t1))
+        .end();
     if cal_ticks > 0 {
-        let per_tick = (cal_instructions + cal_ticks / 2) / cal_ticks;
-        out!(
-            "VTSM-INSTRUCTIONS workload {} relocalization-block {} engine {} ({} per tick)\n",
-            (t1 - t0) * per_tick,
-            (t2 - t1) * per_tick,
-            s.engine_ticks * per_tick,
-            per_tick
-        );
+        let per_tick = cal_instructions.wrapping_add(cal_ticks / 2) / cal_ticks;
+        Line::new()
+            .s("VTSM-INSTRUCTIONS workload ")
+            .u(t1.wrapping_sub(t0).wrapping_mul(per_tick))
+            .s(" relocalization-block ")
+            .u(t2.wrapping_sub(t1).wrapping_mul(per_tick))
+            .s(" engine ")
+            .u(s.engine_ticks.wrapping_mul(per_tick))
+            .s(" (")
+            .u(per_tick)
+            .s(" per tick)")
+            .end();
     }
     // The whole painted region overwritten means the stack may have overflowed.
-    let overflow = used >= top - bottom;
-    out!(
-        "VTSM-STACK high-water {} bytes of {} (painted {} bytes){}\n",
-        used,
-        top - bottom,
-        painted_to.saturating_sub(bottom),
-        if overflow { " EXHAUSTED" } else { "" }
-    );
+    let size = top.saturating_sub(bottom);
+    let overflow = used >= size;
+    Line::new()
+        .s("VTSM-STACK high-water ")
+        .u(used as u64)
+        .s(" bytes of ")
+        .u(size as u64)
+        .s(" (painted ")
+        .u(painted_to.saturating_sub(bottom) as u64)
+        .s(" bytes)")
+        .s(if overflow { " EXHAUSTED" } else { "" })
+        .end();
     start::exit(!overflow)
 }
 
@@ -158,36 +176,67 @@ fn run_workload(bottom: usize, top: usize, painted_to: usize, cal_ticks: u64) ->
 fn run_flight(bottom: usize, top: usize, cal_ticks: u64) -> ! {
     let f = flight::run(&start::ticks);
     let used = stack_used(bottom, top);
-    let per_tick = (2 * u64::from(CAL_LOOPS) + cal_ticks / 2) / cal_ticks.max(1);
-    out!("VTSM-TARGET {}\n", start::NAME);
-    out!(
-        "VTSM-FLIGHT-DIGEST {:016x} (host {:016x})\n",
-        f.digest,
-        flight::scene::HOST_DIGEST
-    );
-    out!(
-        "flight relocalization: code 0x{:04x}, error {} um -> {} um, {} attempts (host {}), {} steps\n",
-        f.failure,
-        f.initial_error_um,
-        f.final_error_um,
-        f.attempts,
-        flight::scene::HOST_ATTEMPTS,
-        f.steps
-    );
-    out!(
-        "VTSM-FLIGHT-INSTRUCTIONS engine {} ({} per tick)\n",
-        f.engine_ticks * per_tick,
-        per_tick
-    );
-    out!(
-        "VTSM-FLIGHT-RAM workspace {} bytes; stack high-water {} bytes (static RAM: see the image's .data + .bss)\n",
-        f.workspace_bytes,
-        used
-    );
-    start::exit(f.digest == flight::scene::HOST_DIGEST && used < top - bottom)
+    let per_tick = (2 * u64::from(CAL_LOOPS)).wrapping_add(cal_ticks / 2) / cal_ticks.max(1);
+    Line::new().s("VTSM-TARGET ").s(start::NAME).end();
+    Line::new()
+        .s("VTSM-FLIGHT-DIGEST ")
+        .hex(f.digest, 16)
+        .s(" (host ")
+        .hex(flight::scene::HOST_DIGEST, 16)
+        .s(")")
+        .end();
+    Line::new()
+        .s("flight relocalization: code 0x")
+        .hex(u64::from(f.failure), 4)
+        .s(", error ")
+        .u(u64::from(f.initial_error_um))
+        .s(" um -> ")
+        .u(u64::from(f.final_error_um))
+        .s(" um, ")
+        .u(u64::from(f.attempts))
+        .s(" attempts (host ")
+        .u(u64::from(flight::scene::HOST_ATTEMPTS))
+        .s("), ")
+        .u(u64::from(f.steps))
+        .s(" steps")
+        .end();
+    Line::new()
+        .s("VTSM-FLIGHT-INSTRUCTIONS engine ")
+        .u(f.engine_ticks.wrapping_mul(per_tick))
+        .s(" (")
+        .u(per_tick)
+        .s(" per tick)")
+        .end();
+    Line::new()
+        .s("VTSM-FLIGHT-RAM workspace ")
+        .u(f.workspace_bytes as u64)
+        .s(" bytes; stack high-water ")
+        .u(used as u64)
+        .s(" bytes (static RAM: see the image's .data + .bss)")
+        .end();
+    start::exit(f.digest == flight::scene::HOST_DIGEST && used < top.saturating_sub(bottom))
 }
 
+/// Ends the run as failed. Only images built without `panic-check` have it.
+#[cfg(not(feature = "panic-check"))]
 #[panic_handler]
 fn panic(_: &core::panic::PanicInfo) -> ! {
     start::exit(false)
+}
+
+/// The panic-freedom check: with `--features panic-check` the handler calls a
+/// function that no object defines, so the image links only when the optimizer
+/// removed every call to it, i.e. when no panic path remains in anything the
+/// image runs (core, HAL, runner, devices, start-up). A remaining path fails
+/// the link with `undefined symbol: vtsm_panic_path_remains`;
+/// `panic-sites.sh TARGET` lists where the paths are, from a normal build.
+#[cfg(feature = "panic-check")]
+#[panic_handler]
+fn panic(_: &core::panic::PanicInfo) -> ! {
+    extern "C" {
+        fn vtsm_panic_path_remains() -> !;
+    }
+    // SAFETY: never executed: the symbol is undefined on purpose, so an image
+    // in which this call survives optimization does not link.
+    unsafe { vtsm_panic_path_remains() }
 }

@@ -69,23 +69,14 @@ pub fn calibration_loop(n: u32) {
     }
 }
 
-struct Uart;
-
-impl core::fmt::Write for Uart {
-    fn write_str(&mut self, s: &str) -> core::fmt::Result {
-        for b in s.bytes() {
-            // SAFETY: the virt board's PL011 registers; FR bit 5 is "TX FIFO full".
-            unsafe {
-                while UART_FR.read_volatile() & (1 << 5) != 0 {}
-                UART_DR.write_volatile(u32::from(b));
-            }
+pub fn print(bytes: &[u8]) {
+    for &b in bytes {
+        // SAFETY: the virt board's PL011 registers; FR bit 5 is "TX FIFO full".
+        unsafe {
+            while UART_FR.read_volatile() & (1 << 5) != 0 {}
+            UART_DR.write_volatile(u32::from(b));
         }
-        Ok(())
     }
-}
-
-pub fn print(args: core::fmt::Arguments) {
-    let _ = core::fmt::Write::write_fmt(&mut Uart, args);
 }
 
 pub fn exit(ok: bool) -> ! {

@@ -27,23 +27,14 @@ pub fn calibration_loop(n: u32) {
     }
 }
 
-struct Uart;
-
-impl core::fmt::Write for Uart {
-    fn write_str(&mut self, s: &str) -> core::fmt::Result {
-        for b in s.bytes() {
-            // SAFETY: the virt board's UART registers; LSR bit 5 is "THR empty".
-            unsafe {
-                while UART_LSR.read_volatile() & 0x20 == 0 {}
-                UART_THR.write_volatile(b);
-            }
+pub fn print(bytes: &[u8]) {
+    for &b in bytes {
+        // SAFETY: the virt board's UART registers; LSR bit 5 is "THR empty".
+        unsafe {
+            while UART_LSR.read_volatile() & 0x20 == 0 {}
+            UART_THR.write_volatile(b);
         }
-        Ok(())
     }
-}
-
-pub fn print(args: core::fmt::Arguments) {
-    let _ = core::fmt::Write::write_fmt(&mut Uart, args);
 }
 
 pub fn exit(ok: bool) -> ! {
