@@ -286,7 +286,8 @@ impl FailureLog {
         if let Some(slot) = self.ring.get_mut(self.next) {
             *slot = Some(Event { code, tick, detail });
         }
-        self.next = (self.next + 1) % FAILURE_RING_LEN;
+        // next < FAILURE_RING_LEN, so the increment cannot wrap.
+        self.next = self.next.wrapping_add(1) % FAILURE_RING_LEN;
         self.total = self.total.saturating_add(1);
     }
 

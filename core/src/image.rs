@@ -69,6 +69,14 @@ fn check_layout(width: usize, height: usize, stride: usize, len: usize) -> Resul
     Ok(())
 }
 
+/// Index of pixel `(x, y)` with `stride` pixels per row. A checked view's
+/// pixels never overflow (`(height − 1) · stride + width` is at most the buffer
+/// length), but checked arithmetic keeps every accessor free of panic paths.
+#[inline]
+fn offset(y: usize, stride: usize, x: usize) -> Option<usize> {
+    y.checked_mul(stride)?.checked_add(x)
+}
+
 /// A read-only image view.
 #[derive(Clone, Copy, Debug)]
 pub struct ImageView<'a, P: Copy = u8> {
@@ -149,7 +157,7 @@ impl<'a, P: Copy> ImageView<'a, P> {
         if x >= self.width || y >= self.height {
             return None;
         }
-        self.data.get(y * self.stride + x).copied()
+        self.data.get(offset(y, self.stride, x)?).copied()
     }
 
     /// Row `y` (exactly `width` pixels), or `None` outside the image.
@@ -158,8 +166,8 @@ impl<'a, P: Copy> ImageView<'a, P> {
         if y >= self.height {
             return None;
         }
-        let start = y * self.stride;
-        self.data.get(start..start + self.width)
+        let start = offset(y, self.stride, 0)?;
+        self.data.get(start..start.checked_add(self.width)?)
     }
 
     /// A sub-view of `r`, or `None` unless `r` lies inside the image.
@@ -168,8 +176,7 @@ impl<'a, P: Copy> ImageView<'a, P> {
             return None;
         }
         let (x, y) = (r.x as usize, r.y as usize);
-        let start = y * self.stride + x;
-        let data = self.data.get(start..)?;
+        let data = self.data.get(offset(y, self.stride, x)?..)?;
         ImageView::new(data, r.w as usize, r.h as usize, self.stride).ok()
     }
 }
@@ -231,7 +238,7 @@ impl<'a, P: Copy> ImageViewMut<'a, P> {
         if x >= self.width || y >= self.height {
             return false;
         }
-        match self.data.get_mut(y * self.stride + x) {
+        match offset(y, self.stride, x).and_then(|i| self.data.get_mut(i)) {
             Some(p) => {
                 *p = value;
                 true
@@ -246,8 +253,8 @@ impl<'a, P: Copy> ImageViewMut<'a, P> {
         if y >= self.height {
             return None;
         }
-        let start = y * self.stride;
-        self.data.get_mut(start..start + self.width)
+        let start = offset(y, self.stride, 0)?;
+        self.data.get_mut(start..start.checked_add(self.width)?)
     }
 
     /// Set every pixel to `value`.

@@ -146,9 +146,16 @@ fn rd_f32(b: &[u8], off: usize) -> Option<f32> {
 fn rd_vec3(b: &[u8], off: usize) -> Option<Vec3> {
     Some(Vec3::new(
         rd_f32(b, off)?,
-        rd_f32(b, off + 4)?,
-        rd_f32(b, off + 8)?,
+        rd_f32(b, off.checked_add(4)?)?,
+        rd_f32(b, off.checked_add(8)?)?,
     ))
+}
+
+/// Offset of record `i` of `stride` bytes in the section at `base`; `None` where
+/// it would not fit in `usize` (a validated layout never gets there).
+#[inline]
+fn record_at(base: usize, i: u32, stride: usize) -> Option<usize> {
+    (i as usize).checked_mul(stride)?.checked_add(base)
 }
 
 #[inline]
@@ -176,8 +183,11 @@ pub fn origin_ok(o: &[f64; 3]) -> bool {
 
 #[inline]
 fn wr_u32(b: &mut [u8], off: usize, v: u32) -> Result<(), FailureCode> {
+    let end = off
+        .checked_add(4)
+        .ok_or(FailureCode::MapEncodeBufferTooSmall)?;
     let s = b
-        .get_mut(off..off + 4)
+        .get_mut(off..end)
         .ok_or(FailureCode::MapEncodeBufferTooSmall)?;
     s.copy_from_slice(&v.to_le_bytes());
     Ok(())
@@ -189,9 +199,14 @@ fn wr_f32(b: &mut [u8], off: usize, v: f32) -> Result<(), FailureCode> {
 }
 
 fn wr_vec3(b: &mut [u8], off: usize, v: &Vec3) -> Result<(), FailureCode> {
-    wr_f32(b, off, v.x)?;
-    wr_f32(b, off + 4, v.y)?;
-    wr_f32(b, off + 8, v.z)
+    let s: &mut [u8; 12] = b
+        .get_mut(off..)
+        .and_then(|s| s.first_chunk_mut())
+        .ok_or(FailureCode::MapEncodeBufferTooSmall)?;
+    for (dst, c) in s.chunks_exact_mut(4).zip([v.x, v.y, v.z]) {
+        dst.copy_from_slice(&c.to_bits().to_le_bytes());
+    }
+    Ok(())
 }
 
 fn vec_finite(v: &Vec3) -> bool {
@@ -282,19 +297,21 @@ impl Layout {
         tw: usize,
         th: usize,
     ) -> Self {
+        // Saturating: counts beyond the capacities give a total no buffer or
+        // product can match, so they are refused by the length checks.
         let lens = [
-            tiles * TILE_BYTES,
-            v * VERTEX_BYTES,
-            t * TRIANGLE_BYTES,
-            t * UV_BYTES,
-            tw * th,
-            masks * MASK_VERTEX_BYTES,
+            tiles.saturating_mul(TILE_BYTES),
+            v.saturating_mul(VERTEX_BYTES),
+            t.saturating_mul(TRIANGLE_BYTES),
+            t.saturating_mul(UV_BYTES),
+            tw.saturating_mul(th),
+            masks.saturating_mul(MASK_VERTEX_BYTES),
         ];
         let mut sec = [Section::default(); SECTIONS];
         let mut off = header;
         for (s, len) in sec.iter_mut().zip(lens) {
             *s = Section { off, len };
-            off += len;
+            off = off.saturating_add(len);
         }
         Self { sec, total: off }
     }
@@ -422,14 +439,21 @@ impl<'a> MapView<'a> {
             return Err(F::MapInconsistent);
         }
         for (i, s) in layout.sec.iter().enumerate() {
-            let body = bytes.get(s.off..s.off + s.len).ok_or(F::MapTruncated)?;
-            if crc32(body) != h(OFF_SECTIONS + 12 * i + 8)? {
+            let body = bytes
+                .get(s.off..s.off.saturating_add(s.len))
+                .ok_or(F::MapTruncated)?;
+            // i < SECTIONS: the header offset is a small constant.
+            if crc32(body)
+                != h(OFF_SECTIONS
+                    .wrapping_add(12usize.wrapping_mul(i))
+                    .wrapping_add(8))?
+            {
                 return Err(F::MapCrcMismatch);
             }
         }
         let tex_sec = layout.sec.get(SEC_TEXTURE).copied().unwrap_or_default();
         let tex_bytes = bytes
-            .get(tex_sec.off..tex_sec.off + tex_sec.len)
+            .get(tex_sec.off..tex_sec.off.saturating_add(tex_sec.len))
             .ok_or(F::MapTruncated)?;
         let texture = GrayView::new(tex_bytes, tw as usize, th as usize, tw as usize)
             .map_err(|_| F::MapCountOutOfRange)?;
@@ -467,8 +491,9 @@ impl<'a> MapView<'a> {
         // Whether some triangle has non-zero area (checked until one has).
         let mut surface = false;
         for i in 0..self.triangle_count as usize {
-            let flags =
-                rd_u32(self.bytes, tri_off + i * TRIANGLE_BYTES + 12).ok_or(F::MapTruncated)?;
+            let flags = record_at(tri_off, i as u32, TRIANGLE_BYTES)
+                .and_then(|o| rd_u32(self.bytes, o.checked_add(12)?))
+                .ok_or(F::MapTruncated)?;
             if flags & !FLAG_MASK != 0 {
                 return Err(F::MapInconsistent);
             }
@@ -582,7 +607,7 @@ impl<'a> MapView<'a> {
         }
         rd_vec3(
             self.bytes,
-            self.layout.off(SEC_VERTICES) + i as usize * VERTEX_BYTES,
+            record_at(self.layout.off(SEC_VERTICES), i, VERTEX_BYTES)?,
         )
     }
 
@@ -592,16 +617,20 @@ impl<'a> MapView<'a> {
         if i >= self.triangle_count {
             return None;
         }
-        let t = self.layout.off(SEC_TRIANGLES) + i as usize * TRIANGLE_BYTES;
-        let u = self.layout.off(SEC_UVS) + i as usize * UV_BYTES;
+        let t = record_at(self.layout.off(SEC_TRIANGLES), i, TRIANGLE_BYTES)?;
+        let u = record_at(self.layout.off(SEC_UVS), i, UV_BYTES)?;
         let b = self.bytes;
+        // One bounds check per record; the fields then sit at constant offsets.
+        let tri: &[u8; TRIANGLE_BYTES] = b.get(t..)?.first_chunk()?;
+        let uvs: &[u8; UV_BYTES] = b.get(u..)?.first_chunk()?;
         let c = |k: usize| -> Option<[f32; 2]> {
-            Some([rd_f32(b, u + 8 * k)?, rd_f32(b, u + 8 * k + 4)?])
+            let at = uvs.get(8 * k..)?;
+            Some([rd_f32(at, 0)?, rd_f32(at, 4)?])
         };
         Some(Triangle {
-            v: [rd_u32(b, t)?, rd_u32(b, t + 4)?, rd_u32(b, t + 8)?],
+            v: [rd_u32(tri, 0)?, rd_u32(tri, 4)?, rd_u32(tri, 8)?],
             uv: [c(0)?, c(1)?, c(2)?],
-            mask: rd_u32(b, t + 12)? & FLAG_MASK != 0,
+            mask: rd_u32(tri, 12)? & FLAG_MASK != 0,
         })
     }
 
@@ -612,15 +641,16 @@ impl<'a> MapView<'a> {
         if i >= self.triangle_count {
             return None;
         }
-        let t = self.layout.off(SEC_TRIANGLES) + i as usize * TRIANGLE_BYTES;
+        let t = record_at(self.layout.off(SEC_TRIANGLES), i, TRIANGLE_BYTES)?;
         let b = self.bytes;
+        let tri: &[u8; TRIANGLE_BYTES] = b.get(t..)?.first_chunk()?;
         let sec = self.layout.off(SEC_VERTICES);
         let v = |k: usize| -> Option<Vec3> {
-            let j = rd_u32(b, t + 4 * k)?;
+            let j = rd_u32(tri.get(4 * k..)?, 0)?;
             if j >= self.vertex_count {
                 return None;
             }
-            rd_vec3(b, sec + j as usize * VERTEX_BYTES)
+            rd_vec3(b, record_at(sec, j, VERTEX_BYTES)?)
         };
         Some([v(0)?, v(1)?, v(2)?])
     }
@@ -631,12 +661,13 @@ impl<'a> MapView<'a> {
         if i >= self.tile_count {
             return None;
         }
-        let o = self.layout.off(SEC_TILES) + i as usize * TILE_BYTES;
+        let o = record_at(self.layout.off(SEC_TILES), i, TILE_BYTES)?;
+        let rec: &[u8; TILE_BYTES] = self.bytes.get(o..)?.first_chunk()?;
         Some(Tile {
-            min: rd_vec3(self.bytes, o)?,
-            max: rd_vec3(self.bytes, o + 12)?,
-            first_triangle: rd_u32(self.bytes, o + 24)?,
-            triangle_count: rd_u32(self.bytes, o + 28)?,
+            min: rd_vec3(rec, 0)?,
+            max: rd_vec3(rec, 12)?,
+            first_triangle: rd_u32(rec, 24)?,
+            triangle_count: rd_u32(rec, 28)?,
         })
     }
 
@@ -663,7 +694,7 @@ impl<'a> MapView<'a> {
         }
         rd_u32(
             self.bytes,
-            self.layout.off(SEC_MASK) + k as usize * MASK_VERTEX_BYTES,
+            record_at(self.layout.off(SEC_MASK), k, MASK_VERTEX_BYTES)?,
         )
     }
 }
@@ -705,9 +736,12 @@ impl Plan {
         let cx = libm::floorf((x - self.min.x) / tile);
         let cy = libm::floorf((y - self.min.y) / tile);
         // Float-to-int `as` saturates and maps NaN to 0; the clamp keeps the cell in the grid.
-        let cx = (cx as i64).clamp(0, i64::from(self.tiles_x) - 1) as usize;
-        let cy = (cy as i64).clamp(0, i64::from(self.tiles_y) - 1) as usize;
-        cy * self.tiles_x as usize + cx
+        // `max(0)`: a plan always has a tile, but a clamp with its bounds the
+        // wrong way round would panic.
+        let cx = (cx as i64).clamp(0, (i64::from(self.tiles_x) - 1).max(0)) as usize;
+        let cy = (cy as i64).clamp(0, (i64::from(self.tiles_y) - 1).max(0)) as usize;
+        // Within the grid of at most MAX_MAP_TILES cells.
+        cy.wrapping_mul(self.tiles_x as usize).wrapping_add(cx)
     }
 }
 
@@ -773,7 +807,7 @@ fn plan(src: &MapSource) -> Result<Plan, FailureCode> {
             );
             surface = has_area(&a, &b, &c);
         }
-        mask_tris += usize::from(*m);
+        mask_tris = mask_tris.saturating_add(usize::from(*m));
     }
     if !surface {
         return Err(F::MapNoSurface);
@@ -790,11 +824,11 @@ fn plan(src: &MapSource) -> Result<Plan, FailureCode> {
         Ok((n as u32).max(1))
     };
     let (tiles_x, tiles_y) = (cells(min.x, max.x)?, cells(min.y, max.y)?);
-    let tiles = tiles_x as usize * tiles_y as usize;
+    let tiles = (tiles_x as usize).saturating_mul(tiles_y as usize);
     if tiles > MAX_MAP_TILES {
         return Err(F::MapTileSizeOutOfRange);
     }
-    let masks_max = nv.min(3 * mask_tris);
+    let masks_max = nv.min(mask_tris.saturating_mul(3));
     Ok(Plan {
         min,
         max,
@@ -840,6 +874,9 @@ pub fn encode(src: &MapSource, out: &mut [u8]) -> Result<usize, FailureCode> {
     let buf = out.get_mut(..lay.total).ok_or(F::MapEncodeBufferTooSmall)?;
     buf.fill(0);
     let nv = src.vertices.len();
+    // Offsets within the planned layout (≤ its total, the length of `buf`);
+    // saturating, so an impossible overflow is a failed `get`, not a panic.
+    let at = |base: usize, i: usize, stride: usize| base.saturating_add(i.saturating_mul(stride));
     let ts = src.tile_size_m;
     let (o_tiles, o_vert, o_tri, o_uv, o_tex, o_mask) = (
         lay.off(SEC_TILES),
@@ -854,20 +891,24 @@ pub fn encode(src: &MapSource, out: &mut [u8]) -> Result<usize, FailureCode> {
     for (t, m) in src.triangles.iter().zip(src.mask) {
         if *m {
             for v in t {
-                *buf.get_mut(o_vert + *v as usize)
+                *buf.get_mut(o_vert.saturating_add(*v as usize))
                     .ok_or(F::MapEncodeBufferTooSmall)? = 1;
             }
         }
     }
     let mut masks = 0usize;
     for v in 0..nv {
-        if buf.get(o_vert + v).copied() == Some(1) {
-            wr_u32(buf, o_mask + masks * MASK_VERTEX_BYTES, v as u32)?;
-            masks += 1;
+        if buf.get(o_vert.saturating_add(v)).copied() == Some(1) {
+            wr_u32(buf, at(o_mask, masks, MASK_VERTEX_BYTES), v as u32)?;
+            masks = masks.saturating_add(1);
         }
     }
     for (i, p) in src.vertices.iter().enumerate() {
-        wr_vec3(buf, o_vert + i * VERTEX_BYTES, &Vec3::new(p[0], p[1], p[2]))?;
+        wr_vec3(
+            buf,
+            at(o_vert, i, VERTEX_BYTES),
+            &Vec3::new(p[0], p[1], p[2]),
+        )?;
     }
 
     // Counting sort by tile; counters live in the tiles' count fields.
@@ -880,52 +921,60 @@ pub fn encode(src: &MapSource, out: &mut [u8]) -> Result<usize, FailureCode> {
         let (x, y) = ((a.x + b.x + c.x) / 3.0, (a.y + b.y + c.y) / 3.0);
         Ok(plan.cell_of(x, y, ts))
     };
-    let tiles = plan.tiles_x as usize * plan.tiles_y as usize;
+    let tiles = (plan.tiles_x as usize).saturating_mul(plan.tiles_y as usize);
     for t in src.triangles {
-        let o = o_tiles + centroid_cell(t)? * TILE_BYTES + 28;
+        let o = at(o_tiles, centroid_cell(t)?, TILE_BYTES).saturating_add(28);
         let n = rd_u32(buf, o).ok_or(F::MapEncodeBufferTooSmall)?;
-        wr_u32(buf, o, n + 1)?;
+        // Counts stay ≤ the triangle count; saturating keeps an impossible
+        // overflow an out-of-range slot (refused below) instead of a panic.
+        wr_u32(buf, o, n.saturating_add(1))?;
     }
     let mut first = 0u32;
     for k in 0..tiles {
-        let o = o_tiles + k * TILE_BYTES;
-        let n = rd_u32(buf, o + 28).ok_or(F::MapEncodeBufferTooSmall)?;
+        let o = at(o_tiles, k, TILE_BYTES);
+        let n = rd_u32(buf, o.saturating_add(28)).ok_or(F::MapEncodeBufferTooSmall)?;
         wr_vec3(buf, o, &Vec3::repeat(f32::INFINITY))?;
-        wr_vec3(buf, o + 12, &Vec3::repeat(f32::NEG_INFINITY))?;
-        wr_u32(buf, o + 24, first)?;
-        wr_u32(buf, o + 28, 0)?;
-        first += n;
+        wr_vec3(buf, o.saturating_add(12), &Vec3::repeat(f32::NEG_INFINITY))?;
+        wr_u32(buf, o.saturating_add(24), first)?;
+        wr_u32(buf, o.saturating_add(28), 0)?;
+        first = first.saturating_add(n);
     }
     let (tw, th) = (src.texture.width() as f32, src.texture.height() as f32);
     for ((t, uv), m) in src.triangles.iter().zip(src.uvs).zip(src.mask) {
-        let o = o_tiles + centroid_cell(t)? * TILE_BYTES;
-        let first = rd_u32(buf, o + 24).ok_or(F::MapEncodeBufferTooSmall)?;
-        let n = rd_u32(buf, o + 28).ok_or(F::MapEncodeBufferTooSmall)?;
-        wr_u32(buf, o + 28, n + 1)?;
-        let slot = (first + n) as usize;
+        let o = at(o_tiles, centroid_cell(t)?, TILE_BYTES);
+        let first = rd_u32(buf, o.saturating_add(24)).ok_or(F::MapEncodeBufferTooSmall)?;
+        let n = rd_u32(buf, o.saturating_add(28)).ok_or(F::MapEncodeBufferTooSmall)?;
+        wr_u32(buf, o.saturating_add(28), n.saturating_add(1))?;
+        let slot = first.saturating_add(n) as usize;
         let mut lo = rd_vec3(buf, o).ok_or(F::MapEncodeBufferTooSmall)?;
-        let mut hi = rd_vec3(buf, o + 12).ok_or(F::MapEncodeBufferTooSmall)?;
-        let to = o_tri + slot * TRIANGLE_BYTES;
-        let uo = o_uv + slot * UV_BYTES;
-        for (c, (v, st)) in t.iter().zip(uv).enumerate() {
+        let mut hi = rd_vec3(buf, o.saturating_add(12)).ok_or(F::MapEncodeBufferTooSmall)?;
+        let to = at(o_tri, slot, TRIANGLE_BYTES);
+        let uo = at(o_uv, slot, UV_BYTES);
+        for (c, (v, st)) in (0..3usize).zip(t.iter().zip(uv)) {
             let p = vertex_of(src, *v)?;
             lo = lo.inf(&p);
             hi = hi.sup(&p);
-            wr_u32(buf, to + 4 * c, *v)?;
-            wr_f32(buf, uo + 8 * c, st[0] * tw - 0.5)?;
-            wr_f32(buf, uo + 8 * c + 4, (1.0 - st[1]) * th - 0.5)?;
+            wr_u32(buf, at(to, c, 4), *v)?;
+            wr_f32(buf, at(uo, c, 8), st[0] * tw - 0.5)?;
+            wr_f32(
+                buf,
+                at(uo, c, 8).saturating_add(4),
+                (1.0 - st[1]) * th - 0.5,
+            )?;
         }
-        wr_u32(buf, to + 12, if *m { FLAG_MASK } else { 0 })?;
+        wr_u32(buf, to.saturating_add(12), if *m { FLAG_MASK } else { 0 })?;
         wr_vec3(buf, o, &lo)?;
-        wr_vec3(buf, o + 12, &hi)?;
+        wr_vec3(buf, o.saturating_add(12), &hi)?;
     }
     // Empty cells get a degenerate box at the cell's corner on the map floor.
     for k in 0..tiles {
-        let o = o_tiles + k * TILE_BYTES;
-        if rd_u32(buf, o + 28) == Some(0) {
+        let o = at(o_tiles, k, TILE_BYTES);
+        if rd_u32(buf, o.saturating_add(28)) == Some(0) {
             let (cx, cy) = (
-                (k % plan.tiles_x as usize) as f32,
-                (k / plan.tiles_x as usize) as f32,
+                // tiles_x ≥ 1 (the plan has a tile); checked forms keep the
+                // division free of its zero-divisor panic path.
+                k.checked_rem(plan.tiles_x as usize).unwrap_or(0) as f32,
+                k.checked_div(plan.tiles_x as usize).unwrap_or(0) as f32,
             );
             let p = Vec3::new(
                 (plan.min.x + cx * ts).min(plan.max.x),
@@ -933,7 +982,7 @@ pub fn encode(src: &MapSource, out: &mut [u8]) -> Result<usize, FailureCode> {
                 plan.min.z,
             );
             wr_vec3(buf, o, &p)?;
-            wr_vec3(buf, o + 12, &p)?;
+            wr_vec3(buf, o.saturating_add(12), &p)?;
         }
     }
 
@@ -941,7 +990,8 @@ pub fn encode(src: &MapSource, out: &mut [u8]) -> Result<usize, FailureCode> {
     let w = src.texture.width();
     for y in 0..src.texture.height() {
         let row = src.texture.row(y).ok_or(F::MapInconsistent)?;
-        buf.get_mut(o_tex + y * w..o_tex + (y + 1) * w)
+        buf.get_mut(at(o_tex, y, w)..)
+            .and_then(|d| d.get_mut(..row.len()))
             .ok_or(F::MapEncodeBufferTooSmall)?
             .copy_from_slice(row);
     }
@@ -984,7 +1034,7 @@ pub fn encode(src: &MapSource, out: &mut [u8]) -> Result<usize, FailureCode> {
     }
     for (i, s) in real.sec.iter().enumerate() {
         let crc = crc32(
-            buf.get(s.off..s.off + s.len)
+            buf.get(s.off..s.off.saturating_add(s.len))
                 .ok_or(F::MapEncodeBufferTooSmall)?,
         );
         let e = OFF_SECTIONS + 12 * i;

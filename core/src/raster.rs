@@ -188,7 +188,7 @@ impl PixelSink for ZBuffer<'_, '_> {
                 if let Some(p) = self.intensity.get_mut(f.idx) {
                     *p = sample_bilinear(self.tex, self.tw, self.th, f.u_q16, f.v_q16);
                 }
-                self.written += 1;
+                self.written = self.written.saturating_add(1);
             }
         }
     }
@@ -222,7 +222,7 @@ impl PixelSink for ZBuffer<'_, '_> {
         // texture's right and bottom edges, every pixel does, and the clamps of
         // `run_frag` and `sample_bilinear` are the identity (same pixels, less work).
         // Accumulators stay within ±2^58 (see `fill_polygon`), so no i64 overflow.
-        let last = (n - 1) as i64;
+        let last = n.saturating_sub(1) as i64;
         let lo_hi = |a: i64, s: i64| {
             let b = a.wrapping_add(s.wrapping_mul(last));
             (a.min(b) >> RUN_SHIFT, a.max(b) >> RUN_SHIFT)
@@ -234,8 +234,8 @@ impl PixelSink for ZBuffer<'_, '_> {
             && d1 <= i64::from(DEPTH_MAX)
             && u0 >= 0
             && v0 >= 0
-            && u1 < (tw as i64 - 1) << 16
-            && v1 < (th as i64 - 1) << 16;
+            && u1 < (tw as i64).saturating_sub(1) << 16
+            && v1 < (th as i64).saturating_sub(1) << 16;
         let not_mask = if mask { 0 } else { DEPTH_NONE };
         if inner {
             let written = if mask {
@@ -495,7 +495,8 @@ fn clip_poly(
     let mut push = |v: Vec3, m: &mut usize| {
         if let Some(slot) = out.get_mut(*m) {
             *slot = v;
-            *m += 1;
+            // `get_mut` succeeded: *m < MAX_CLIP_VERTS.
+            *m = m.wrapping_add(1);
         }
     };
     for i in 0..n.min(MAX_CLIP_VERTS) {
@@ -568,9 +569,11 @@ struct ScreenVert {
 
 #[inline]
 fn floor_div(n: i64, d: i64) -> i64 {
-    let q = n / d;
-    if n % d != 0 && ((n < 0) != (d < 0)) {
-        q - 1
+    // Callers divide by a non-zero edge-function step well inside i64; the
+    // wrapping forms only keep a zero divisor or `i64::MIN / −1` from panicking.
+    let q = n.checked_div(d).unwrap_or(0);
+    if n.checked_rem(d).unwrap_or(0) != 0 && ((n < 0) != (d < 0)) {
+        q.wrapping_sub(1)
     } else {
         q
     }
@@ -578,7 +581,7 @@ fn floor_div(n: i64, d: i64) -> i64 {
 
 #[inline]
 fn ceil_div(n: i64, d: i64) -> i64 {
-    -floor_div(-n, d)
+    floor_div(n.wrapping_neg(), d).wrapping_neg()
 }
 
 /// Fill one clipped, snapped convex polygon (`v[..n]`, n ≤ [`MAX_CLIP_VERTS`]).
@@ -605,8 +608,11 @@ fn fill_polygon<S: PixelSink>(
     let (mut minx, mut maxx, mut miny, mut maxy) = (i64::MAX, i64::MIN, i64::MAX, i64::MIN);
     // Corner pairs (v0, v1), (v1, v2), …, (v[n−1], v0).
     let pairs = || v.iter().take(n).zip(v.iter().take(n).cycle().skip(1));
+    // Wrapping arithmetic in the polygon setup: snapped coordinates lie within
+    // the frame's guard band (|x|, |y| < 2^18 in 28.4), so products stay below
+    // 2^40 and nothing wraps; the wrapping forms only remove the panic paths.
     for (&p, &q) in pairs() {
-        area += p.x * q.y - q.x * p.y;
+        area = area.wrapping_add(p.x.wrapping_mul(q.y).wrapping_sub(q.x.wrapping_mul(p.y)));
         minx = minx.min(p.x);
         maxx = maxx.max(p.x);
         miny = miny.min(p.y);
@@ -617,9 +623,9 @@ fn fill_polygon<S: PixelSink>(
     }
     let s = i64::from(1u32 << SUBPIXEL_BITS);
     let x_lo = ceil_div(minx, s).max(frame.wx);
-    let x_hi = floor_div(maxx, s).min(frame.wx + frame.w - 1);
+    let x_hi = floor_div(maxx, s).min(frame.wx.wrapping_add(frame.w).wrapping_sub(1));
     let y_lo = ceil_div(miny, s).max(frame.wy);
-    let y_hi = floor_div(maxy, s).min(frame.wy + frame.h - 1);
+    let y_hi = floor_div(maxy, s).min(frame.wy.wrapping_add(frame.h).wrapping_sub(1));
     if x_lo > x_hi || y_lo > y_hi {
         return;
     }
@@ -644,16 +650,18 @@ fn fill_polygon<S: PixelSink>(
         if p.x == q.x && p.y == q.y {
             continue;
         }
-        let a = -s * (q.y - p.y);
-        let b = s * (q.x - p.x);
-        let c = -(q.x - p.x) * p.y + (q.y - p.y) * p.x;
+        let (dx, dy) = (q.x.wrapping_sub(p.x), q.y.wrapping_sub(p.y));
+        let a = s.wrapping_mul(dy).wrapping_neg();
+        let b = s.wrapping_mul(dx);
+        let c = dy.wrapping_mul(p.x).wrapping_sub(dx.wrapping_mul(p.y));
         // Owner rule: a pixel centre on the edge is inside iff the centre moved by
         // (ε, ε²) is, i.e. A > 0 or (A == 0 and B > 0). Exactly one of two
         // polygons sharing the edge (opposite directions) owns it.
         let t = if a > 0 || (a == 0 && b > 0) { 0 } else { 1 };
         if let Some(e) = edges.get_mut(ne) {
             *e = (a, b, c, t);
-            ne += 1;
+            // `get_mut` succeeded: ne < MAX_CLIP_VERTS.
+            ne = usize::wrapping_add(ne, 1);
         }
     }
     // `ne` never exceeds the array; were it to, an empty edge list would fill the
@@ -666,26 +674,26 @@ fn fill_polygon<S: PixelSink>(
         let mut xl = x_lo;
         let mut xr = x_hi;
         for &(a, b, c, t) in edges {
-            let k = b * py + c;
+            let k = b.wrapping_mul(py).wrapping_add(c);
             if a > 0 {
-                xl = xl.max(ceil_div(t - k, a));
+                xl = xl.max(ceil_div(t.wrapping_sub(k), a));
             } else if a < 0 {
-                xr = xr.min(floor_div(t - k, a));
+                xr = xr.min(floor_div(t.wrapping_sub(k), a));
             } else if k < t {
-                xr = xl - 1;
+                xr = xl.wrapping_sub(1);
             }
         }
         if xl > xr {
             continue;
         }
         stats.spans = stats.spans.saturating_add(1);
-        let row = ((py - wy) * w - wx) as usize;
+        let row = py.wrapping_sub(wy).wrapping_mul(w).wrapping_sub(wx) as usize;
         match attr {
             Attr::Affine(af) => {
                 // Exact integer plane: the value at pixel x is the same whichever
                 // pixel the span starts at. Bounds: |base| ≤ 2^53, |gradient| ≤ 2^40,
                 // pixel offsets < 2^15, so every accumulator stays below 2^57.
-                let (dx, dy) = (xl - af.ax, py - af.ay);
+                let (dx, dy) = (xl.wrapping_sub(af.ax), py.wrapping_sub(af.ay));
                 let mut acc = af.base;
                 for ((a, gx), gy) in acc.iter_mut().zip(af.gx).zip(af.gy) {
                     *a = a
@@ -694,7 +702,7 @@ fn fill_polygon<S: PixelSink>(
                 }
                 sink.put_run(
                     row.wrapping_add(xl as usize),
-                    (xr - xl + 1) as usize,
+                    xr.wrapping_sub(xl).wrapping_add(1) as usize,
                     acc,
                     af.gx,
                     mask,
@@ -740,8 +748,8 @@ fn fill_span_perspective<S: PixelSink>(
     // w / SEG + 2 passes per span).
     while px <= xr {
         let s0 = px & !(SEG - 1);
-        let s1 = s0 + SEG;
-        let end = xr.min(s1 - 1);
+        let s1 = s0.saturating_add(SEG);
+        let end = xr.min(s1.saturating_sub(1));
         let e0 = match next {
             Some((col, e)) if col == s0 => e,
             _ => at(s0),
@@ -752,21 +760,31 @@ fn fill_span_perspective<S: PixelSink>(
             // Linear depth and UVs deviate from perspective-correct values by about
             // δ²/4 of depth with δ the relative change of depth over the segment;
             // segments with δ > 1/64 are evaluated exactly at every pixel instead.
-            (Some(a), Some(b)) if (b[0] - a[0]).abs() * LINEAR_MAX_DZ_INV <= a[0] => {
-                let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-                let k = px - s0;
+            (Some(a), Some(b))
+                if a[0] >= 0
+                    && b[0]
+                        .wrapping_sub(a[0])
+                        .unsigned_abs()
+                        .saturating_mul(LINEAR_MAX_DZ_INV as u64)
+                        <= a[0] as u64 =>
+            {
+                // Bounded as documented below: the wrapping forms never wrap.
+                let d = [
+                    b[0].wrapping_sub(a[0]),
+                    b[1].wrapping_sub(a[1]),
+                    b[2].wrapping_sub(a[2]),
+                ];
+                let k = px.wrapping_sub(s0);
                 // acc / SEG is the linear interpolation between the segment ends,
                 // rescaled to RUN_SHIFT fractional bits (|a| ≤ 2^37, |d| ≤ 2^38:
                 // below 2^54 after the shift).
                 let sh = RUN_SHIFT - SEG_SHIFT;
-                let acc = [
-                    (a[0] * SEG + d[0] * k) << sh,
-                    (a[1] * SEG + d[1] * k) << sh,
-                    (a[2] * SEG + d[2] * k) << sh,
-                ];
+                let lin =
+                    |a: i64, d: i64| a.wrapping_mul(SEG).wrapping_add(d.wrapping_mul(k)) << sh;
+                let acc = [lin(a[0], d[0]), lin(a[1], d[1]), lin(a[2], d[2])];
                 sink.put_run(
                     row.wrapping_add(px as usize),
-                    (end - px + 1) as usize,
+                    end.wrapping_sub(px).wrapping_add(1) as usize,
                     acc,
                     [d[0] << sh, d[1] << sh, d[2] << sh],
                     mask,
@@ -785,7 +803,10 @@ fn fill_span_perspective<S: PixelSink>(
                 }
             }
         }
-        px = end + 1;
+        let Some(next_px) = end.checked_add(1) else {
+            break;
+        };
+        px = next_px;
     }
 }
 
@@ -805,8 +826,14 @@ fn snap(frame: &Frame, (u, v): (f32, f32)) -> ScreenVert {
     // Clipping keeps corners within the guard band up to rounding; the clamp bounds
     // the fixed-point range for the overflow budget whatever the rounding did
     // (a NaN casts to 0, inside the range).
-    let x = (libm::roundf(u * SUB) as i64).clamp(frame.lim[0], frame.lim[2]);
-    let y = (libm::roundf(v * SUB) as i64).clamp(frame.lim[1], frame.lim[3]);
+    // `max`/`min` rather than `clamp`: the same for ordered limits, and no
+    // panic path for limits the other way round.
+    let x = (libm::roundf(u * SUB) as i64)
+        .max(frame.lim[0])
+        .min(frame.lim[2]);
+    let y = (libm::roundf(v * SUB) as i64)
+        .max(frame.lim[1])
+        .min(frame.lim[3]);
     ScreenVert { x, y }
 }
 
@@ -1062,8 +1089,8 @@ const _: () = assert!(crate::config::MAX_TEXTURE_DIM <= 1 << 14);
 #[inline(always)]
 fn sample_bilinear(tex: &[u8], tw: usize, th: usize, u_q16: i64, v_q16: i64) -> u8 {
     // max/min rather than clamp: no bounds-order check per pixel.
-    let u = u_q16.max(0).min((tw as i64 - 1) << 16) as u32;
-    let v = v_q16.max(0).min((th as i64 - 1) << 16) as u32;
+    let u = u_q16.max(0).min((tw as i64).saturating_sub(1) << 16) as u32;
+    let v = v_q16.max(0).min((th as i64).saturating_sub(1) << 16) as u32;
     let (x0, y0) = ((u >> 16) as usize, (v >> 16) as usize);
     let fx = (u >> 8) & 0xFF;
     let fy = (v >> 8) & 0xFF;
@@ -1131,7 +1158,7 @@ pub fn render_window(
     target: &mut Target,
 ) -> Result<RenderStats, FailureCode> {
     check_inputs(cam, world_from_cam, window)?;
-    let n = window.w as usize * window.h as usize;
+    let n = (window.w as usize).saturating_mul(window.h as usize);
     let (Some(inten), Some(depth), Some(mdepth)) = (
         target.intensity.get_mut(..n),
         target.depth.get_mut(..n),
@@ -1197,18 +1224,21 @@ pub fn template_mask(depth: &[u32], mask_depth: &[u32], w: usize, h: usize, out:
     };
     let mut kept = 0u32;
     for y in 0..h {
-        let (y0, y1) = (y.saturating_sub(r), (y + r).min(h - 1));
+        // w, h ≤ MAX_RENDER_PX (checked above): no row offset below can wrap.
+        let row_of = |y: usize| y.wrapping_mul(w)..y.wrapping_add(1).wrapping_mul(w);
+        let (y0, y1) = (y.saturating_sub(r), y.saturating_add(r).min(h - 1));
         colmin.fill(DEPTH_NONE);
         for yy in y0..=y1 {
-            if let Some(row) = mdepth.get(yy * w..(yy + 1) * w) {
+            if let Some(row) = mdepth.get(row_of(yy)) {
                 for (c, m) in colmin.iter_mut().zip(row) {
                     *c = (*c).min(*m);
                 }
             }
         }
         nbmin.copy_from_slice(colmin);
-        for d in 1..=r.min(w - 1) {
-            let (Some(right), Some(left)) = (colmin.get(d..), colmin.get(..w - d)) else {
+        for d in 1..=r.min(w.saturating_sub(1)) {
+            let (Some(right), Some(left)) = (colmin.get(d..), colmin.get(..w.wrapping_sub(d)))
+            else {
                 break;
             };
             for (n, c) in nbmin.iter_mut().zip(right) {
@@ -1221,9 +1251,9 @@ pub fn template_mask(depth: &[u32], mask_depth: &[u32], w: usize, h: usize, out:
             }
         }
         let (Some(drow), Some(mrow), Some(orow)) = (
-            depth.get(y * w..(y + 1) * w),
-            mdepth.get(y * w..(y + 1) * w),
-            out.get_mut(y * w..(y + 1) * w),
+            depth.get(row_of(y)),
+            mdepth.get(row_of(y)),
+            out.get_mut(row_of(y)),
         ) else {
             break;
         };
@@ -1234,7 +1264,7 @@ pub fn template_mask(depth: &[u32], mask_depth: &[u32], w: usize, h: usize, out:
                 .saturating_add(m / TEMPLATE_MASK_JUMP_REL_DIV);
             let keep = *own != DEPTH_NONE || (*m != DEPTH_NONE && *d > thr);
             *o = if keep { 255 } else { 0 };
-            kept += u32::from(keep);
+            kept = kept.saturating_add(u32::from(keep));
         }
     }
     kept

@@ -198,7 +198,8 @@ pub fn read_map_once<S: MapStore>(
     };
     let chunk = usize::try_from(cfg.chunk_len).unwrap_or(usize::MAX);
     let mut offset: u32 = 0;
-    for piece in product.chunks_mut(chunk) {
+    // `max(1)`: a zero chunk length would make `chunks_mut` panic.
+    for piece in product.chunks_mut(chunk.max(1)) {
         let mut done = false;
         for _ in 0..cfg.attempts {
             rep.reads = rep.reads.saturating_add(1);

@@ -269,10 +269,10 @@ pub fn outcome_payload(s: &OutcomeSummary) -> [u8; OUTCOME_LEN] {
     let mut p = [0u8; OUTCOME_LEN];
     let mut at = 0usize;
     let mut put = |b: &[u8]| {
-        if let Some(d) = p.get_mut(at..at + b.len()) {
+        if let Some(d) = p.get_mut(at..).and_then(|d| d.get_mut(..b.len())) {
             d.copy_from_slice(b);
         }
-        at += b.len();
+        at = at.saturating_add(b.len());
     };
     put(&s.failure.to_le_bytes());
     put(&s.inliers.to_le_bytes());

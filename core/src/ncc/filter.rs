@@ -33,24 +33,31 @@ pub fn filter_region(
         region.h as usize,
     );
     let out = out
-        .get_mut(..rw * rh)
+        .get_mut(..rw.saturating_mul(rh))
         .ok_or(FailureCode::NccScratchTooSmall)?;
     let (iw, ih) = (src.width(), src.height());
-    for (dy, orow) in out.chunks_exact_mut(rw).enumerate() {
-        let y = ry + dy;
+    // The region lies inside `src` (checked above), so the pixel coordinates
+    // below stay within the image and the wrapping additions never wrap.
+    for (dy, orow) in (0..rh).zip(out.chunks_exact_mut(rw)) {
+        let y = ry.wrapping_add(dy);
         let empty: &[u8] = &[];
         let r0 = src.row(y).unwrap_or(empty);
         if filter == Filter::Gray {
-            if let Some(s) = r0.get(rx..rx + rw) {
+            if let Some(s) = r0.get(rx..).and_then(|r| r.get(..rw)) {
                 orow.copy_from_slice(s);
             }
             continue;
         }
         let rm = src.row(y.saturating_sub(1)).unwrap_or(empty);
-        let rp = src.row((y + 1).min(ih - 1)).unwrap_or(empty);
-        for (dx, o) in orow.iter_mut().enumerate() {
-            let x = rx + dx;
-            let (xm, xp) = (x.saturating_sub(1), (x + 1).min(iw - 1));
+        let rp = src
+            .row(y.wrapping_add(1).min(ih.saturating_sub(1)))
+            .unwrap_or(empty);
+        for (dx, o) in (0..rw).zip(orow.iter_mut()) {
+            let x = rx.wrapping_add(dx);
+            let (xm, xp) = (
+                x.saturating_sub(1),
+                x.wrapping_add(1).min(iw.saturating_sub(1)),
+            );
             *o = match filter {
                 Filter::Sobel => {
                     let gx = px_at(rm, xp) + 2 * px_at(r0, xp) + px_at(rp, xp)
@@ -62,13 +69,13 @@ pub fn filter_region(
                         - 2 * px_at(rm, x)
                         - px_at(rm, xp);
                     // |gx| + |gy| <= 2040, so /8 is at most 255.
-                    ((gx.abs() + gy.abs()) >> 3).min(255) as u8
+                    (gx.unsigned_abs().wrapping_add(gy.unsigned_abs()) >> 3).min(255) as u8
                 }
                 Filter::Laplacian => {
                     let lap = px_at(rm, x) + px_at(rp, x) + px_at(r0, xm) + px_at(r0, xp)
                         - 4 * px_at(r0, x);
                     // lap in [-1020, 1020]: floor(lap/8) in [-128, 127].
-                    ((lap >> 3) + 128).clamp(0, 255) as u8
+                    ((lap >> 3).wrapping_add(128)).clamp(0, 255) as u8
                 }
                 Filter::Gray => px_at(r0, x) as u8,
             };
@@ -84,17 +91,23 @@ pub(super) fn downsample(src: &GrayView, dst: &mut [u8]) {
     if dw == 0 || dh == 0 {
         return;
     }
-    for (y, drow) in dst.chunks_exact_mut(dw).take(dh).enumerate() {
-        let r0 = src.row(2 * y).and_then(|r| r.get(..2 * dw));
-        let r1 = src.row(2 * y + 1).and_then(|r| r.get(..2 * dw));
+    for (y, drow) in (0..dh).zip(dst.chunks_exact_mut(dw)) {
+        // y < dh = height / 2 and dw = width / 2: the doubled values fit.
+        let (y2, w2) = (y.wrapping_mul(2), dw.wrapping_mul(2));
+        let r0 = src.row(y2).and_then(|r| r.get(..w2));
+        let r1 = src.row(y2.wrapping_add(1)).and_then(|r| r.get(..w2));
         if let (Some(r0), Some(r1)) = (r0, r1) {
             for ((d, a), b) in drow
                 .iter_mut()
                 .zip(r0.chunks_exact(2))
                 .zip(r1.chunks_exact(2))
             {
-                let s: u16 = a.iter().chain(b.iter()).map(|&v| u16::from(v)).sum();
-                *d = ((s + 2) >> 2) as u8;
+                // Four bytes: at most 1020, far inside u16.
+                let s = a
+                    .iter()
+                    .chain(b.iter())
+                    .fold(0u16, |s, &v| s.wrapping_add(u16::from(v)));
+                *d = (s.wrapping_add(2) >> 2) as u8;
             }
         }
     }

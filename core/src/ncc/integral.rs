@@ -29,8 +29,9 @@ impl<'s> Integral<'s> {
         rh: usize,
         buf: &'s mut [u32],
     ) -> Result<Self, FailureCode> {
-        let w1 = rw + 1;
-        let n = w1 * (rh + 1);
+        // Saturating: sizes no scratch can hold are refused by the split.
+        let w1 = rw.saturating_add(1);
+        let n = w1.saturating_mul(rh.saturating_add(1));
         let (sum, rest) = buf
             .split_at_mut_checked(n)
             .ok_or(FailureCode::NccScratchTooSmall)?;
@@ -47,8 +48,8 @@ impl<'s> Integral<'s> {
 
     /// The tables of a whole `w × h` window level already built in `buf`.
     pub(super) fn view(w: usize, h: usize, buf: &'s [u32]) -> Result<Self, FailureCode> {
-        let w1 = w + 1;
-        let n = w1 * (h + 1);
+        let w1 = w.saturating_add(1);
+        let n = w1.saturating_mul(h.saturating_add(1));
         let (sum, rest) = buf
             .split_at_checked(n)
             .ok_or(FailureCode::NccScratchTooSmall)?;
@@ -65,10 +66,12 @@ impl<'s> Integral<'s> {
     /// (Σf, Σf²) over `w × h` pixels at region coordinates `(x, y)`.
     #[inline]
     pub(super) fn rect(&self, x: usize, y: usize, w: usize, h: usize) -> (u32, u32) {
-        let i00 = y * self.w1 + x;
-        let i01 = i00 + w;
-        let i10 = (y + h) * self.w1 + x;
-        let i11 = i10 + w;
+        // Wrapping: a rectangle inside the region (the contract) never wraps; one
+        // outside reads some entry or 0 through `get`, never out of bounds.
+        let i00 = y.wrapping_mul(self.w1).wrapping_add(x);
+        let i01 = i00.wrapping_add(w);
+        let i10 = y.wrapping_add(h).wrapping_mul(self.w1).wrapping_add(x);
+        let i11 = i10.wrapping_add(w);
         let g = |t: &[u32], i: usize| t.get(i).copied().unwrap_or(0);
         let s = g(self.sum, i11)
             .wrapping_sub(g(self.sum, i10))
@@ -101,7 +104,12 @@ impl<'b> Tables<'b> {
     /// region tables give the same sums).
     pub(super) fn level(&mut self, k: usize, win: &Win, whole: bool) -> Result<(), FailureCode> {
         self.whole = None;
-        if whole && self.buf.len() >= 2 * (win.w + 1) * (win.h + 1) {
+        let need = win
+            .w
+            .saturating_add(1)
+            .saturating_mul(win.h.saturating_add(1))
+            .saturating_mul(2);
+        if whole && self.buf.len() >= need {
             Integral::build(win, 0, 0, win.w, win.h, self.buf)?;
             self.whole = Some((k, win.w, win.h));
         }
@@ -135,25 +143,40 @@ pub(super) fn fill_tables(
     sum: &mut [u32],
     sq: &mut [u32],
 ) {
-    let w1 = rw + 1;
+    let w1 = rw.saturating_add(1);
     for tab in [&mut *sum, &mut *sq] {
         if let Some(first) = tab.get_mut(..w1) {
             first.fill(0);
         }
     }
     for r in 0..rh {
-        let (sum_head, sum_tail) = sum.split_at_mut((r + 1) * w1);
-        let (sq_head, sq_tail) = sq.split_at_mut((r + 1) * w1);
+        // Checked: tables or a window smaller than the contract end the fill.
+        let (Some(prev_at), Some(cur_at)) = (
+            r.checked_mul(w1),
+            r.checked_add(1).and_then(|r1| r1.checked_mul(w1)),
+        ) else {
+            return;
+        };
+        let (Some((sum_head, sum_tail)), Some((sq_head, sq_tail))) = (
+            sum.split_at_mut_checked(cur_at),
+            sq.split_at_mut_checked(cur_at),
+        ) else {
+            return;
+        };
         let (Some(ps), Some(cs), Some(pq), Some(cq)) = (
-            sum_head.get(r * w1..),
+            sum_head.get(prev_at..),
             sum_tail.get_mut(..w1),
-            sq_head.get(r * w1..),
+            sq_head.get(prev_at..),
             sq_tail.get_mut(..w1),
         ) else {
             return;
         };
-        let start = (y0 + r) * win.w + x0;
-        let Some(frow) = win.px.get(start..start + rw) else {
+        let Some(frow) = y0
+            .checked_add(r)
+            .and_then(|y| y.checked_mul(win.w))
+            .and_then(|o| o.checked_add(x0))
+            .and_then(|start| win.px.get(start..start.checked_add(rw)?))
+        else {
             return;
         };
         let (Some((cs0, cs)), Some((cq0, cq))) = (cs.split_first_mut(), cq.split_first_mut())
@@ -167,7 +190,7 @@ pub(super) fn fill_tables(
         for (((s, q), (&p_s, &p_q)), &f) in cs.iter_mut().zip(cq.iter_mut()).zip(prev).zip(frow) {
             let v = u32::from(f);
             run_s = run_s.wrapping_add(v);
-            run_q = run_q.wrapping_add(v * v);
+            run_q = run_q.wrapping_add(v.wrapping_mul(v));
             *s = p_s.wrapping_add(run_s);
             *q = p_q.wrapping_add(run_q);
         }

@@ -34,27 +34,32 @@ fn chunk_dot<const C: usize>(t: &[u8; C], f: &[u8; C]) -> u32 {
 pub(super) fn dot_block<const B: usize>(t: &Tpl, win: &Win, px: usize, py: usize) -> [u32; B] {
     const C: usize = KERNEL_CHUNK;
     let mut s = [0u32; B];
-    for (r, trow) in t.px.chunks_exact(t.w).take(t.h).enumerate() {
-        let start = (py + r) * win.w + px;
-        let Some(frow) = win.px.get(start..start + t.w + B - 1) else {
+    // Checked index arithmetic, once per row and position: positions outside
+    // the contract read nothing instead of panicking.
+    for (r, trow) in t.px.chunks_exact(t.w.max(1)).take(t.h).enumerate() {
+        let span = t.w.saturating_add(B.saturating_sub(1));
+        let Some(frow) = py
+            .checked_add(r)
+            .and_then(|y| y.checked_mul(win.w))
+            .and_then(|o| o.checked_add(px))
+            .and_then(|start| win.px.get(start..start.checked_add(span)?))
+        else {
             continue;
         };
-        let tc = trow.chunks_exact(C);
-        let rem = tc.remainder();
+        // `as_chunks`: fixed-size chunks without the divide by a runtime chunk
+        // size (and its zero-divisor panic path) that `chunks_exact` + `zip` has.
+        let (tc, rem) = trow.as_chunks::<C>();
         for (b, sb) in s.iter_mut().enumerate() {
-            let Some(fb) = frow.get(b..b + t.w) else {
+            let Some(fb) = frow.get(b..).and_then(|f| f.get(..t.w)) else {
                 continue;
             };
-            let fc = fb.chunks_exact(C);
-            let frem = fc.remainder();
+            let (fc, frem) = fb.as_chunks::<C>();
             let mut acc = *sb;
-            for (tcc, fcc) in tc.clone().zip(fc) {
-                if let (Ok(tt), Ok(ff)) = (<&[u8; C]>::try_from(tcc), <&[u8; C]>::try_from(fcc)) {
-                    acc = acc.wrapping_add(chunk_dot(tt, ff));
-                }
+            for (tt, ff) in tc.iter().zip(fc) {
+                acc = acc.wrapping_add(chunk_dot(tt, ff));
             }
             for (&p, &q) in rem.iter().zip(frem) {
-                acc = acc.wrapping_add(u32::from(p) * u32::from(q));
+                acc = acc.wrapping_add(u32::from(p).wrapping_mul(u32::from(q)));
             }
             *sb = acc;
         }

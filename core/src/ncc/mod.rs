@@ -475,8 +475,10 @@ pub fn match_template_with(
         .map_or(-1.0, |c| c.s.to_f32());
     let (dx, dy) = subpixel::offsets(&tpls, &wins, &win, &mut tables, &mut stats)?;
 
-    let x = wr.x + win.x as i32;
-    let y = wr.y + win.y as i32;
+    // The winner lies inside the window rectangle, itself inside the image
+    // (≤ MAX_IMAGE_DIM), so these sums fit; wrapping keeps them total.
+    let x = wr.x.wrapping_add(win.x as i32);
+    let y = wr.y.wrapping_add(win.y as i32);
     Ok((
         Match {
             x,

@@ -96,7 +96,7 @@ pub(super) const fn refine_plan(
     } else {
         (c.refine_radius_px, c.candidates)
     };
-    let r = if k + 1 == lc {
+    let r = if k.saturating_add(1) == lc {
         max_usize(r, c.first_refine_radius_px)
     } else {
         r
@@ -120,9 +120,30 @@ pub(super) const fn whole_level_tables(
     c: &SearchConfig,
 ) -> bool {
     let (r, keep) = refine_plan(tw, th, k, lc, c);
-    let whole = ((ww >> k) + 1) * ((wh >> k) + 1);
-    let region = ((tw >> k) + 2 * r + 1) * ((th >> k) + 2 * r + 1);
-    whole <= keep * region
+    // Saturating: sizes beyond any scratch compare the same way or are refused
+    // when the scratch is sized.
+    let whole = table_len(shr(ww, k), shr(wh, k));
+    let side = r.saturating_mul(2);
+    let region = table_len(
+        shr(tw, k).saturating_add(side),
+        shr(th, k).saturating_add(side),
+    );
+    whole <= keep.saturating_mul(region)
+}
+
+/// `v >> k`, 0 for a shift of the whole width or more (a level index is below
+/// MAX_LEVELS; this keeps the shift free of its overflow panic path).
+pub(super) const fn shr(v: usize, k: usize) -> usize {
+    if k < usize::BITS as usize {
+        v >> k
+    } else {
+        0
+    }
+}
+
+/// Entries of one integral table of a `w × h` region: `(w + 1) · (h + 1)`, saturating.
+const fn table_len(w: usize, h: usize) -> usize {
+    w.saturating_add(1).saturating_mul(h.saturating_add(1))
 }
 
 impl ScratchSizes {
@@ -209,28 +230,34 @@ impl ScratchSizes {
         };
         let (mut window, mut template, mut runs) = (0, 0, 0);
         let mut k = 0;
+        // Saturating throughout: a size no buffer can have is refused when the
+        // scratch is checked against it. `k < levels ≤ MAX_LEVELS`.
         while k < levels {
-            window += (ww >> k) * (wh >> k);
-            template += 2 * (tw >> k) * (th >> k);
-            runs += (th >> k) * (tw >> k).div_ceil(2);
+            window = usize::saturating_add(window, shr(ww, k).saturating_mul(shr(wh, k)));
+            template = usize::saturating_add(
+                template,
+                shr(tw, k).saturating_mul(shr(th, k)).saturating_mul(2),
+            );
+            runs = usize::saturating_add(runs, shr(th, k).saturating_mul(shr(tw, k).div_ceil(2)));
             k += 1;
         }
-        let lc = levels - 1;
-        let coarse = ((ww >> lc) + 1) * ((wh >> lc) + 1);
-        let refine = (tw + 2 * MAX_REFINE_RADIUS_PX + 1) * (th + 2 * MAX_REFINE_RADIUS_PX + 1);
+        let lc = levels.saturating_sub(1);
+        let coarse = table_len(shr(ww, lc), shr(wh, lc));
+        let pad = 2 * MAX_REFINE_RADIUS_PX;
+        let refine = table_len(tw.saturating_add(pad), th.saturating_add(pad));
         let mut tables = max_usize(coarse, refine);
         let c = cfg.clamped();
         let mut k = 0;
         while k < lc {
             if whole_levels && whole_level_tables(tw, th, ww, wh, k, lc, &c) {
-                tables = max_usize(tables, ((ww >> k) + 1) * ((wh >> k) + 1));
+                tables = max_usize(tables, table_len(shr(ww, k), shr(wh, k)));
             }
             k += 1;
         }
         Self {
             window,
             template,
-            integral: 2 * tables,
+            integral: tables.saturating_mul(2),
             runs,
         }
     }
@@ -298,8 +325,8 @@ pub(super) fn build_template_levels<'s>(
     let mut prev: Option<(&'s [u8], &'s [u8])> = None;
     let mut used = 0;
     for (k, slot) in levels.iter_mut().enumerate().take(want) {
-        let (w, h) = (tw >> k, th >> k);
-        let n_px = w * h;
+        let (w, h) = (shr(tw, k), shr(th, k));
+        let n_px = w.saturating_mul(h);
         let (px, rest) = core::mem::take(&mut tbuf)
             .split_at_mut_checked(n_px)
             .ok_or(FailureCode::NccScratchTooSmall)?;
@@ -312,7 +339,7 @@ pub(super) fn build_template_levels<'s>(
                 filter_region(template, template.rect(), filter, px)?;
                 match mask {
                     Some(m) => {
-                        for (y, mrow) in mk.chunks_exact_mut(w).enumerate() {
+                        for (y, mrow) in (0..h).zip(mk.chunks_exact_mut(w.max(1))) {
                             let src = m.row(y).unwrap_or(&[]);
                             for (d, &s) in mrow.iter_mut().zip(src) {
                                 *d = u8::from(s != 0);
@@ -323,12 +350,17 @@ pub(super) fn build_template_levels<'s>(
                 }
             }
             Some((ppx, pmk)) => {
-                downsample(&GrayView::new(ppx, 2 * w, 2 * h, 2 * w)?, px);
+                // Level k is half of level k − 1 (≤ MAX_TEMPLATE_PX), so the
+                // doubled sizes fit; saturating keeps the arithmetic total.
+                let w2 = w.saturating_mul(2);
+                downsample(&GrayView::new(ppx, w2, h.saturating_mul(2), w2)?, px);
                 // A coarse pixel is kept only when all four children are kept.
-                for (y, mrow) in mk.chunks_exact_mut(w).enumerate() {
-                    let r0 = pmk.get(2 * y * 2 * w..(2 * y + 1) * 2 * w).unwrap_or(&[]);
+                for (y, mrow) in (0..h).zip(mk.chunks_exact_mut(w.max(1))) {
+                    let row0 = y.saturating_mul(2).saturating_mul(w2);
+                    let r0 = pmk.get(row0..).and_then(|r| r.get(..w2)).unwrap_or(&[]);
                     let r1 = pmk
-                        .get((2 * y + 1) * 2 * w..(2 * y + 2) * 2 * w)
+                        .get(row0.saturating_add(w2)..)
+                        .and_then(|r| r.get(..w2))
                         .unwrap_or(&[]);
                     for ((d, a), b) in mrow
                         .iter_mut()
@@ -346,9 +378,11 @@ pub(super) fn build_template_levels<'s>(
             if m == 0 {
                 *p = 0;
             } else {
-                n += 1;
-                st += u64::from(*p);
-                stt += u64::from(*p) * u64::from(*p);
+                // At most MAX_TEMPLATE_PX² pixels of ≤ 255: far below the u32
+                // and u64 limits (numeric.md), so wrapping never happens.
+                n = n.wrapping_add(1);
+                st = st.wrapping_add(u64::from(*p));
+                stt = stt.wrapping_add(u64::from(*p) * u64::from(*p));
             }
         }
         if n < MIN_MASK_PX {
@@ -358,7 +392,8 @@ pub(super) fn build_template_levels<'s>(
             break;
         }
         let (n, st) = (i64::from(n), st as i64);
-        let var_t = n * stt as i64 - st * st;
+        // < 2⁴⁸ for any template within the caps (numeric.md).
+        let var_t = n.wrapping_mul(stt as i64).wrapping_sub(st.wrapping_mul(st));
         if var_t <= 0 {
             if k == 0 {
                 return Err(FailureCode::NccTemplateFlat);
@@ -367,16 +402,17 @@ pub(super) fn build_template_levels<'s>(
         }
         let runs = if mask.is_some() {
             let mut count = 0;
-            for (y, mrow) in mk.chunks_exact(w).enumerate() {
-                let mut x = 0;
+            for (y, mrow) in (0..h).zip(mk.chunks_exact(w.max(1))) {
+                let mut x = 0usize;
+                // `x < w` bounds both loops, so the increments cannot wrap.
                 while x < w {
                     if mrow.get(x).copied().unwrap_or(0) == 0 {
-                        x += 1;
+                        x = x.wrapping_add(1);
                         continue;
                     }
                     let x0 = x;
                     while x < w && mrow.get(x).copied().unwrap_or(0) != 0 {
-                        x += 1;
+                        x = x.wrapping_add(1);
                     }
                     let r = rbuf.get_mut(count).ok_or(FailureCode::NccScratchTooSmall)?;
                     *r = Run {
@@ -384,7 +420,8 @@ pub(super) fn build_template_levels<'s>(
                         x0: x0 as u16,
                         x1: x as u16,
                     };
-                    count += 1;
+                    // `rbuf.get_mut(count)` succeeded, so count < rbuf.len().
+                    count = count.wrapping_add(1);
                 }
             }
             let (mine, rest) = core::mem::take(&mut rbuf)
@@ -406,7 +443,7 @@ pub(super) fn build_template_levels<'s>(
             var_t,
         });
         prev = Some((px, mk));
-        used = k + 1;
+        used = k.saturating_add(1);
     }
     Ok(used)
 }
@@ -425,9 +462,9 @@ pub(super) fn build_window_levels<'s>(
     let mut wbuf: &mut [u8] = window;
     let mut prev: Option<Win> = None;
     for (k, slot) in wins.iter_mut().enumerate().take(levels) {
-        let (w, h) = (ww >> k, wh >> k);
+        let (w, h) = (shr(ww, k), shr(wh, k));
         let (px, rest) = core::mem::take(&mut wbuf)
-            .split_at_mut_checked(w * h)
+            .split_at_mut_checked(w.saturating_mul(h))
             .ok_or(FailureCode::NccScratchTooSmall)?;
         wbuf = rest;
         match prev {

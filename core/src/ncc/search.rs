@@ -21,36 +21,49 @@ pub(super) fn eval_positions<F: FnMut(usize, usize, Score)>(
     stats: &mut MatchStats,
     mut sink: F,
 ) -> Result<(), FailureCode> {
-    let rw = x1 - x0 + t.w;
-    let rh = y1 - y0 + t.h;
+    if x1 < x0 || y1 < y0 {
+        return Ok(());
+    }
+    // Wrapping index arithmetic below: positions lie in `[x0, x1] × [y0, y1]`
+    // of a window that holds the template there (the contract), so nothing
+    // wraps; `Integral::rect` and `dot_block` read through `get` in any case.
+    let rw = (x1 - x0).saturating_add(t.w);
+    let rh = (y1 - y0).saturating_add(t.h);
     let integ = tables.region(k, win, (x0, y0, rw, rh))?;
     // (Σf, var_f) of the window at window-level coordinates (x, y).
     let window_terms = |x: usize, y: usize| -> (i64, i64) {
-        let (rx, ry) = (x - integ.x0, y - integ.y0);
+        let (rx, ry) = (x.wrapping_sub(integ.x0), y.wrapping_sub(integ.y0));
         let (sf, sff) = match t.runs {
             None => integ.rect(rx, ry, t.w, t.h),
             Some(runs) => runs.iter().fold((0u32, 0u32), |(s, q), run| {
                 let (a, b) = integ.rect(
-                    rx + usize::from(run.x0),
-                    ry + usize::from(run.row),
-                    usize::from(run.x1 - run.x0),
+                    rx.wrapping_add(usize::from(run.x0)),
+                    ry.wrapping_add(usize::from(run.row)),
+                    usize::from(run.x1.wrapping_sub(run.x0)),
                     1,
                 );
                 (s.wrapping_add(a), q.wrapping_add(b))
             }),
         };
         let (sf, sff) = (i64::from(sf), i64::from(sff));
-        (sf, t.n * sff - sf * sf)
+        // N·Σf² − (Σf)² < 2⁴⁸ (numeric.md): no wrap for templates within the caps.
+        (sf, t.n.wrapping_mul(sff).wrapping_sub(sf.wrapping_mul(sf)))
     };
     for y in y0..=y1 {
         // Runs of KERNEL_BLOCK consecutive x share one pass over the template; the
         // positions are still handed to `sink` (and counted) one by one in raster
         // order, exactly as a position-by-position scan does.
-        for xb in (x0..=x1).step_by(KERNEL_BLOCK) {
-            let n = (x1 - xb + 1).min(KERNEL_BLOCK);
+        // `x0, x0 + KERNEL_BLOCK, … ≤ x1` without `step_by` over an inclusive
+        // range, whose `nth` has an overflow panic path.
+        let mut next_xb = Some(x0);
+        while let Some(xb) = next_xb {
+            next_xb = xb.checked_add(KERNEL_BLOCK).filter(|&n| n <= x1);
+            let n = x1.wrapping_sub(xb).saturating_add(1).min(KERNEL_BLOCK);
             let mut terms = [(0i64, 0i64); KERNEL_BLOCK];
-            for (i, v) in terms.iter_mut().enumerate().take(n) {
-                *v = window_terms(xb + i, y);
+            // `(0..n).zip(…)` rather than `enumerate().take(n)`: the same
+            // pairs without the enumerate counter's overflow check.
+            for (i, v) in (0..n).zip(terms.iter_mut()) {
+                *v = window_terms(xb.wrapping_add(i), y);
             }
             let mut dots = [0u32; KERNEL_BLOCK];
             if n == KERNEL_BLOCK {
@@ -58,26 +71,27 @@ pub(super) fn eval_positions<F: FnMut(usize, usize, Score)>(
                     dots = dot_block::<KERNEL_BLOCK>(t, win, xb, y);
                 }
             } else {
-                for (i, (d, &(_, var_f))) in dots.iter_mut().zip(&terms).enumerate().take(n) {
+                for (i, (d, &(_, var_f))) in (0..n).zip(dots.iter_mut().zip(&terms)) {
                     if var_f > 0 {
-                        let [v] = dot_block::<1>(t, win, xb + i, y);
+                        let [v] = dot_block::<1>(t, win, xb.wrapping_add(i), y);
                         *d = v;
                     }
                 }
             }
-            for (i, (&(sf, var_f), &dot)) in terms.iter().zip(&dots).enumerate().take(n) {
+            for (i, (&(sf, var_f), &dot)) in (0..n).zip(terms.iter().zip(&dots)) {
                 if var_f <= 0 {
-                    stats.flat_positions += 1;
+                    stats.flat_positions = stats.flat_positions.saturating_add(1);
                     continue;
                 }
                 let sft = i64::from(dot);
-                stats.positions_scored += 1;
-                stats.macs += (t.w * t.h) as u64;
+                stats.positions_scored = stats.positions_scored.saturating_add(1);
+                stats.macs = stats.macs.saturating_add(t.w.saturating_mul(t.h) as u64);
                 sink(
-                    xb + i,
+                    xb.wrapping_add(i),
                     y,
                     Score {
-                        num: t.n * sft - sf * t.st,
+                        // N·Σft − Σf·Σt < 2⁴⁸ (numeric.md).
+                        num: t.n.wrapping_mul(sft).wrapping_sub(sf.wrapping_mul(t.st)),
                         var_f,
                         var_t: t.var_t,
                     },
@@ -160,7 +174,8 @@ impl TopK {
                     *o = e;
                 }
             }
-            n += 1;
+            // n ≤ i < len ≤ MAX_CANDIDATES.
+            n = n.wrapping_add(1);
         }
         let kept = self.items.get(..n).unwrap_or(&[]);
         // The list is sorted best first, so "c beats e" is false up to some index
@@ -171,9 +186,13 @@ impl TopK {
             return;
         }
         // Shift `pos..` one to the right, losing the last entry when full.
-        let end = (n + 1).min(self.cap);
-        for i in (pos + 1..end).rev() {
-            if let (Some(prev), Some(_)) = (self.items.get(i - 1).copied(), self.items.get(i)) {
+        // n ≤ MAX_CANDIDATES and pos < n + 1: none of these wrap.
+        let end = n.wrapping_add(1).min(self.cap);
+        for i in (pos.wrapping_add(1)..end).rev() {
+            if let (Some(prev), Some(_)) = (
+                self.items.get(i.wrapping_sub(1)).copied(),
+                self.items.get(i),
+            ) {
                 if let Some(d) = self.items.get_mut(i) {
                     *d = prev;
                 }
@@ -200,7 +219,7 @@ pub(super) fn coarse_to_fine(
     stats: &mut MatchStats,
 ) -> Result<TopK, FailureCode> {
     let radius0 = peak_radius_px(tw, th);
-    let lc = levels - 1;
+    let lc = levels.saturating_sub(1);
     let (Some(tc), Some(wc)) = (
         tpls.get(lc).copied().flatten(),
         wins.get(lc).copied().flatten(),
@@ -236,7 +255,7 @@ pub(super) fn coarse_to_fine(
         let mut visited = [(usize::MAX, usize::MAX); MAX_CANDIDATES * (MAX_CLIMB_STEPS + 1)];
         let mut n_visited = 0;
         for c in top.as_slice().iter().take(keep) {
-            let mut center = ((2 * c.x).min(lx), (2 * c.y).min(ly));
+            let mut center = (c.x.saturating_mul(2).min(lx), c.y.saturating_mul(2).min(ly));
             // The region's argmax (ties keep the first offered): `TopK` with one
             // entry and radius 0, without its 64-entry array.
             let mut best: Option<Cand> = None;
@@ -247,14 +266,15 @@ pub(super) fn coarse_to_fine(
                 }
                 if let Some(v) = visited.get_mut(n_visited) {
                     *v = center;
-                    n_visited += 1;
+                    // `get_mut` succeeded: n_visited < visited.len().
+                    n_visited = n_visited.wrapping_add(1);
                 }
                 let (cx, cy) = center;
                 let bounds = (
                     cx.saturating_sub(r),
                     cy.saturating_sub(r),
-                    (cx + r).min(lx),
-                    (cy + r).min(ly),
+                    cx.saturating_add(r).min(lx),
+                    cy.saturating_add(r).min(ly),
                 );
                 eval_positions(&t, (k, &w), bounds, tables, stats, |x, y, s| {
                     let better = best

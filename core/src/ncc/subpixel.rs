@@ -37,12 +37,13 @@ pub(super) fn offsets(
     let bounds = (
         win.x.saturating_sub(1),
         win.y.saturating_sub(1),
-        (win.x + 1).min(lx),
-        (win.y + 1).min(ly),
+        win.x.saturating_add(1).min(lx),
+        win.y.saturating_add(1).min(ly),
     );
     let mut sub_stats = MatchStats::default();
     eval_positions(&t0, (0, &w0), bounds, tables, &mut sub_stats, |x, y, s| {
-        let slot = match (x as isize - win.x as isize, y as isize - win.y as isize) {
+        let d = |p: usize, q: usize| (p as isize).wrapping_sub(q as isize);
+        let slot = match (d(x, win.x), d(y, win.y)) {
             (-1, 0) => nb.get_mut(0),
             (1, 0) => nb.get_mut(1),
             (0, -1) => nb.get_mut(2),
@@ -53,9 +54,13 @@ pub(super) fn offsets(
             *v = Some(s.to_f64());
         }
     })?;
-    stats.positions_scored += sub_stats.positions_scored;
-    stats.flat_positions += sub_stats.flat_positions;
-    stats.macs += sub_stats.macs;
+    stats.positions_scored = stats
+        .positions_scored
+        .saturating_add(sub_stats.positions_scored);
+    stats.flat_positions = stats
+        .flat_positions
+        .saturating_add(sub_stats.flat_positions);
+    stats.macs = stats.macs.saturating_add(sub_stats.macs);
     let c = win.s.to_f64();
     let offset = |a: Option<f64>, b: Option<f64>| match (a, b) {
         (Some(m), Some(p)) => parabola(m, c, p),

@@ -76,8 +76,11 @@ fn jacobi4_dominant(mut a: [[f32; 4]; 4]) -> ([f32; 4], u32) {
         if off <= 1.0e-14 * total {
             break;
         }
-        sweeps += 1;
+        sweeps = u32::saturating_add(sweeps, 1);
         for (p, q) in JACOBI_PAIRS {
+            // No-op masks (every pair is < 4) that let the optimizer drop the
+            // bounds checks where it does not unroll this loop.
+            let (p, q) = (p & 3, q & 3);
             let apq = a[p][q];
             if apq == 0.0 {
                 continue;
@@ -107,11 +110,12 @@ fn jacobi4_dominant(mut a: [[f32; 4]; 4]) -> ([f32; 4], u32) {
         }
     }
     let mut best = 0;
-    for j in 1..4 {
-        if a[j][j] > a[best][best] {
+    for j in 1..4usize {
+        if a[j][j] > a[best & 3][best & 3] {
             best = j;
         }
     }
+    let best = best & 3;
     ([v[0][best], v[1][best], v[2][best], v[3][best]], sweeps)
 }
 

@@ -110,18 +110,20 @@ pub fn required_iterations(inliers: u16, n: usize, confidence: f32) -> u32 {
 /// Three distinct indices in `0..n` (`n ≥ 3`) from exactly three draws.
 fn sample3(rng: &mut Rng, n: usize) -> [usize; 3] {
     let n = n as u32;
+    // Each draw is below n − 1 or n − 2 and is raised at most by one per index
+    // it passes, so it stays below n: the increments cannot wrap.
     let i0 = rng.below(n);
-    let mut i1 = rng.below(n - 1);
+    let mut i1 = rng.below(n.saturating_sub(1));
     if i1 >= i0 {
-        i1 += 1;
+        i1 = i1.wrapping_add(1);
     }
     let (lo, hi) = if i0 < i1 { (i0, i1) } else { (i1, i0) };
-    let mut i2 = rng.below(n - 2);
+    let mut i2 = rng.below(n.saturating_sub(2));
     if i2 >= lo {
-        i2 += 1;
+        i2 = i2.wrapping_add(1);
     }
     if i2 >= hi {
-        i2 += 1;
+        i2 = i2.wrapping_add(1);
     }
     [i0 as usize, i1 as usize, i2 as usize]
 }
@@ -184,7 +186,7 @@ fn insert_candidate(
     if list.iter().any(|e| close(e) && e.inliers >= c.inliers) {
         return;
     }
-    list.retain(|e| !close(e));
+    retain_where(list, |e| !close(e));
     let pos = list
         .iter()
         .position(|e| e.inliers < c.inliers)
@@ -196,7 +198,57 @@ fn insert_candidate(
         list.pop();
     }
     // Cannot fail: there is room, and pos ≤ len.
-    let _ = list.insert(pos, c);
+    insert_at(list, pos, c);
+}
+
+/// `heapless::Vec::retain` without its panic paths (an overflow-checked
+/// subtraction in its drop guard): keeps the entries `keep` accepts, in order.
+fn retain_where<const N: usize>(
+    list: &mut heapless::Vec<Candidate, N>,
+    keep: impl Fn(&Candidate) -> bool,
+) {
+    let mut n = 0usize;
+    for i in 0..list.len() {
+        if let Some(e) = list.get(i).copied() {
+            if keep(&e) {
+                if let Some(d) = list.get_mut(n) {
+                    *d = e;
+                }
+                // n ≤ i < len: cannot wrap.
+                n = n.wrapping_add(1);
+            }
+        }
+    }
+    list.truncate(n);
+}
+
+/// Insert `c` at `pos` (clamped to the length), shifting the tail; returns
+/// `false`, changing nothing, when the list is full. `heapless::Vec::insert`
+/// panics for `pos > len`; this has no panic path.
+fn insert_at<const N: usize>(
+    list: &mut heapless::Vec<Candidate, N>,
+    pos: usize,
+    c: Candidate,
+) -> bool {
+    let pos = pos.min(list.len());
+    if list.push(c).is_err() {
+        return false;
+    }
+    // Shift `pos..len − 1` one place right (the push made room), then place `c`.
+    let mut i = list.len().saturating_sub(1);
+    while i > pos {
+        let prev = i.wrapping_sub(1);
+        if let Some(e) = list.get(prev).copied() {
+            if let Some(d) = list.get_mut(i) {
+                *d = e;
+            }
+        }
+        i = prev;
+    }
+    if let Some(d) = list.get_mut(pos) {
+        *d = c;
+    }
+    true
 }
 
 /// Resumable RANSAC state: call [`Ransac::run_chunk`] until it reports done (or
@@ -312,7 +364,7 @@ impl Ransac {
     }
 
     fn iterate(&mut self, pairs: &[Correspondence]) {
-        self.stats.iterations += 1;
+        self.stats.iterations = self.stats.iterations.saturating_add(1);
         let [i0, i1, i2] = sample3(&mut self.rng, self.n);
         let (Some(a), Some(b), Some(c)) = (pairs.get(i0), pairs.get(i1), pairs.get(i2)) else {
             return;
@@ -325,20 +377,20 @@ impl Ransac {
             let dw = (x.world - y.world).norm();
             let dc = (x.cam - y.cam).norm();
             if (dw - dc).abs() > gate(x) + gate(y) {
-                self.stats.distance_rejects += 1;
+                self.stats.distance_rejects = self.stats.distance_rejects.saturating_add(1);
                 return;
             }
         }
         let (pose, fs) = match fit(&s, |_, _| 1.0) {
             Ok(v) => v,
             Err(_) => {
-                self.stats.degenerate_samples += 1;
+                self.stats.degenerate_samples = self.stats.degenerate_samples.saturating_add(1);
                 return;
             }
         };
         self.stats.jacobi_sweeps = self.stats.jacobi_sweeps.saturating_add(fs.jacobi_sweeps);
         let (inliers, _, _) = score(pairs, &self.cfg, &pose, None);
-        self.stats.hypotheses_scored += 1;
+        self.stats.hypotheses_scored = self.stats.hypotheses_scored.saturating_add(1);
         self.stats.residuals_evaluated =
             self.stats.residuals_evaluated.saturating_add(self.n as u32);
         let mut cand = Candidate { pose, inliers };
@@ -362,11 +414,11 @@ impl Ransac {
         let cfg = self.cfg;
         let inlier =
             |p: &Correspondence| (p.world - (r * p.cam + t)).norm_squared() <= gate_sq(&cfg, p);
-        self.stats.local_refits += 1;
+        self.stats.local_refits = self.stats.local_refits.saturating_add(1);
         self.stats.residuals_evaluated = self
             .stats
             .residuals_evaluated
-            .saturating_add(3 * self.n as u32);
+            .saturating_add((self.n as u32).saturating_mul(3));
         let Ok((pose, fs)) = fit(pairs, |_, p| if inlier(p) { 1.0 } else { 0.0 }) else {
             return c;
         };
@@ -436,7 +488,7 @@ impl Ransac {
             pose = new_pose;
             inliers = new_inliers;
             sum_sq = new_sum;
-            self.stats.refits += 1;
+            self.stats.refits = self.stats.refits.saturating_add(1);
             if !changed {
                 break;
             }
@@ -446,11 +498,13 @@ impl Ransac {
         let fin = Candidate { pose, inliers };
         // The refined pose leads the list (even if the refit lost a few inliers
         // against its 3-point hypothesis); entries it duplicates are dropped.
-        candidates.retain(|c| pose_distance(&c.pose, &pose, self.lever_m) > self.cfg.inlier_m);
+        retain_where(&mut candidates, |c| {
+            pose_distance(&c.pose, &pose, self.lever_m) > self.cfg.inlier_m
+        });
         if candidates.is_full() {
             candidates.pop();
         }
-        if candidates.insert(0, fin).is_err() {
+        if !insert_at(&mut candidates, 0, fin) {
             // Unreachable: one slot was freed above.
             return Err(FailureCode::ConfigCapacityTooSmall);
         }

@@ -361,7 +361,10 @@ pub fn refine(
         return Err(FailureCode::ConfigParamOutOfRange);
     };
     check_pairs(pairs)?;
-    let n = mask.iter().filter(|m| **m).count();
+    // A fold rather than `filter().count()`, whose sum is overflow-checked.
+    let n = mask
+        .iter()
+        .fold(0usize, |n, &m| n.wrapping_add(usize::from(m)));
     if n < 3 {
         return Err(FailureCode::PoseTooFewPoints);
     }
@@ -395,7 +398,7 @@ pub fn refine(
         // (b) Levenberg–Marquardt with Marquardt's diagonal scaling.
         let mut lambda = LAMBDA_START;
         for _ in 0..cfg.max_iterations {
-            stats.iterations += 1;
+            stats.iterations = stats.iterations.saturating_add(1);
             let damp = e.jtj.diagonal().map(|d| lambda * d.max(f64::MIN_POSITIVE));
             let a = e.jtj + M6::from_diagonal(&damp);
             let Some(ch) = a.cholesky() else {
@@ -412,7 +415,7 @@ pub fn refine(
             let next = cur.step(&x);
             match evaluate(pairs, mask, &cam, &next, true, &mut stats) {
                 Some(ne) if ne.cost < e.cost => {
-                    stats.steps_taken += 1;
+                    stats.steps_taken = stats.steps_taken.saturating_add(1);
                     let gain = e.cost - ne.cost;
                     cur = next;
                     e = ne;

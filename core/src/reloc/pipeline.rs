@@ -58,22 +58,25 @@ fn round_i32(v: f32) -> i32 {
 
 /// Search rectangle of side ℓ + 2r centred on `px`, capped at `cap` and clipped to the image.
 fn search_rect(px: [f32; 2], l: usize, r: i32, cap: usize, w: usize, h: usize) -> Rect {
-    let half_max = (cap.saturating_sub(l) / 2) as i32;
-    let r = r.clamp(0, half_max);
-    let side = l as i32 + 2 * r;
-    // Saturating: `px` is checked in view by SamplePoint, but the arithmetic stays total.
+    // Saturating and `max`/`min` (a `clamp` with bounds the wrong way round
+    // panics): `px` is checked in view by SamplePoint, sizes are validated
+    // params, but the arithmetic stays total.
+    let to_i32 = |v: usize| i32::try_from(v).unwrap_or(i32::MAX);
+    let half_max = to_i32(cap.saturating_sub(l) / 2);
+    let r = r.max(0).min(half_max);
+    let side = to_i32(l).saturating_add(r.saturating_mul(2));
     let x0 = round_i32(px[0]).saturating_sub(side / 2);
     let y0 = round_i32(px[1]).saturating_sub(side / 2);
-    let (w, h) = (w as i32, h as i32);
-    let cx0 = x0.clamp(0, w);
-    let cy0 = y0.clamp(0, h);
-    let cx1 = x0.saturating_add(side).clamp(0, w);
-    let cy1 = y0.saturating_add(side).clamp(0, h);
+    let (w, h) = (to_i32(w), to_i32(h));
+    let cx0 = x0.max(0).min(w);
+    let cy0 = y0.max(0).min(h);
+    let cx1 = x0.saturating_add(side).max(0).min(w);
+    let cy1 = y0.saturating_add(side).max(0).min(h);
     Rect::new(
         cx0,
         cy0,
-        (cx1 - cx0).max(0) as u32,
-        (cy1 - cy0).max(0) as u32,
+        cx1.saturating_sub(cx0).max(0) as u32,
+        cy1.saturating_sub(cy0).max(0) as u32,
     )
 }
 
@@ -139,10 +142,10 @@ impl<'a, 'w> Pipeline<'a, 'w> {
 
 /// Window of side ℓ whose centre pixel holds `px`.
 fn template_rect(px: [f32; 2], l: usize) -> Rect {
-    let h = (l / 2) as i32;
+    let h = i32::try_from(l / 2).unwrap_or(i32::MAX);
     Rect::new(
-        round_i32(px[0]) - h,
-        round_i32(px[1]) - h,
+        round_i32(px[0]).saturating_sub(h),
+        round_i32(px[1]).saturating_sub(h),
         l as u32,
         l as u32,
     )
@@ -187,7 +190,7 @@ impl Pipeline<'_, '_> {
         let l = self.template_px;
         let cam = self.rig.cam;
         let ws = &mut self.ws;
-        let n = l * l;
+        let n = l.saturating_mul(l);
         let t = Templates {
             left: template_rect(s.left, l),
             right: template_rect(s.right, l),
@@ -221,7 +224,8 @@ impl Pipeline<'_, '_> {
                 .saturating_add(u64::from(rs.pixels_written));
         }
         // Occlusion: the surface drawn at the vertex's pixel must be the vertex's own.
-        let centre = (l / 2) * l + l / 2;
+        // ℓ ≤ MAX_TEMPLATE_PX (validated params): the centre index fits.
+        let centre = (l / 2).wrapping_mul(l).wrapping_add(l / 2);
         let drawn = ws.depth_l.get(centre).copied().and_then(raster::depth_to_m);
         let tol = OCCLUSION_ABS_M + OCCLUSION_REL * s.cam.z;
         if drawn.is_none_or(|z| z < s.cam.z - tol) {
@@ -249,7 +253,7 @@ impl Pipeline<'_, '_> {
         let f = cam.fx.max(cam.fy);
         let r_px = f * (2.0 * ctx.t_m / s.cam.z.max(0.1) + 2.0 * ctx.r_rad);
         let r_px = if r_px.is_finite() {
-            libm::ceilf(r_px) as i32 + i32::from(self.policy.margin_px)
+            (libm::ceilf(r_px) as i32).saturating_add(i32::from(self.policy.margin_px))
         } else {
             0
         };

@@ -45,7 +45,13 @@ pub struct Preflight {
 /// Evenly spaced row indices `0..h` (at most [`PREFLIGHT_ROWS`], each once).
 fn sampled_rows(h: usize) -> impl Iterator<Item = usize> {
     let n = h.min(PREFLIGHT_ROWS);
-    (0..n).map(move |k| if n > 1 { k * (h - 1) / (n - 1) } else { 0 })
+    // k < n ≤ PREFLIGHT_ROWS and h ≤ MAX_IMAGE_DIM: the product fits; the
+    // wrapping forms keep the arithmetic total.
+    (0..n).map(move |k| {
+        k.wrapping_mul(h.saturating_sub(1))
+            .checked_div(n.saturating_sub(1))
+            .unwrap_or(0)
+    })
 }
 
 /// Textured share (‰) of the sampled rows of `img`, and the pixels read.
@@ -53,24 +59,30 @@ fn texture_permille(img: &GrayView) -> (u32, u64) {
     let (w, h) = (img.width(), img.height());
     let (mut textured, mut total) = (0u64, 0u64);
     for y in sampled_rows(h) {
-        let (Some(row), below) = (img.row(y), img.row((y + 1).min(h.saturating_sub(1)))) else {
+        let (Some(row), below) = (
+            img.row(y),
+            img.row(y.saturating_add(1).min(h.saturating_sub(1))),
+        ) else {
             continue;
         };
         let below = below.unwrap_or(row);
-        for (x, &p) in row.iter().enumerate().take(w) {
-            total += 1;
+        for (x, &p) in (0..w).zip(row) {
+            total = total.saturating_add(1);
             if p == 0 || p == 255 {
                 continue;
             }
-            let right = row.get(x + 1).copied().unwrap_or(p);
+            let right = row.get(x.wrapping_add(1)).copied().unwrap_or(p);
             let down = below.get(x).copied().unwrap_or(p);
             if p.abs_diff(right) >= TEXTURE_STEP || p.abs_diff(down) >= TEXTURE_STEP {
-                textured += 1;
+                textured = textured.saturating_add(1);
             }
         }
     }
-    let permille = (textured * 1000).checked_div(total).unwrap_or(0) as u32;
-    (permille, 2 * total)
+    let permille = textured
+        .saturating_mul(1000)
+        .checked_div(total)
+        .unwrap_or(0) as u32;
+    (permille, total.saturating_mul(2))
 }
 
 /// Whether `a` and `b` are identical on every sampled row.
@@ -96,7 +108,7 @@ pub fn check(
     let (tr, nr) = texture_permille(right);
     out.left_texture_permille = tl;
     out.right_texture_permille = tr;
-    out.reads = nl + nr;
+    out.reads = nl.saturating_add(nr);
     if tl < MIN_TEXTURE_PERMILLE || tr < MIN_TEXTURE_PERMILLE {
         return Err(FailureCode::RelocFrameNoTexture);
     }
@@ -112,11 +124,11 @@ pub fn check(
         let Some(world) = map.mask_vertex(k).and_then(|i| map.vertex(i)) else {
             continue;
         };
-        out.reads += 1;
+        out.reads = out.reads.saturating_add(1);
         let p = cam_from_world.transform_point(&world);
         if let Some((l, _)) = rig.project_stereo(&p) {
             if cam.contains(l[0], l[1], 0.0) {
-                out.visible_mask_vertices += 1;
+                out.visible_mask_vertices = out.visible_mask_vertices.saturating_add(1);
                 // One is enough to know the run can start.
                 break;
             }

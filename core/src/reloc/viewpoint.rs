@@ -38,7 +38,9 @@ pub fn randomize(center: &Pose, t_m: f32, r_rad: f32, planar: bool, rng: &mut Rn
 /// Distribute: pick one of `candidates` with probability proportional to its
 /// inliers (one draw). Returns `None` when there is no candidate with inliers.
 pub fn pick_candidate(candidates: &[Candidate], rng: &mut Rng) -> Option<Pose> {
-    let total: u32 = candidates.iter().map(|c| u32::from(c.inliers)).sum();
+    let total = candidates
+        .iter()
+        .fold(0u32, |s, c| s.saturating_add(u32::from(c.inliers)));
     let mut u = rng.below(total);
     if total == 0 {
         return None;

@@ -76,23 +76,25 @@ impl WorkspaceSizes {
             ncc_minimum_integral(template_px, search_px, mode),
             ncc_minimum_integral(h, search_px, mode),
         );
-        let integral = if shared.saturating_sub(minimum) * 4 <= NCC_SHARED_TABLES_MAX_BYTES {
-            shared
-        } else {
-            minimum
-        };
+        let integral =
+            if shared.saturating_sub(minimum).saturating_mul(4) <= NCC_SHARED_TABLES_MAX_BYTES {
+                shared
+            } else {
+                minimum
+            };
         let ncc = ScratchSizes {
             window: max(a.window, b.window),
             template: max(a.template, b.template),
             integral,
             runs: max(a.runs, b.runs),
         };
-        let t2 = template_px * template_px;
+        // Saturating: sizes beyond any storage are refused when it is checked.
+        let t4 = template_px.saturating_mul(template_px).saturating_mul(4);
         Self {
             template_px,
             search_px,
-            bytes: 4 * t2 + ncc.window + ncc.template,
-            words: 4 * t2 + ncc.integral,
+            bytes: t4.saturating_add(ncc.window).saturating_add(ncc.template),
+            words: t4.saturating_add(ncc.integral),
             runs: ncc.runs,
             ncc,
             ncc_min_integral: minimum,

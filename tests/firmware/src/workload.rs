@@ -216,8 +216,11 @@ fn reloc_block(d: &mut Digest, clock: &dyn Fn() -> u64) -> Summary {
     let sample = |l: &[[f32; 18]; 18], x: f32, y: f32| {
         let (i, j) = (x as usize, y as usize);
         let (fx, fy) = (x - i as f32, y - j as f32);
-        let a = l[j][i] * (1.0 - fx) + l[j][i + 1] * fx;
-        let b = l[j + 1][i] * (1.0 - fx) + l[j + 1][i + 1] * fx;
+        // Lattice reads through `get` (x, y < 17 here): no panic path.
+        let at = |j: usize, i: usize| l.get(j).and_then(|r| r.get(i)).copied().unwrap_or(0.0);
+        let (i1, j1) = (i.saturating_add(1), j.saturating_add(1));
+        let a = at(j, i) * (1.0 - fx) + at(j, i1) * fx;
+        let b = at(j1, i) * (1.0 - fx) + at(j1, i1) * fx;
         a * (1.0 - fy) + b * fy
     };
     for (k, px) in texture.iter_mut().enumerate() {
@@ -328,28 +331,31 @@ pub mod devices {
         fn capture(&mut self, left: &mut [u8], right: &mut [u8], _timeout_ticks: u64) -> Result<FrameInfo, ErrorKind> {
             let cam = self.rig.cam;
             let (w, h) = (cam.width as usize, cam.height as usize);
-            let n = w * h;
+            let n = w.saturating_mul(h);
             let (Some(left), Some(right)) = (left.get_mut(..n), right.get_mut(..n)) else { return Err(ErrorKind::Other) };
             let (mut inten, mut depth, mut mdepth) = ([0u8; TILE * TILE], [0u32; TILE * TILE], [0u32; TILE * TILE]);
             for (img, pose) in [(left, self.truth), (right, self.rig.world_from_right(&self.truth))] {
                 for ty in (0..h).step_by(TILE) {
                     for tx in (0..w).step_by(TILE) {
-                        let (tw, th) = (TILE.min(w - tx), TILE.min(h - ty));
+                        let (tw, th) = (TILE.min(w.saturating_sub(tx)), TILE.min(h.saturating_sub(ty)));
                         let rect = Rect::new(tx as i32, ty as i32, tw as u32, th as u32);
                         let mut target = Target { intensity: &mut inten, depth: &mut depth, mask_depth: &mut mdepth };
                         if raster::render_window(self.map, &cam, &pose, rect, &mut target).is_err() {
                             continue;
                         }
-                        for y in 0..th {
-                            for x in 0..tw {
-                                let v = f32::from(inten[y * tw + x]) * 0.85 + 14.0;
-                                img[(ty + y) * w + tx + x] = v.clamp(0.0, 255.0) as u8;
+                        // Tile rows into the frame, through `get`: no panic path.
+                        for (y, trow) in (0..th).zip(inten.chunks_exact(tw.max(1))) {
+                            let at = ty.saturating_add(y).saturating_mul(w).saturating_add(tx);
+                            let Some(frow) = img.get_mut(at..).and_then(|r| r.get_mut(..tw)) else { continue };
+                            for (p, &i) in frow.iter_mut().zip(trow) {
+                                let v = f32::from(i) * 0.85 + 14.0;
+                                *p = v.clamp(0.0, 255.0) as u8;
                             }
                         }
                     }
                 }
             }
-            self.sequence += 1;
+            self.sequence = self.sequence.wrapping_add(1);
             Ok(FrameInfo { width: cam.width, height: cam.height, stride: cam.width, sequence: self.sequence, timestamp_ticks: (self.clock)(), exposure_us: 2000 })
         }
     }
@@ -447,8 +453,8 @@ pub mod devices {
 
     impl Telemetry for CountingTelemetry {
         fn send(&mut self, _kind: u8, payload: &[u8]) -> Result<(), Infallible> {
-            self.frames += 1;
-            self.bytes += payload.len() as u32;
+            self.frames = self.frames.saturating_add(1);
+            self.bytes = self.bytes.saturating_add(payload.len() as u32);
             Ok(())
         }
     }

@@ -28,10 +28,13 @@ pub fn ticks() -> u64 {
         let mut wraps = WRAPS.load(Ordering::Acquire);
         let mut current = SYST::get_current();
         if SCB::is_pendst_pending() {
-            wraps += 1;
+            wraps = wraps.wrapping_add(1);
             current = SYST::get_current();
         }
-        u64::from(wraps) * u64::from(RELOAD + 1) + u64::from(RELOAD - current)
+        // A 24-bit counter below RELOAD: none of this can wrap in a u64.
+        u64::from(wraps)
+            .wrapping_mul(u64::from(RELOAD) + 1)
+            .wrapping_add(u64::from(RELOAD.wrapping_sub(current)))
     })
 }
 
