@@ -47,12 +47,31 @@ pub mod config;
 pub mod failure;
 pub mod geom;
 pub mod image;
+// Integer arithmetic and narrowing casts in the modules that handle raw bytes and
+// pixels are audited: each is checked, saturating or wrapping, or sits in a
+// function whose `allow` states the bound that keeps it exact.
+#[cfg_attr(
+    not(test),
+    warn(clippy::arithmetic_side_effects, clippy::cast_possible_truncation)
+)]
 pub mod map;
+#[cfg_attr(
+    not(test),
+    warn(clippy::arithmetic_side_effects, clippy::cast_possible_truncation)
+)]
 pub mod ncc;
 pub mod pose;
+#[cfg_attr(
+    not(test),
+    warn(clippy::arithmetic_side_effects, clippy::cast_possible_truncation)
+)]
 pub mod raster;
 pub mod reloc;
 pub mod rng;
+#[cfg_attr(
+    not(test),
+    warn(clippy::arithmetic_side_effects, clippy::cast_possible_truncation)
+)]
 pub mod stereo;
 
 pub use failure::FailureCode;

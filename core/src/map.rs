@@ -95,6 +95,11 @@ const OFF_ORIGIN: usize = 148;
 // Const evaluation: `i < 256` is the loop bound, so `t[i]` is in range (and an
 // out-of-range index would fail the build, not the flight code).
 #[allow(clippy::indexing_slicing)]
+#[allow(
+    clippy::arithmetic_side_effects,
+    clippy::cast_possible_truncation,
+    reason = "table index i < 256 and bit counter k < 8: the increments and the cast are exact"
+)]
 const fn crc_table() -> [u32; 256] {
     let mut t = [0u32; 256];
     let mut i = 0;
@@ -220,6 +225,10 @@ fn uv_in_range(c: f32) -> bool {
 
 /// Whether the triangle `a b c` has non-zero area (f32 cross product of its edges;
 /// an infinite one counts, a NaN one does not).
+#[allow(
+    clippy::arithmetic_side_effects,
+    reason = "f32 vector arithmetic (nalgebra); no integer operation"
+)]
 fn has_area(a: &Vec3, b: &Vec3, c: &Vec3) -> bool {
     (b - a).cross(&(c - a)).norm_squared() > 0.0
 }
@@ -361,6 +370,11 @@ impl<'a> MapView<'a> {
     ///
     /// # Errors
     /// The first failed check's code, as above.
+    #[allow(
+        clippy::arithmetic_side_effects,
+        clippy::cast_possible_truncation,
+        reason = "capacities from config are below u32::MAX; header offsets are constants of the layout (i < SECTIONS, k < 3, header_len from header_len_of ≥ 4 + the fixed fields), and the tile product is formed in u64 from two u32"
+    )]
     pub fn new_checked(bytes: &'a [u8]) -> Result<Self, FailureCode> {
         use FailureCode as F;
         if bytes.len() < HEADER_LEN_V1 {
@@ -476,6 +490,10 @@ impl<'a> MapView<'a> {
         Ok(view)
     }
 
+    #[allow(
+        clippy::cast_possible_truncation,
+        reason = "i < triangle_count, itself a u32"
+    )]
     fn check_content(&self) -> Result<(), FailureCode> {
         use FailureCode as F;
         for i in 0..self.vertex_count {
@@ -613,6 +631,10 @@ impl<'a> MapView<'a> {
 
     /// Triangle `i` with its UVs and mask bit.
     #[inline]
+    #[allow(
+        clippy::arithmetic_side_effects,
+        reason = "k < 3 corner index: the field offsets are small constants"
+    )]
     pub fn triangle(&self, i: u32) -> Option<Triangle> {
         if i >= self.triangle_count {
             return None;
@@ -637,6 +659,10 @@ impl<'a> MapView<'a> {
     /// The three corners of triangle `i` in local metres (one read of its indices
     /// and vertices, without its UVs and flags).
     #[inline]
+    #[allow(
+        clippy::arithmetic_side_effects,
+        reason = "k < 3 corner index: the field offsets are small constants"
+    )]
     pub fn triangle_vertices(&self, i: u32) -> Option<[Vec3; 3]> {
         if i >= self.triangle_count {
             return None;
@@ -732,6 +758,11 @@ struct Plan {
 }
 
 impl Plan {
+    #[allow(
+        clippy::arithmetic_side_effects,
+        clippy::cast_possible_truncation,
+        reason = "float-to-int `as` saturates (NaN gives 0) before the clamp to the grid; tiles_x, tiles_y ≤ MAX_MAP_TILES"
+    )]
     fn cell_of(&self, x: f32, y: f32, tile: f32) -> usize {
         let cx = libm::floorf((x - self.min.x) / tile);
         let cy = libm::floorf((y - self.min.y) / tile);
@@ -753,6 +784,10 @@ fn vertex_of(src: &MapSource, i: u32) -> Result<Vec3, FailureCode> {
     Ok(Vec3::new(p[0], p[1], p[2]))
 }
 
+#[allow(
+    clippy::cast_possible_truncation,
+    reason = "n is finite and ≤ MAX_MAP_TILES (checked just above) before the cast"
+)]
 fn plan(src: &MapSource) -> Result<Plan, FailureCode> {
     use FailureCode as F;
     let (nv, nt) = (src.vertices.len(), src.triangles.len());
@@ -867,6 +902,11 @@ pub fn encoded_len(src: &MapSource) -> Result<usize, FailureCode> {
 /// (every triangle has zero area), [`FailureCode::MapIndexOutOfRange`],
 /// [`FailureCode::MapEncodeBufferTooSmall`]. Nothing is written on a check failure
 /// other than the buffer-size one, which writes nothing either.
+#[allow(
+    clippy::arithmetic_side_effects,
+    clippy::cast_possible_truncation,
+    reason = "counts and sizes are checked against the config capacities (all below u32::MAX) by plan() before they are written as u32; header offsets are constants of the layout (i < 11 fields, k < 3, i < SECTIONS)"
+)]
 pub fn encode(src: &MapSource, out: &mut [u8]) -> Result<usize, FailureCode> {
     use FailureCode as F;
     let plan = plan(src)?;
@@ -1057,6 +1097,10 @@ pub fn encode(src: &MapSource, out: &mut [u8]) -> Result<usize, FailureCode> {
 ///
 /// # Errors
 /// [`FailureCode::MapTruncated`] if `bytes` is shorter than its header or sections say.
+#[allow(
+    clippy::arithmetic_side_effects,
+    reason = "header offsets are constants of the layout (i < SECTIONS) and header_len ≥ 4 + the fixed fields (header_len_of)"
+)]
 pub fn reseal(bytes: &mut [u8]) -> Result<(), FailureCode> {
     use FailureCode as F;
     let version = rd_u32(bytes, 8).ok_or(F::MapTruncated)?;

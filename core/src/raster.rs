@@ -65,6 +65,10 @@ const CULL_SLACK_M: f32 = 0.01;
 
 /// Convert camera Z in metres to the depth format (rounded, saturating at [`DEPTH_MAX`]).
 #[inline]
+#[allow(
+    clippy::cast_possible_truncation,
+    reason = "float-to-int `as` saturates; the result is capped at DEPTH_MAX"
+)]
 pub fn depth_from_m(z_m: f32) -> u32 {
     // `as` saturates: NaN and negatives give 0, values beyond u32 give u32::MAX.
     ((z_m * DEPTH_SCALE + 0.5) as u32).min(DEPTH_MAX)
@@ -147,6 +151,10 @@ pub(crate) trait PixelSink {
 
 /// The fragment of a linear run at accumulator `acc` (values scaled by `2^RUN_SHIFT`).
 #[inline(always)]
+#[allow(
+    clippy::cast_possible_truncation,
+    reason = "clamped to 0..=DEPTH_MAX (< 2^32) before the cast"
+)]
 fn run_frag(idx: usize, acc: [i64; 3], mask: bool) -> Frag {
     Frag {
         idx,
@@ -194,6 +202,10 @@ impl PixelSink for ZBuffer<'_, '_> {
     }
 
     #[inline(always)]
+    #[allow(
+        clippy::cast_possible_truncation,
+        reason = "clamped to 0..=DEPTH_MAX (< 2^32) before the cast"
+    )]
     fn put_run(&mut self, idx: usize, n: usize, acc: [i64; 3], step: [i64; 3], mask: bool) {
         let end = idx.wrapping_add(n);
         // One bounds check per run: the three buffers have the same length (w·h).
@@ -270,6 +282,10 @@ impl PixelSink for ZBuffer<'_, '_> {
 /// texture coordinates lie inside the texture by one texel (see `put_run`); a
 /// function of its own so its state stays in registers. Returns the pixels written.
 #[inline(never)]
+#[allow(
+    clippy::cast_possible_truncation,
+    reason = "an inner run's depth is within 0..=DEPTH_MAX (checked by put_run before it calls this)"
+)]
 fn run_inner<const MASK: bool>(
     ds: &mut [u32],
     ms: &mut [u32],
@@ -319,6 +335,10 @@ const UV_LIMIT: f32 = crate::map::MAX_UV_PX;
 /// plane is beyond `RASTER_FAR_M` or behind the camera (possible only outside
 /// the triangle, when a segment end is extrapolated).
 #[inline]
+#[allow(
+    clippy::cast_possible_truncation,
+    reason = "float-to-int `as` saturates; |u|, |v| ≤ UV_LIMIT and depth ≤ the far plane keep the Q16 values far inside i64"
+)]
 fn exact_at(xn: f32, inv_z_row: f32, u_row: f32, v_row: f32, it: &Interp) -> Option<[i64; 3]> {
     let inv_z = it.inv_z.x * xn + inv_z_row;
     // NaN fails this test too.
@@ -408,6 +428,10 @@ fn side_planes(cam: &Camera, u0: f32, u1: f32, v0: f32, v1: f32) -> [Plane; 4] {
 }
 
 impl Frame {
+    #[allow(
+        clippy::arithmetic_side_effects,
+        reason = "frame set-up on checked inputs (window and camera within ±2·MAX_IMAGE_DIM, guard band g ≤ MAX_IMAGE_DIM): every i64 sum stays below 2^20 before the 28.4 scaling; f32 vector arithmetic (nalgebra) otherwise"
+    )]
     fn new(cam: &Camera, world_from_cam: &Pose, window: Rect) -> Self {
         let (wx, wy) = (i64::from(window.x), i64::from(window.y));
         let (w, h) = (i64::from(window.w), i64::from(window.h));
@@ -485,6 +509,10 @@ impl Frame {
 /// Clip polygon `poly[..n]` against `pl`, into `out`; returns the new corner count.
 /// The intersection on an edge is computed from its inside corner towards its
 /// outside corner, so two triangles sharing the edge get bit-identical points.
+#[allow(
+    clippy::arithmetic_side_effects,
+    reason = "i < n ≤ MAX_CLIP_VERTS, so (i + 1) % n has n ≥ 1; f32 vector arithmetic (nalgebra)"
+)]
 fn clip_poly(
     poly: &[Vec3; MAX_CLIP_VERTS],
     n: usize,
@@ -533,6 +561,10 @@ struct Interp {
 
 impl Interp {
     /// `None` for a degenerate triangle or one whose plane passes through the camera centre.
+    #[allow(
+        clippy::arithmetic_side_effects,
+        reason = "f32 vector arithmetic (nalgebra); no integer operation"
+    )]
     fn new(p: &[Vec3; 3], uv: &[[f32; 2]; 3]) -> Option<Self> {
         let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
         let n = e1.cross(&e2);
@@ -590,6 +622,10 @@ fn ceil_div(n: i64, d: i64) -> i64 {
 /// half-plane, so one polygon covers a pixel at most once even when snapping
 /// made it slightly non-convex (a reflex corner then only trims a sliver). The
 /// sink is called once per covered pixel inside the window.
+#[allow(
+    clippy::cast_possible_truncation,
+    reason = "row and span lengths are pixel offsets inside the window (≤ MAX_RENDER_PX²), formed with wrapping arithmetic on coordinates bounded by the guard band"
+)]
 fn fill_polygon<S: PixelSink>(
     v: &[ScreenVert; MAX_CLIP_VERTS],
     n: usize,
@@ -717,6 +753,10 @@ fn fill_polygon<S: PixelSink>(
 /// every `SEG`-th absolute column, linear in between where depth changes little.
 #[allow(clippy::too_many_arguments)]
 #[inline]
+#[allow(
+    clippy::cast_possible_truncation,
+    reason = "pixel offsets inside the window (≤ MAX_RENDER_PX²); depth clamped to 0..=DEPTH_MAX before the cast"
+)]
 fn fill_span_perspective<S: PixelSink>(
     it: &Interp,
     frame: &Frame,
@@ -822,6 +862,10 @@ fn project(frame: &Frame, p: &Vec3) -> (f32, f32) {
 
 /// Snap a projected point to absolute 28.4 fixed point.
 #[inline]
+#[allow(
+    clippy::cast_possible_truncation,
+    reason = "float-to-int `as` saturates before the clamp to the guard band"
+)]
 fn snap(frame: &Frame, (u, v): (f32, f32)) -> ScreenVert {
     // Clipping keeps corners within the guard band up to rounding; the clamp bounds
     // the fixed-point range for the overflow budget whatever the rounding did
@@ -874,6 +918,11 @@ impl Affine {
     /// texture extent too large, corner near or behind the camera or outside the
     /// image's guard band, degenerate projection, gradient too large). Depends on
     /// the triangle and the camera only, never on the window.
+    #[allow(
+        clippy::arithmetic_side_effects,
+        clippy::cast_possible_truncation,
+        reason = "float-to-int `as` saturates (NaN gives 0); gradients are bounded by AFFINE_MAX_GRAD and the base is clamped to ±2^53 right after"
+    )]
     fn new(frame: &Frame, p: &[Vec3; 3], s: &[(f32, f32); 3], uv: &[[f32; 2]; 3]) -> Option<Self> {
         let [p0, p1, p2] = p;
         let [s0, s1, s2] = *s;
@@ -1009,6 +1058,11 @@ fn attributes(
     }
 }
 
+#[allow(
+    clippy::arithmetic_side_effects,
+    clippy::cast_possible_truncation,
+    reason = "2·MAX_IMAGE_DIM and MAX_RENDER_PX are small constants that fit i32 and u32"
+)]
 fn check_inputs(cam: &Camera, world_from_cam: &Pose, window: Rect) -> Result<(), FailureCode> {
     let lim = 2 * MAX_IMAGE_DIM as i32;
     let window_ok = (1..=MAX_RENDER_PX as u32).contains(&window.w)
@@ -1029,6 +1083,10 @@ fn check_inputs(cam: &Camera, world_from_cam: &Pose, window: Rect) -> Result<(),
 }
 
 /// Walk the visible tiles and triangles, calling `sink` for every covered pixel.
+#[allow(
+    clippy::arithmetic_side_effects,
+    reason = "f32 vector arithmetic (nalgebra); no integer operation"
+)]
 pub(crate) fn rasterize<S: PixelSink>(
     map: &MapView,
     cam: &Camera,
@@ -1087,6 +1145,11 @@ pub(crate) fn rasterize<S: PixelSink>(
 const _: () = assert!(crate::config::MAX_TEXTURE_DIM <= 1 << 14);
 
 #[inline(always)]
+#[allow(
+    clippy::arithmetic_side_effects,
+    clippy::cast_possible_truncation,
+    reason = "coordinates clamped to the texture (≤ MAX_TEXTURE_DIM = 2^14, asserted above) before the casts; x0 + 1, y0 + 1 < 2^15; the rounded lerp is ≤ 255"
+)]
 fn sample_bilinear(tex: &[u8], tw: usize, th: usize, u_q16: i64, v_q16: i64) -> u8 {
     // max/min rather than clamp: no bounds-order check per pixel.
     let u = u_q16.max(0).min((tw as i64).saturating_sub(1) << 16) as u32;
@@ -1109,6 +1172,11 @@ fn sample_bilinear(tex: &[u8], tw: usize, th: usize, u_q16: i64, v_q16: i64) -> 
 /// `0 ≤ u < (tw − 1)·2^32`, `0 ≤ v < (th − 1)·2^32` and `tw ≤ MAX_TEXTURE_DIM`:
 /// same result, without the clamps and with one bounds check for the four texels.
 #[inline(always)]
+#[allow(
+    clippy::arithmetic_side_effects,
+    clippy::cast_possible_truncation,
+    reason = "texel indices < 2^28 (texture ≤ 2^14 × 2^14, asserted above); the rounded lerp is ≤ 255"
+)]
 fn sample_inner(tex: &[u8], tw: usize, u: i64, v: i64) -> u8 {
     // The masks are the identity under the preconditions; they let the compiler
     // prove that the index arithmetic below cannot overflow.
@@ -1202,6 +1270,11 @@ pub fn render_window(
 /// Bounds: O(w·h·(2r+1)) with separable minimum filters; one row buffer of
 /// [`MAX_RENDER_PX`] `u32` on the stack. Invalid sizes (`w`, `h` outside
 /// `1..=MAX_RENDER_PX` or a slice shorter than `w·h`) write nothing and return 0.
+#[allow(
+    clippy::arithmetic_side_effects,
+    clippy::cast_possible_truncation,
+    reason = "w, h ≤ MAX_RENDER_PX are checked first (w·h and h − 1 are exact); JUMP_Q16 is a constant below 2^32"
+)]
 pub fn template_mask(depth: &[u32], mask_depth: &[u32], w: usize, h: usize, out: &mut [u8]) -> u32 {
     // Sizes first: w·h is formed only for sizes within the cap (no overflow).
     if !((1..=MAX_RENDER_PX).contains(&w) && (1..=MAX_RENDER_PX).contains(&h)) {

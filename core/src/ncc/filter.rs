@@ -17,6 +17,11 @@ fn px_at(row: &[u8], x: usize) -> i32 {
 /// # Errors
 /// [`FailureCode::NccWindowOutsideImage`] if `region` is not inside `src`;
 /// [`FailureCode::NccScratchTooSmall`] if `out` is too short.
+#[allow(
+    clippy::arithmetic_side_effects,
+    clippy::cast_possible_truncation,
+    reason = "i32 sums of at most eight 8-bit pixels with weights ≤ 4 (|gx|, |gy|, |lap| ≤ 1020); `as u8` of values already within 0..=255"
+)]
 pub fn filter_region(
     src: &GrayView,
     region: Rect,
@@ -86,6 +91,10 @@ pub fn filter_region(
 
 /// 2× box downsample (rounded mean of each 2×2 block) of `src` into `dst`
 /// (`src.width()/2 × src.height()/2`, row-major).
+#[allow(
+    clippy::cast_possible_truncation,
+    reason = "the rounded mean of four bytes is ≤ 255"
+)]
 pub(super) fn downsample(src: &GrayView, dst: &mut [u8]) {
     let (dw, dh) = (src.width() / 2, src.height() / 2);
     if dw == 0 || dh == 0 {

@@ -13,6 +13,10 @@ pub(super) const KERNEL_BLOCK: usize = 4;
 /// turns this shape (and not a per-lane accumulator array) into widening
 /// multiply-adds (`pmaddwd` on x86-64, see `fsw-docs/budgets/ncc.md`).
 #[inline(always)]
+#[allow(
+    clippy::arithmetic_side_effects,
+    reason = "u8 × u8 < 2^16 in u32; the sum wraps explicitly (exact, numeric.md)"
+)]
 fn chunk_dot<const C: usize>(t: &[u8; C], f: &[u8; C]) -> u32 {
     t.iter().zip(f).fold(0u32, |s, (&a, &b)| {
         s.wrapping_add(u32::from(a) * u32::from(b))

@@ -206,6 +206,10 @@ impl Score {
     /// The score as f64: exact integers, one correctly rounded product conversion,
     /// square root and division, so the value is the same on every IEEE target.
     /// Exactly ±1 when `num² = var_f·var_t`; 0 when either variance is zero.
+    #[allow(
+        clippy::arithmetic_side_effects,
+        reason = "variances and |num| are below 2^48 (numeric.md): their u128 products are exact"
+    )]
     pub fn to_f64(&self) -> f64 {
         if self.var_f <= 0 || self.var_t <= 0 {
             return 0.0;
@@ -221,12 +225,21 @@ impl Score {
     }
 
     /// The score as f32 (the f64 value rounded once).
+    #[allow(
+        clippy::cast_possible_truncation,
+        reason = "the f64 score in [−1, 1] rounded once to f32"
+    )]
     pub fn to_f32(&self) -> f32 {
         self.to_f64() as f32
     }
 }
 
 /// `a·b` as a 192-bit number `(high 128 bits, low 64 bits)`, exact.
+#[allow(
+    clippy::arithmetic_side_effects,
+    clippy::cast_possible_truncation,
+    reason = "64×64-bit partial products in u128 and a carry below 2^64 (see the comment): exact by construction"
+)]
 fn mul_wide(a: u128, b: u64) -> (u128, u64) {
     let p0 = (a as u64 as u128) * u128::from(b);
     let p1 = (a >> 64) * u128::from(b);
@@ -236,6 +249,10 @@ fn mul_wide(a: u128, b: u64) -> (u128, u64) {
 
 /// Exact order of two scores of the same template (same `var_t`), by
 /// `sign(num)·num²/var_f`, with no division and no square root.
+#[allow(
+    clippy::arithmetic_side_effects,
+    reason = "|num| < 2^48, so num² < 2^96 fits u128; the 192-bit product is mul_wide's"
+)]
 pub fn cmp_scores(a: &Score, b: &Score) -> Ordering {
     let (sa, sb) = (a.num.signum(), b.num.signum());
     if sa != sb {
@@ -333,6 +350,11 @@ pub struct ScratchSizes {
 
 /// The centred ℓ/2 sub-template of a `w × h` template (paper §III-D):
 /// `w/2 × h/2` pixels starting at `((w − w/2)/2, (h − h/2)/2)`.
+#[allow(
+    clippy::arithmetic_side_effects,
+    clippy::cast_possible_truncation,
+    reason = "w/2 ≤ w and template sides ≤ MAX_TEMPLATE_PX fit i32 and u32"
+)]
 pub const fn sub_template_rect(w: usize, h: usize) -> Rect {
     let (sw, sh) = (w / 2, h / 2);
     Rect::new(
@@ -389,6 +411,10 @@ pub fn match_template(
 /// # Errors
 /// As [`match_template`].
 #[allow(clippy::too_many_lines, clippy::too_many_arguments)]
+#[allow(
+    clippy::cast_possible_truncation,
+    reason = "levels ≤ MAX_LEVELS fits u8; positions lie in a window of ≤ MAX_IMAGE_DIM pixels (fit i32); sub-pixel coordinates are pixel positions, rounded once to f32"
+)]
 pub fn match_template_with(
     template: GrayView,
     mask: Option<GrayView>,
@@ -498,6 +524,10 @@ pub fn match_template_with(
 ///
 /// # Errors
 /// As [`match_template`]; [`FailureCode::NccWindowFlat`] when the window has zero variance.
+#[allow(
+    clippy::cast_possible_truncation,
+    reason = "template sides ≤ MAX_TEMPLATE_PX fit u32"
+)]
 pub fn score_at(
     template: GrayView,
     mask: Option<GrayView>,

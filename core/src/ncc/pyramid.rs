@@ -20,6 +20,10 @@ pub const fn pyramid_levels(tw: usize, th: usize) -> usize {
 /// Pyramid levels for a `tw × th` template when the coarsest template side should
 /// stay at least `min_coarse_px`: halve while it does, but always halve once when
 /// the shorter side is at least `2·MIN_COARSE_PX` (never more than [`pyramid_levels`]).
+#[allow(
+    clippy::arithmetic_side_effects,
+    reason = "levels < MAX_LEVELS in the loop"
+)]
 pub const fn pyramid_levels_min(tw: usize, th: usize, min_coarse_px: usize) -> usize {
     let m = if tw < th { tw } else { th };
     let min = if min_coarse_px > MIN_COARSE_PX {
@@ -39,6 +43,10 @@ pub const fn pyramid_levels_min(tw: usize, th: usize, min_coarse_px: usize) -> u
 
 /// Pyramid levels the coarse-to-fine search with `cfg` uses for a `tw × th`
 /// template in a `ww × wh` window.
+#[allow(
+    clippy::arithmetic_side_effects,
+    reason = "WIDE_WINDOW_RATIO · t for template sides ≤ MAX_TEMPLATE_PX"
+)]
 pub const fn search_levels(
     tw: usize,
     th: usize,
@@ -215,6 +223,10 @@ impl ScratchSizes {
         Self::sized(tw, th, ww, wh, mode, cfg, false)
     }
 
+    #[allow(
+        clippy::arithmetic_side_effects,
+        reason = "k < levels ≤ MAX_LEVELS in both loops"
+    )]
     const fn sized(
         tw: usize,
         th: usize,
@@ -312,6 +324,11 @@ impl Win<'_> {
 }
 
 /// Build the template pyramid; returns the number of usable levels.
+#[allow(
+    clippy::arithmetic_side_effects,
+    clippy::cast_possible_truncation,
+    reason = "template sides ≤ MAX_TEMPLATE_PX < 2^16 fit the u16 run fields; 255² fits u64"
+)]
 pub(super) fn build_template_levels<'s>(
     template: &GrayView,
     mask: Option<&GrayView>,

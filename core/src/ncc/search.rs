@@ -13,6 +13,10 @@ use super::{
 /// Score every position `(x, y)` with `x0 ≤ x ≤ x1`, `y0 ≤ y ≤ y1` (all valid
 /// top-left positions) and hand each non-flat one to `sink`.
 #[allow(clippy::too_many_arguments)]
+#[allow(
+    clippy::arithmetic_side_effects,
+    reason = "x1 ≥ x0 and y1 ≥ y0 are checked at entry"
+)]
 pub(super) fn eval_positions<F: FnMut(usize, usize, Score)>(
     t: &Tpl,
     (k, win): (usize, &Win),
@@ -209,6 +213,10 @@ impl TopK {
 /// refine each at every finer level; returns the full-resolution candidates,
 /// best first (the first is the winner).
 #[allow(clippy::too_many_lines)]
+#[allow(
+    clippy::cast_possible_truncation,
+    reason = "a TopK holds at most MAX_CANDIDATES (< 256) entries"
+)]
 pub(super) fn coarse_to_fine(
     tpls: &[Option<Tpl>; MAX_LEVELS],
     wins: &[Option<Win>; MAX_LEVELS],
