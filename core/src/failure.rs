@@ -183,8 +183,7 @@ failure_codes! {
         "The per-iteration attempt cap was reached before N_corr correspondences; the iteration fails.";
     RelocNoVisibleMaskVertex = 0x0806, Fatal, NewInput, "RELOC_NO_VISIBLE_MASK_VERTEX",
         "No vertex of the sampling mask is in view from the prior; relocalization cannot start.";
-    RelocNotStarted = 0x0807, Fatal, Never, "RELOC_NOT_STARTED",
-        "An outcome was requested before the relocalizer was started.";
+    // 0x0807 (RELOC_NOT_STARTED) is retired: no path raised it. Numbers are not reused.
     RelocSampleOutOfView = 0x0808, Info, Same, "RELOC_SAMPLE_OUT_OF_VIEW",
         "No drawn mask vertex projected inside both images from the viewpoint; the attempt is skipped.";
     RelocSampleOccluded = 0x0809, Info, Same, "RELOC_SAMPLE_OCCLUDED",

@@ -587,6 +587,17 @@ where
 
     /// Send one frame; a failure is counted and logged, never retried.
     pub fn send(&mut self, kind: u8, payload: &[u8]) {
+        if payload.len() > MAX_PAYLOAD {
+            // The frame format cannot carry it: dropped before the device sees it.
+            self.telemetry_dropped = self.telemetry_dropped.saturating_add(1);
+            let now = self.now();
+            self.log.record(
+                FailureCode::HalTelemetryPayloadTooLong,
+                now,
+                u32::from(kind),
+            );
+            return;
+        }
         if self.telemetry.send(kind, payload).is_err() {
             self.telemetry_dropped = self.telemetry_dropped.saturating_add(1);
             let now = self.now();

@@ -579,7 +579,7 @@ mod tests {
     use vtsm_hal::runner::{
         capture_pair, read_map_verified, Buffers, Runner, RunnerConfig, StepStatus,
     };
-    use vtsm_hal::telemetry::{parse_failure_event, FrameKind};
+    use vtsm_hal::telemetry::{parse_failure_event, FrameKind, MAX_PAYLOAD};
     use vtsm_hal::{Covariance, FramedTelemetry, Telemetry};
 
     fn pattern(n: usize, salt: u8) -> Vec<u8> {
@@ -1036,6 +1036,20 @@ mod tests {
             |_| Ok(()),
         );
         assert_eq!(res.err(), Some(FailureCode::HalPriorInvalid));
+    }
+
+    /// Verifies: VTSM-HAL-022
+    #[test]
+    fn runner_drops_a_payload_the_frame_cannot_carry_and_logs_it() {
+        let (mut run, _) = runner(FaultInjector::none(), Some(prior()));
+        run.send(FrameKind::Outcome as u8, &[0u8; MAX_PAYLOAD + 1]);
+        assert_eq!(run.telemetry_dropped, 1);
+        assert_eq!(run.log.count(FailureCode::HalTelemetryPayloadTooLong), 1);
+        assert!(run.telemetry.writer().frames().frames.is_empty());
+        // The largest payload the format carries goes out.
+        run.send(FrameKind::Outcome as u8, &[0u8; MAX_PAYLOAD]);
+        assert_eq!(run.telemetry_dropped, 1);
+        assert_eq!(run.telemetry.writer().frames().frames.len(), 1);
     }
 
     /// Verifies: VTSM-HAL-023

@@ -3,6 +3,7 @@
 
 use super::Filter;
 use crate::failure::FailureCode;
+use crate::fmt::present;
 use crate::image::{GrayView, Rect};
 
 #[inline]
@@ -45,18 +46,17 @@ pub fn filter_region(
     // below stay within the image and the wrapping additions never wrap.
     for (dy, orow) in (0..rh).zip(out.chunks_exact_mut(rw)) {
         let y = ry.wrapping_add(dy);
-        let empty: &[u8] = &[];
-        let r0 = src.row(y).unwrap_or(empty);
+        // Rows of a region inside `src` (checked above) and their clamped
+        // neighbours: present by construction.
+        let r0 = present(src.row(y));
         if filter == Filter::Gray {
             if let Some(s) = r0.get(rx..).and_then(|r| r.get(..rw)) {
                 orow.copy_from_slice(s);
             }
             continue;
         }
-        let rm = src.row(y.saturating_sub(1)).unwrap_or(empty);
-        let rp = src
-            .row(y.wrapping_add(1).min(ih.saturating_sub(1)))
-            .unwrap_or(empty);
+        let rm = present(src.row(y.saturating_sub(1)));
+        let rp = present(src.row(y.wrapping_add(1).min(ih.saturating_sub(1))));
         for (dx, o) in (0..rw).zip(orow.iter_mut()) {
             let x = rx.wrapping_add(dx);
             let (xm, xp) = (

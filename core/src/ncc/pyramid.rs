@@ -9,6 +9,7 @@ use super::{
 };
 use crate::config::{MAX_SEARCH_PX, MAX_TEMPLATE_PX};
 use crate::failure::FailureCode;
+use crate::fmt::present;
 use crate::image::{GrayView, Rect};
 
 /// Pyramid levels the coarse-to-fine search uses for a `tw × th` template:
@@ -357,7 +358,7 @@ pub(super) fn build_template_levels<'s>(
                 match mask {
                     Some(m) => {
                         for (y, mrow) in (0..h).zip(mk.chunks_exact_mut(w.max(1))) {
-                            let src = m.row(y).unwrap_or(&[]);
+                            let src = present(m.row(y));
                             for (d, &s) in mrow.iter_mut().zip(src) {
                                 *d = u8::from(s != 0);
                             }
@@ -374,11 +375,8 @@ pub(super) fn build_template_levels<'s>(
                 // A coarse pixel is kept only when all four children are kept.
                 for (y, mrow) in (0..h).zip(mk.chunks_exact_mut(w.max(1))) {
                     let row0 = y.saturating_mul(2).saturating_mul(w2);
-                    let r0 = pmk.get(row0..).and_then(|r| r.get(..w2)).unwrap_or(&[]);
-                    let r1 = pmk
-                        .get(row0.saturating_add(w2)..)
-                        .and_then(|r| r.get(..w2))
-                        .unwrap_or(&[]);
+                    let r0 = present(pmk.get(row0..).and_then(|r| r.get(..w2)));
+                    let r1 = present(pmk.get(row0.saturating_add(w2)..).and_then(|r| r.get(..w2)));
                     for ((d, a), b) in mrow
                         .iter_mut()
                         .zip(r0.chunks_exact(2))

@@ -1,5 +1,6 @@
 //! Scoring positions and the coarse-to-fine search over the pyramid.
 
+use crate::fmt::present;
 use core::cmp::Ordering;
 
 use super::integral::Tables;
@@ -135,7 +136,7 @@ impl TopK {
     }
 
     pub(super) fn as_slice(&self) -> &[Cand] {
-        self.items.get(..self.len).unwrap_or(&[])
+        present(self.items.get(..self.len))
     }
 
     pub(super) fn near(&self, a: &Cand, b: &Cand) -> bool {
@@ -181,7 +182,7 @@ impl TopK {
             // n ≤ i < len ≤ MAX_CANDIDATES.
             n = n.wrapping_add(1);
         }
-        let kept = self.items.get(..n).unwrap_or(&[]);
+        let kept = present(self.items.get(..n));
         // The list is sorted best first, so "c beats e" is false up to some index
         // and true from there on: a binary search finds the first entry c beats.
         let pos = kept.partition_point(|e| cmp_scores(&c.s, &e.s) != Ordering::Greater);
@@ -268,7 +269,7 @@ pub(super) fn coarse_to_fine(
             // entry and radius 0, without its 64-entry array.
             let mut best: Option<Cand> = None;
             for _ in 0..=MAX_CLIMB_STEPS {
-                let seen = visited.get(..n_visited).unwrap_or(&[]);
+                let seen = present(visited.get(..n_visited));
                 if seen.contains(&center) {
                     break;
                 }

@@ -329,7 +329,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         self.round_chunks = 0;
         match self.solver.start(&self.pairs, rng) {
             Ok(true) => {
-                let mask = self.inlier_mask.get_mut(..n).unwrap_or(&mut []);
+                let mask = crate::fmt::present_mut(self.inlier_mask.get_mut(..n));
                 let result = self.solver.solve(&self.pairs, &mut rng, mask);
                 self.conclude(result, now);
             }
@@ -353,7 +353,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         };
         if done {
             let n = self.pairs.len();
-            let mask = self.inlier_mask.get_mut(..n).unwrap_or(&mut []);
+            let mask = crate::fmt::present_mut(self.inlier_mask.get_mut(..n));
             let result = self.solver.finish(&self.pairs, mask);
             self.conclude(result, now);
         }
@@ -535,7 +535,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         if n == 0 {
             return;
         }
-        let mask = self.inlier_mask.get(..n).unwrap_or(&[]);
+        let mask = crate::fmt::present(self.inlier_mask.get(..n));
         match self.solver.refine(&self.pairs, mask, &self.anchor) {
             Some(Ok(r)) => {
                 self.stats.refine = r.stats;
