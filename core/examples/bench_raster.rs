@@ -119,8 +119,8 @@ fn main() {
         let target = Vec3::new(tx, ty, height(tx, ty));
         let pose = look_at(eye, target);
         // Window centred on a point near the optical axis, jittered across the image.
-        let u = cam.cx + rng.uniform(-1500.0, 1500.0);
-        let v = cam.cy + rng.uniform(-1000.0, 1000.0);
+        let u = cam.cx() + rng.uniform(-1500.0, 1500.0);
+        let v = cam.cy() + rng.uniform(-1000.0, 1000.0);
         poses.push((pose, u, v));
     }
 

@@ -31,8 +31,8 @@ fn main() {
     let map = MapView::new_checked(&bytes).unwrap();
     let rig = rig();
     let truth = camera_pose(0.6, 0.2);
-    let left = render_full(&map, &rig.cam, &truth, 0.85, 20.0);
-    let right = render_full(&map, &rig.cam, &rig.world_from_right(&truth), 0.85, 20.0);
+    let left = render_full(&map, &rig.cam(), &truth, 0.85, 20.0);
+    let right = render_full(&map, &rig.cam(), &rig.world_from_right(&truth), 0.85, 20.0);
     let p = test_params();
     let (mut b, mut w, mut r) = (
         vec![0u8; TEST_WORKSPACE.bytes],

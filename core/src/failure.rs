@@ -129,8 +129,8 @@ failure_codes! {
         "The virtual camera pose is not finite; the template is skipped.";
     RasterNothingVisible = 0x0404, Info, Same, "RASTER_NOTHING_VISIBLE",
         "No mesh triangle covers the window; the sample is skipped and another is drawn.";
-    RasterCameraInvalid = 0x0405, Fatal, Never, "RASTER_CAMERA_INVALID",
-        "The camera given to the renderer fails Camera::check (size above MAX_IMAGE_DIM, focal length or principal point out of range); nothing is drawn.";
+    // 0x0405 (RASTER_CAMERA_INVALID) is retired: `Camera` is a checked type, so
+    // the renderer no longer re-checks it. Numbers are not reused.
     // 0x05xx ncc
     NccTemplateFlat = 0x0501, Info, Same, "NCC_TEMPLATE_FLAT",
         "The template has zero variance under its mask; it cannot be matched and is skipped.";

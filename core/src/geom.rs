@@ -134,21 +134,19 @@ impl Pose {
 }
 
 /// A pinhole camera with image size (rectified, no distortion).
+///
+/// Checked type: the fields are private to the core and the only constructors
+/// are [`Camera::new`] and [`Camera::from_hfov`], so every camera a caller holds
+/// passed their checks; the stages that use it do not check it again.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Camera {
-    /// Focal length along x, pixels.
-    pub fx: f32,
-    /// Focal length along y, pixels.
-    pub fy: f32,
-    /// Principal point x, pixels.
-    pub cx: f32,
-    /// Principal point y, pixels.
-    pub cy: f32,
-    /// Image width, pixels.
-    pub width: u32,
-    /// Image height, pixels.
-    pub height: u32,
+    pub(crate) fx: f32,
+    pub(crate) fy: f32,
+    pub(crate) cx: f32,
+    pub(crate) cy: f32,
+    pub(crate) width: u32,
+    pub(crate) height: u32,
 }
 
 /// Largest accepted focal length, pixels (a 1° horizontal field of view at
@@ -200,8 +198,7 @@ impl Camera {
         Ok(cam)
     }
 
-    /// The checks of [`Camera::new`], for a camera built as a struct literal (its
-    /// fields are public): focal lengths in (0, [`MAX_FOCAL_PX`]], principal
+    /// The checks of [`Camera::new`]: focal lengths in (0, [`MAX_FOCAL_PX`]], principal
     /// point within ±[`MAX_PRINCIPAL_PX`], width and height in `1..=MAX_IMAGE_DIM`
     /// ([`focal_px_ok`], [`principal_px_ok`], [`image_dim_ok`]). Every value then
     /// is finite, and pixel coordinates of the image fit the rasterizer's
@@ -209,7 +206,7 @@ impl Camera {
     ///
     /// # Errors
     /// [`FailureCode::StereoRigInvalid`].
-    pub fn check(&self) -> Result<(), FailureCode> {
+    pub(crate) fn check(&self) -> Result<(), FailureCode> {
         let ok = focal_px_ok(self.fx)
             && focal_px_ok(self.fy)
             && principal_px_ok(self.cx)
@@ -221,6 +218,36 @@ impl Camera {
         } else {
             Err(FailureCode::StereoRigInvalid)
         }
+    }
+
+    /// Focal length along x, pixels.
+    pub const fn fx(&self) -> f32 {
+        self.fx
+    }
+
+    /// Focal length along y, pixels.
+    pub const fn fy(&self) -> f32 {
+        self.fy
+    }
+
+    /// Principal point x, pixels.
+    pub const fn cx(&self) -> f32 {
+        self.cx
+    }
+
+    /// Principal point y, pixels.
+    pub const fn cy(&self) -> f32 {
+        self.cy
+    }
+
+    /// Image width, pixels.
+    pub const fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Image height, pixels.
+    pub const fn height(&self) -> u32 {
+        self.height
     }
 
     /// A camera with square pixels and the principal point at the image centre,
@@ -271,14 +298,13 @@ impl Camera {
 }
 
 /// A rectified stereo rig: two identical cameras, the right one `baseline_m`
-/// along the left camera's +x axis.
+/// along the left camera's +x axis. Checked type, like [`Camera`]: built only
+/// by [`StereoRig::new`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct StereoRig {
-    /// Intrinsics shared by both cameras.
-    pub cam: Camera,
-    /// Baseline, metres (> 0).
-    pub baseline_m: f32,
+    pub(crate) cam: Camera,
+    pub(crate) baseline_m: f32,
 }
 
 impl StereoRig {
@@ -291,6 +317,16 @@ impl StereoRig {
             return Err(FailureCode::StereoRigInvalid);
         }
         Ok(Self { cam, baseline_m })
+    }
+
+    /// Intrinsics shared by both cameras.
+    pub const fn cam(&self) -> Camera {
+        self.cam
+    }
+
+    /// Baseline, metres (> 0).
+    pub const fn baseline_m(&self) -> f32 {
+        self.baseline_m
     }
 
     /// `left_from_right`: translation by `+baseline` along x.

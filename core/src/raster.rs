@@ -1063,7 +1063,7 @@ fn attributes(
     clippy::cast_possible_truncation,
     reason = "2·MAX_IMAGE_DIM and MAX_RENDER_PX are small constants that fit i32 and u32"
 )]
-fn check_inputs(cam: &Camera, world_from_cam: &Pose, window: Rect) -> Result<(), FailureCode> {
+fn check_inputs(world_from_cam: &Pose, window: Rect) -> Result<(), FailureCode> {
     let lim = 2 * MAX_IMAGE_DIM as i32;
     let window_ok = (1..=MAX_RENDER_PX as u32).contains(&window.w)
         && (1..=MAX_RENDER_PX as u32).contains(&window.h)
@@ -1072,10 +1072,9 @@ fn check_inputs(cam: &Camera, world_from_cam: &Pose, window: Rect) -> Result<(),
     if !window_ok {
         return Err(FailureCode::RasterWindowInvalid);
     }
-    // `Camera`'s fields are public, so a camera may not have passed `Camera::new`;
-    // its checks bound the image size and intrinsics that `Frame` turns into
-    // fixed-point limits (see `fill_polygon`'s overflow budget).
-    cam.check().map_err(|_| FailureCode::RasterCameraInvalid)?;
+    // `Camera` is a checked type (built only by `Camera::new`), so its image size
+    // and intrinsics are within the bounds that `Frame` turns into fixed-point
+    // limits (see `fill_polygon`'s overflow budget); no per-call re-check.
     if !world_from_cam.is_finite() {
         return Err(FailureCode::RasterPoseInvalid);
     }
@@ -1094,7 +1093,7 @@ pub(crate) fn rasterize<S: PixelSink>(
     window: Rect,
     sink: &mut S,
 ) -> Result<RenderStats, FailureCode> {
-    check_inputs(cam, world_from_cam, window)?;
+    check_inputs(world_from_cam, window)?;
     let frame = Frame::new(cam, world_from_cam, window);
     let mut stats = RenderStats::default();
     let to_cam = |p: Vec3| frame.rot * p + frame.trans;
@@ -1214,8 +1213,6 @@ fn lerp8(a: u32, b: u32, f: u32) -> u32 {
 /// # Errors
 /// [`FailureCode::RasterWindowInvalid`] (empty, above [`MAX_RENDER_PX`], origin
 /// beyond ±2·`MAX_IMAGE_DIM`), [`FailureCode::RasterBufferTooSmall`],
-/// [`FailureCode::RasterCameraInvalid`] (`cam` fails [`Camera::check`], e.g. a
-/// struct literal with a size above `MAX_IMAGE_DIM` or a NaN focal length),
 /// [`FailureCode::RasterPoseInvalid`] (non-finite pose),
 /// [`FailureCode::RasterNothingVisible`] (no pixel written; buffers are cleared).
 pub fn render_window(
@@ -1225,7 +1222,7 @@ pub fn render_window(
     window: Rect,
     target: &mut Target,
 ) -> Result<RenderStats, FailureCode> {
-    check_inputs(cam, world_from_cam, window)?;
+    check_inputs(world_from_cam, window)?;
     let n = (window.w as usize).saturating_mul(window.h as usize);
     let (Some(inten), Some(depth), Some(mdepth)) = (
         target.intensity.get_mut(..n),

@@ -53,7 +53,6 @@ pub fn depth_sigma_m(rig: &StereoRig, z_m: f32, sigma_d_px: f32) -> f32 {
 ///
 /// # Errors
 /// * [`FailureCode::ConfigParamOutOfRange`]: a tolerance argument is negative or not finite.
-/// * [`FailureCode::StereoRigInvalid`]: the rig has a non-positive focal length or baseline.
 /// * [`FailureCode::StereoPixelNonFinite`]: a peak coordinate is NaN or infinite.
 /// * [`FailureCode::StereoEpipolarViolation`]: `|v_l − v_r| > epsilon_px`.
 /// * [`FailureCode::StereoDisparityInvalid`]: `d ≤ 0`, `d < min_disparity_px`, or the
@@ -75,18 +74,9 @@ pub fn triangulate(
     if !args_ok {
         return Err(FailureCode::ConfigParamOutOfRange);
     }
+    // The rig is a checked type (`StereoRig::new`, `Camera::new`): positive
+    // finite baseline and focal lengths, finite principal point; no re-check.
     let cam = &rig.cam;
-    let rig_ok = rig.baseline_m.is_finite()
-        && rig.baseline_m > 0.0
-        && cam.fx.is_finite()
-        && cam.fx > 0.0
-        && cam.fy.is_finite()
-        && cam.fy > 0.0
-        && cam.cx.is_finite()
-        && cam.cy.is_finite();
-    if !rig_ok {
-        return Err(FailureCode::StereoRigInvalid);
-    }
     if !left.iter().chain(right.iter()).all(|c| c.is_finite()) {
         return Err(FailureCode::StereoPixelNonFinite);
     }
@@ -231,15 +221,13 @@ mod tests {
                 Err(FailureCode::ConfigParamOutOfRange)
             );
         }
-        let mut broken = rig;
-        broken.baseline_m = 0.0;
+        // A rig with a zero baseline cannot be built, so none reaches triangulate.
         assert_eq!(
-            triangulate(&broken, [500.0, 10.0], [499.0, 10.0], 8.0, 0.1, 1.0),
+            StereoRig::new(rig.cam(), 0.0),
             Err(FailureCode::StereoRigInvalid)
         );
         // A disparity so small that Z overflows f32 is rejected, not returned as inf.
-        let mut wide = rig;
-        wide.baseline_m = 1.0e37;
+        let wide = StereoRig::new(rig.cam(), 1.0e37).unwrap();
         assert_eq!(
             triangulate(&wide, [500.0, 10.0], [499.0, 10.0], 8.0, 0.1, 0.0),
             Err(bad)

@@ -142,7 +142,7 @@ pub fn camera_pose(x: f32, y: f32) -> Pose {
 
 /// Render the full image in `MAX_RENDER_PX` tiles, then apply gain and offset.
 pub fn render_full(map: &MapView, cam: &Camera, pose: &Pose, gain: f32, offset: f32) -> Vec<u8> {
-    let (w, h) = (cam.width as usize, cam.height as usize);
+    let (w, h) = (cam.width() as usize, cam.height() as usize);
     let mut img = vec![0u8; w * h];
     let t = vtsm_core::config::MAX_RENDER_PX;
     let (mut inten, mut depth, mut md) = (vec![0u8; t * t], vec![0u32; t * t], vec![0u32; t * t]);

@@ -208,7 +208,7 @@ fn one_sample(
     compare: &[String],
     bufs: &mut (Buffers, Buffers),
 ) -> Option<SampleResult> {
-    let l = vtsm_core::config::template_px_for_width(cam.width) as usize;
+    let l = vtsm_core::config::template_px_for_width(cam.width()) as usize;
     let cap = vtsm_core::config::search_px_for_template(l as u16) as usize;
     let margin = (l / 2) as f32;
     let p_vp = vp.inverse().transform_point(world);
@@ -228,9 +228,16 @@ fn one_sample(
     if drawn.is_none_or(|z| z < p_vp.z - (0.03 + 0.02 * p_vp.z)) {
         return None;
     }
-    let f = cam.fx.max(cam.fy);
+    let f = cam.fx().max(cam.fy());
     let r_px = (f * (2.0 * t_max / p_vp.z.max(0.1) + 2.0 * r_deg.to_radians())).ceil() as i32 + 4;
-    let search = search_rect(uv_vp, l, r_px, cap, cam.width as usize, cam.height as usize);
+    let search = search_rect(
+        uv_vp,
+        l,
+        r_px,
+        cap,
+        cam.width() as usize,
+        cam.height() as usize,
+    );
     let tv = GrayView::new(&inten, l, l, l).ok()?;
     let mv = GrayView::new(&mask, l, l, l).ok()?;
     let mut out = Vec::new();
@@ -351,8 +358,8 @@ fn main() {
             for &dh in &DELTAS {
                 let capture = Capture::from_index(stop, 0, 0.40);
                 let (rig, truth, pair) = scene.capture(&scene.lighting(MAP_HOURS + dh), &capture);
-                let cam = rig.cam;
-                let (w, h) = (cam.width as usize, cam.height as usize);
+                let cam = rig.cam();
+                let (w, h) = (cam.width() as usize, cam.height() as usize);
                 let img = GrayView::new(&pair.left, w, h, w).expect("left view");
                 for &(level, t_lo, t_hi, r_deg) in &LEVELS {
                     // Same vertices and viewpoints for every Δ (the seed ignores Δ).
@@ -367,7 +374,7 @@ fn main() {
                             let vp = perturb(&truth, &mut rng, t_lo, t_hi, r_deg);
                             // Cheap in-view pre-check; occlusion is tested after rendering.
                             let m =
-                                (vtsm_core::config::template_px_for_width(cam.width) / 2) as f32;
+                                (vtsm_core::config::template_px_for_width(cam.width()) / 2) as f32;
                             let ok = |pose: &Pose| {
                                 cam.project(&pose.inverse().transform_point(&world))
                                     .is_some_and(|[u, v]| cam.contains(u, v, m))

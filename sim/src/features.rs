@@ -118,7 +118,7 @@ pub fn render_virtual(
     cam: &Camera,
     world_from_cam: &Pose,
 ) -> (Vec<u8>, Vec<f32>) {
-    let (w, h) = (cam.width as usize, cam.height as usize);
+    let (w, h) = (cam.width() as usize, cam.height() as usize);
     let mut inten = vec![0u8; w * h];
     let mut depth = vec![f32::NAN; w * h];
     let l = MAX_RENDER_PX;
@@ -386,10 +386,10 @@ fn step(
     current: &Pose,
     rng: &mut Rng,
 ) -> std::result::Result<Step, (String, usize, usize, usize)> {
-    let cam = req.rig.cam;
-    let (w, h) = (cam.width as usize, cam.height as usize);
+    let cam = req.rig.cam();
+    let (w, h) = (cam.width() as usize, cam.height() as usize);
     let (inten, depth) = render_virtual(map, &cam, current);
-    let Some(vimg) = GrayImage::from_raw(cam.width, cam.height, inten) else {
+    let Some(vimg) = GrayImage::from_raw(cam.width(), cam.height(), inten) else {
         return Err(("FEATURES_BAD_IMAGE".into(), 0, 0, 0));
     };
     let kps = detect(&vimg, p, |x, y| {
@@ -401,7 +401,7 @@ fn step(
     let nk = mdesc.len();
     let matches = match_descriptors(live, &mdesc, p);
     let nm = matches.len();
-    let max_d = ((cam.fx * req.rig.baseline_m / STEREO_MIN_DEPTH_M) as usize).min(w / 2);
+    let max_d = ((cam.fx() * req.rig.baseline_m() / STEREO_MIN_DEPTH_M) as usize).min(w / 2);
     let mut corr: Vec<Correspondence> = Vec::new();
     for &(i, j, _) in &matches {
         if corr.len() == MAX_CORR {
@@ -469,8 +469,8 @@ fn step(
 /// A bad map product or images whose size disagrees with the rig.
 pub fn relocalize_features(req: &Request<'_>, p: &FeatureParams) -> Result<FeatureReport> {
     let map = MapView::new_checked(req.map)?;
-    let cam = req.rig.cam;
-    let (w, h) = (cam.width, cam.height);
+    let cam = req.rig.cam();
+    let (w, h) = (cam.width(), cam.height());
     let n = w as usize * h as usize;
     if req.left.len() != n || req.right.len() != n {
         return Err(Error::from(vtsm_core::FailureCode::ImageSizeMismatch));

@@ -162,7 +162,7 @@ pub fn run_on_devices(
     faults: &DeviceFaults,
     limits: &DriveLimits,
 ) -> Result<DeviceRun> {
-    let (w, h) = (req.rig.cam.width, req.rig.cam.height);
+    let (w, h) = (req.rig.cam().width(), req.rig.cam().height());
     let n = (w as usize) * (h as usize);
     if req.left.len() != n || req.right.len() != n {
         return Err(Error::from(FailureCode::ImageSizeMismatch));

@@ -143,7 +143,7 @@ pub fn build_map(terrain: &Terrain, light: &Lighting, opts: &MappingOptions) -> 
 /// Rasterize `mesh` as seen by `cam` at `world_from_cam`: returns the gray image and a
 /// per-pixel coverage flag. Triangles with a vertex closer than 5 cm are skipped.
 pub fn render_mesh(mesh: &MeshData, cam: &Camera, world_from_cam: &Pose) -> (Vec<u8>, Vec<bool>) {
-    let (w, h) = (cam.width as usize, cam.height as usize);
+    let (w, h) = (cam.width() as usize, cam.height() as usize);
     let mut inv_z = vec![0.0f32; w * h];
     let mut val = vec![0.0f32; w * h];
     let cam_from_world = world_from_cam.inverse();
@@ -157,7 +157,12 @@ pub fn render_mesh(mesh: &MeshData, cam: &Camera, world_from_cam: &Pose) -> (Vec
         if p.iter().any(|q| q.z < 0.05) {
             continue;
         }
-        let s = p.map(|q| [cam.fx * q.x / q.z + cam.cx, cam.fy * q.y / q.z + cam.cy]);
+        let s = p.map(|q| {
+            [
+                cam.fx() * q.x / q.z + cam.cx(),
+                cam.fy() * q.y / q.z + cam.cy(),
+            ]
+        });
         let area =
             (s[1][0] - s[0][0]) * (s[2][1] - s[0][1]) - (s[2][0] - s[0][0]) * (s[1][1] - s[0][1]);
         if area.abs() < 1e-12 {

@@ -480,15 +480,15 @@ impl Rectifier {
     /// The rectified pair as the rectified form of `calib.json` (`fx = fy`, the
     /// baseline along +x).
     pub fn calib(&self) -> crate::io::json::Calib {
-        let c = self.rig.cam;
+        let c = self.rig.cam();
         crate::io::json::Calib {
-            width: c.width,
-            height: c.height,
-            fx: f64::from(c.fx),
-            fy: f64::from(c.fy),
-            cx: f64::from(c.cx),
-            cy: f64::from(c.cy),
-            baseline_m: f64::from(self.rig.baseline_m),
+            width: c.width(),
+            height: c.height(),
+            fx: f64::from(c.fx()),
+            fy: f64::from(c.fy()),
+            cx: f64::from(c.cx()),
+            cy: f64::from(c.cy()),
+            baseline_m: f64::from(self.rig.baseline_m()),
         }
     }
 

@@ -572,14 +572,14 @@ pub fn render(
     render_rays(
         terrain,
         light,
-        (cam.width, cam.height),
-        [cam.cx, cam.cy],
+        (cam.width(), cam.height()),
+        [cam.cx(), cam.cy()],
         world_from_cam,
         opts,
         |fu, fv| {
             Some(Vec3::new(
-                (fu - cam.cx) / cam.fx,
-                (fv - cam.cy) / cam.fy,
+                (fu - cam.cx()) / cam.fx(),
+                (fv - cam.cy()) / cam.fy(),
                 1.0,
             ))
         },

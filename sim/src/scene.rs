@@ -280,21 +280,20 @@ impl Scene {
     pub fn camera(&self) -> Camera {
         let (w, h) = self.profile.image_size();
         let f = (w as f32 * 0.5) / (HFOV_DEG.to_radians() * 0.5).tan();
-        Camera {
-            fx: f,
-            fy: f,
-            cx: (w as f32 - 1.0) * 0.5,
-            cy: (h as f32 - 1.0) * 0.5,
-            width: w,
-            height: h,
+        match Camera::new(f, f, (w as f32 - 1.0) * 0.5, (h as f32 - 1.0) * 0.5, w, h) {
+            Ok(cam) => cam,
+            // The three profiles are fixed data, each checked by
+            // `every_profile_has_a_valid_rig`.
+            Err(e) => unreachable!("profile {:?} camera refused: {e:?}", self.profile),
         }
     }
 
-    /// The rectified rig with `baseline_m`.
+    /// The rectified rig with `baseline_m` (the paper's 0.20 or 0.40 m, or any
+    /// positive finite value).
     pub fn rig(&self, baseline_m: f32) -> StereoRig {
-        StereoRig {
-            cam: self.camera(),
-            baseline_m,
+        match StereoRig::new(self.camera(), baseline_m) {
+            Ok(rig) => rig,
+            Err(e) => unreachable!("baseline {baseline_m} m refused: {e:?}"),
         }
     }
 
@@ -321,7 +320,7 @@ impl Scene {
         world_from_left: &Pose,
         opts: &RenderOptions,
     ) -> StereoPair {
-        let left = render(&self.terrain, light, &rig.cam, world_from_left, opts);
+        let left = render(&self.terrain, light, &rig.cam(), world_from_left, opts);
         let ropts = RenderOptions {
             noise_seed: Rng::new(opts.noise_seed).fork(0x0052_4947_4854).next_u64(),
             ..*opts
@@ -329,13 +328,13 @@ impl Scene {
         let right = render(
             &self.terrain,
             light,
-            &rig.cam,
+            &rig.cam(),
             &rig.world_from_right(world_from_left),
             &ropts,
         );
         StereoPair {
-            width: rig.cam.width,
-            height: rig.cam.height,
+            width: rig.cam().width(),
+            height: rig.cam().height(),
             left,
             right,
         }

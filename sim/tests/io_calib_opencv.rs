@@ -32,8 +32,8 @@ fn opencv_form_is_detected_and_rectifies() {
     assert_eq!(c.size(), (640, 480));
     assert_eq!(c.left.dist8()[0], -0.1);
     let r = vtsm_sim::rectify::Rectifier::new(&c).unwrap();
-    assert!((r.rig.baseline_m - 0.4).abs() < 1e-3);
-    assert_eq!(r.rig.cam.fx, 499.5);
+    assert!((r.rig.baseline_m() - 0.4).abs() < 1e-3);
+    assert_eq!(r.rig.cam().fx(), 499.5);
     let example = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../fsw-docs/interfaces/examples/calib-opencv.json");
     let bytes = std::fs::read(&example).unwrap();

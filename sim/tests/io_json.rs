@@ -25,12 +25,17 @@ fn p() -> &'static Path {
 fn valid_calib_gives_the_stereo_rig() {
     let c = json::parse_calib(CALIB.as_bytes(), p()).unwrap();
     let rig = c.rig().unwrap();
-    assert_eq!((rig.cam.width, rig.cam.height), (640, 480));
+    assert_eq!((rig.cam().width(), rig.cam().height()), (640, 480));
     assert_eq!(
-        (rig.cam.fx, rig.cam.fy, rig.cam.cx, rig.cam.cy),
+        (
+            rig.cam().fx(),
+            rig.cam().fy(),
+            rig.cam().cx(),
+            rig.cam().cy()
+        ),
         (500.5, 501.0, 319.5, 239.5)
     );
-    assert_eq!(rig.baseline_m, 0.4);
+    assert_eq!(rig.baseline_m(), 0.4);
     // written and read back unchanged
     assert_eq!(
         json::parse_calib(json::calib_text(&c).as_bytes(), p()).unwrap(),

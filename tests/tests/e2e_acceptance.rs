@@ -48,7 +48,7 @@ fn relocalize(rig: StereoRig, pair: &StereoPair, prior: Pose, seed: u64) -> Outc
         pair,
         prior,
         seed,
-        locate::params_for_width(rig.cam.width),
+        locate::params_for_width(rig.cam().width()),
     )
 }
 
@@ -59,7 +59,7 @@ fn relocalize_bounded(rig: StereoRig, pair: &StereoPair, prior: Pose, seed: u64)
     let params = vtsm_core::config::Params {
         max_reseed: 3,
         attempts_per_iter: 600,
-        ..locate::params_for_width(rig.cam.width)
+        ..locate::params_for_width(rig.cam().width())
     };
     relocalize_with(rig, pair, prior, seed, params)
 }

@@ -72,13 +72,13 @@ fn budget_measured_rows_are_a_real_run() {
         right: &pair.right,
         rig,
         prior,
-        params: locate::params_for_width(rig.cam.width),
+        params: locate::params_for_width(rig.cam().width()),
         seed,
     })
     .unwrap();
     let o = &report.outcome;
     let s = &o.stats;
-    assert_eq!(v("image width"), u64::from(rig.cam.width));
+    assert_eq!(v("image width"), u64::from(rig.cam().width()));
     assert_eq!(v("failure code (0 = success)"), 0, "{:?}", o.failure);
     assert_eq!(v("attempts"), u64::from(s.attempts));
     assert_eq!(v("renders"), u64::from(s.pipeline.renders));
@@ -88,7 +88,7 @@ fn budget_measured_rows_are_a_real_run() {
     assert_eq!(v("refinement iterations"), u64::from(s.refine.iterations));
     assert!(
         v("refinement iterations")
-            <= u64::from(locate::params_for_width(rig.cam.width).refine_iter)
+            <= u64::from(locate::params_for_width(rig.cam().width()).refine_iter)
     );
     assert!(
         v("refinement pair evaluations")

@@ -122,13 +122,13 @@ fn exported_files_read_back_bit_for_bit() {
     // The mask is re-derived from mask.obj by vertex positions.
     assert!(inputs.map == e.map_bytes, "map product differs");
     assert!(inputs.left.pixels == e.left && inputs.right.pixels == e.right);
-    let c = inputs.rig.cam;
-    let r = e.rig.cam;
+    let c = inputs.rig.cam();
+    let r = e.rig.cam();
     assert_eq!(
-        [c.fx, c.fy, c.cx, c.cy, inputs.rig.baseline_m].map(f32::to_bits),
-        [r.fx, r.fy, r.cx, r.cy, e.rig.baseline_m].map(f32::to_bits)
+        [c.fx(), c.fy(), c.cx(), c.cy(), inputs.rig.baseline_m()].map(f32::to_bits),
+        [r.fx(), r.fy(), r.cx(), r.cy(), e.rig.baseline_m()].map(f32::to_bits)
     );
-    assert_eq!((c.width, c.height), (r.width, r.height));
+    assert_eq!((c.width(), c.height()), (r.width(), r.height()));
     assert_eq!(bits(&inputs.prior), bits(&e.prior), "prior.json");
     let truth = vtsm_sim::io::json::read_pose(&e.dir.join("truth.json")).unwrap();
     assert_eq!(bits(&truth), bits(&e.truth), "truth.json");
@@ -148,7 +148,7 @@ fn file_path_equals_in_memory_path_bit_for_bit() {
         right: &e.right,
         rig: e.rig,
         prior: e.prior,
-        params: locate::params_for_width(e.rig.cam.width),
+        params: locate::params_for_width(e.rig.cam().width()),
         seed: SEED,
     };
     let report = locate::relocalize(&req).unwrap();
@@ -214,24 +214,22 @@ fn exporter_floats_round_trip() {
         // Within the calibration reader's range (MAX_FOCAL_PX, MAX_PRINCIPAL_PX).
         .filter(|w| w.iter().all(|v| v.abs() < 1.0e4))
     {
-        let cam = vtsm_core::geom::Camera {
-            fx: 100.0 + w[0].abs(),
-            fy: 100.0 + w[1].abs(),
-            cx: w[2],
-            cy: w[3],
-            width: 64,
-            height: 48,
-        };
-        let rig = vtsm_core::geom::StereoRig {
-            cam,
-            baseline_m: 0.1 + w[4].abs(),
-        };
+        let cam = vtsm_core::geom::Camera::new(
+            100.0 + w[0].abs(),
+            100.0 + w[1].abs(),
+            w[2],
+            w[3],
+            64,
+            48,
+        )
+        .unwrap();
+        let rig = vtsm_core::geom::StereoRig::new(cam, 0.1 + w[4].abs()).unwrap();
         let c =
             vtsm_sim::io::json::parse_calib(calib_json(&rig).as_bytes(), Path::new("c")).unwrap();
         let back = [c.fx, c.fy, c.cx, c.cy, c.baseline_m].map(|v| (v as f32).to_bits());
         assert_eq!(
             back,
-            [cam.fx, cam.fy, cam.cx, cam.cy, rig.baseline_m].map(f32::to_bits)
+            [cam.fx(), cam.fy(), cam.cx(), cam.cy(), rig.baseline_m()].map(f32::to_bits)
         );
         let p = Pose::from_t_q([w[0], w[1], w[2]], [1.0, 0.0, 0.0, 0.0]).unwrap();
         let q = vtsm_sim::io::json::parse_pose(pose_json(&p).as_bytes(), Path::new("p")).unwrap();
@@ -284,7 +282,7 @@ fn relocalize_exit_codes() {
 
     // Featureless images (uniform gray) of the right size: nothing to match,
     // so the relocalization must fail cleanly with exit code 1.
-    let (w, h) = (e.rig.cam.width, e.rig.cam.height);
+    let (w, h) = (e.rig.cam().width(), e.rig.cam().height());
     let gray = vec![128u8; (w * h) as usize];
     vtsm_sim::scene::export::write_png_gray(&e.dir.join("blank.png"), w, h, &gray).unwrap();
     let mut blank = args(&e.dir, "prior.json", Some(out_dir.join("blank.json")));

@@ -32,9 +32,9 @@ fn scene() -> &'static Scene {
         let view = MapView::new_checked(&map).unwrap();
         let rig = testkit::rig();
         let truth = testkit::camera_pose(0.6, 0.2);
-        let left = testkit::render_full(&view, &rig.cam, &truth, 0.85, 20.0);
+        let left = testkit::render_full(&view, &rig.cam(), &truth, 0.85, 20.0);
         let right =
-            testkit::render_full(&view, &rig.cam, &rig.world_from_right(&truth), 0.85, 20.0);
+            testkit::render_full(&view, &rig.cam(), &rig.world_from_right(&truth), 0.85, 20.0);
         Scene {
             map,
             left,

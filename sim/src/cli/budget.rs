@@ -340,7 +340,7 @@ pub fn measured_rows(seed: u64) -> crate::Result<Vec<Row>> {
         right: &pair.right,
         rig,
         prior,
-        params: locate::params_for_width(rig.cam.width),
+        params: locate::params_for_width(rig.cam().width()),
         seed,
     };
     let report = locate::relocalize(&req)?;
@@ -357,8 +357,8 @@ pub fn measured_rows(seed: u64) -> crate::Result<Vec<Row>> {
     let (t1, _) = o.pose.error_to(&truth);
     let mm = |x: f32| (f64::from(x) * 1e6).round() as u64;
     Ok(vec![
-        m("image width", u64::from(rig.cam.width), "px"),
-        m("image height", u64::from(rig.cam.height), "px"),
+        m("image width", u64::from(rig.cam().width()), "px"),
+        m("image height", u64::from(rig.cam().height()), "px"),
         m("template side ℓ", u64::from(report.template_px), "px"),
         m("search window cap", u64::from(report.search_px), "px"),
         m(

@@ -107,7 +107,7 @@ pub fn run(args: &Args) -> Result<u8> {
         map_mesh.texture.height,
         pair.width,
         pair.height,
-        rig.baseline_m,
+        rig.baseline_m(),
         t0.elapsed().as_secs_f64()
     );
 
@@ -117,7 +117,7 @@ pub fn run(args: &Args) -> Result<u8> {
         right: &pair.right,
         rig,
         prior,
-        params: locate::params_for_width(rig.cam.width),
+        params: locate::params_for_width(rig.cam().width()),
         seed: args.seed,
     };
     let report = locate::relocalize(&req)?;
@@ -178,7 +178,7 @@ pub fn run(args: &Args) -> Result<u8> {
     let map = MapView::new_checked(&map_bytes)?;
     let canvas = panel(
         &map,
-        &rig.cam,
+        &rig.cam(),
         &pair.left,
         &prior,
         &o.pose,
@@ -239,7 +239,7 @@ fn panel(
     let l = usize::from(template_px);
     let cell = 150usize;
     let pad = 12usize;
-    let (w, h) = (cam.width as usize, cam.height as usize);
+    let (w, h) = (cam.width() as usize, cam.height() as usize);
     let img_w = K * (cell + pad) - pad;
     let img_h = img_w * h / w;
     let label_h = 26;

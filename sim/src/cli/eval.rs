@@ -679,7 +679,7 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
     );
     let trials_s = t_trials.elapsed().as_secs_f64();
     let summary = eval::summarize(&outcomes);
-    let params = locate::params_for_width(scenes[0].camera().width);
+    let params = locate::params_for_width(scenes[0].camera().width());
     let meta = RunMeta {
         suite: cfg.suite.name().to_string(),
         git_revision: eval::git_revision(),
@@ -700,7 +700,7 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
             "baseline": cfg.baseline.map(Method::name),
             "origin": cfg.origin,
             "features": cfg.baseline.map(|_| {
-                format!("{:?}", crate::features::FeatureParams::for_width(scenes[0].camera().width))
+                format!("{:?}", crate::features::FeatureParams::for_width(scenes[0].camera().width()))
             }),
             "mapping_views": if cfg.suite == Suite::Stepsize {
                 "sub-sampled mapping path of the group"
@@ -811,7 +811,7 @@ fn run_trial(
         o.failure = Some(format!("prior in the map's frame: {}", c.name()));
         return o;
     }
-    let mut params = locate::params_for_width(rig.cam.width);
+    let mut params = locate::params_for_width(rig.cam().width());
     params.seeds = g.seeds;
     let req = Request {
         map: bytes,
@@ -823,7 +823,7 @@ fn run_trial(
         seed,
     };
     if g.method == Method::Features {
-        let fp = crate::features::FeatureParams::for_width(rig.cam.width);
+        let fp = crate::features::FeatureParams::for_width(rig.cam().width());
         match crate::features::relocalize_features(&req, &fp) {
             Ok(r) => {
                 let (t1, r1) = error(&r.pose);
@@ -1550,14 +1550,7 @@ mod tests {
     /// Verifies: VTSM-CLI-020
     #[test]
     fn restricted_map_keeps_exactly_the_triangles_a_view_sees() {
-        let scene_cam = Camera {
-            fx: 100.0,
-            fy: 100.0,
-            cx: 49.5,
-            cy: 49.5,
-            width: 100,
-            height: 100,
-        };
+        let scene_cam = Camera::new(100.0, 100.0, 49.5, 49.5, 100, 100).unwrap();
         // Camera at (0,0,1) looking straight down (cam z = -world z).
         let down = Pose::new(
             UnitQuaternion::from_axis_angle(&Vec3::x_axis(), std::f32::consts::PI),

@@ -292,7 +292,7 @@ pub fn run_engine(inputs: &Inputs) -> Result<Outcome> {
         right: &inputs.right.pixels,
         rig: inputs.rig,
         prior: inputs.prior,
-        params: crate::locate::params_for_width(inputs.rig.cam.width),
+        params: crate::locate::params_for_width(inputs.rig.cam().width()),
         seed: inputs.seed,
     };
     let report = crate::locate::relocalize(&req)?;

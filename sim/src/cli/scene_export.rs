@@ -168,8 +168,8 @@ pub fn run(args: &Args) -> Result<u8> {
         "wrote {} ({} {}x{}, {} triangles, sun el {:.1}° az {:.1}°)",
         args.out.display(),
         profile.name(),
-        rig.cam.width,
-        rig.cam.height,
+        rig.cam().width(),
+        rig.cam().height(),
         map.triangles.len(),
         light.sun.elevation_deg,
         light.sun.azimuth_deg

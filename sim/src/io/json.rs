@@ -55,7 +55,7 @@ impl Calib {
         StereoRig::new(cam, self.baseline_m as f32)
     }
 
-    /// Check every field against the ranges of the core's [`Camera::check`]
+    /// Check every field against the ranges of the core's [`Camera::new`]
     /// (width and height in 1..=`MAX_IMAGE_DIM`, focal lengths in
     /// (0, `MAX_FOCAL_PX`], principal point within ±`MAX_PRINCIPAL_PX` pixels) and
     /// a finite positive baseline; returns the name of the bad field and why.

@@ -106,10 +106,10 @@ pub fn pose_json(pose: &Pose) -> String {
 
 /// `{"width":W,"height":H,"fx":..,"fy":..,"cx":..,"cy":..,"baseline_m":B}`.
 pub fn calib_json(rig: &StereoRig) -> String {
-    let c = rig.cam;
+    let c = rig.cam();
     serde_json::json!({
-        "width": c.width, "height": c.height, "fx": short(c.fx), "fy": short(c.fy),
-        "cx": short(c.cx), "cy": short(c.cy), "baseline_m": short(rig.baseline_m)
+        "width": c.width(), "height": c.height(), "fx": short(c.fx()), "fy": short(c.fy()),
+        "cx": short(c.cx()), "cy": short(c.cy()), "baseline_m": short(rig.baseline_m())
     })
     .to_string()
 }
@@ -162,7 +162,7 @@ pub fn write_scene_with_calib(
         }
     }
     fs::create_dir_all(dir).map_err(|e| io_err(dir, e))?;
-    let (w, h) = (files.rig.cam.width, files.rig.cam.height);
+    let (w, h) = (files.rig.cam().width(), files.rig.cam().height());
     write_text(
         &dir.join("map.obj"),
         &obj_text(files.map, Some("map.mtl"), false),

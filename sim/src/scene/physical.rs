@@ -31,9 +31,13 @@ pub const RIGHT_DIST: [f64; 5] = [-0.095, 0.018, -0.0005, 0.0003, 0.001];
 /// The physical rig standing in for `rig` (same image size and baseline length
 /// scale): see the module documentation for the values.
 pub fn physical_calib(rig: &StereoRig) -> OpenCvCalib {
-    let c = rig.cam;
-    let (f, w, h) = (f64::from(c.fx), f64::from(c.width), f64::from(c.height));
-    let (cx, cy) = (f64::from(c.cx), f64::from(c.cy));
+    let c = rig.cam();
+    let (f, w, h) = (
+        f64::from(c.fx()),
+        f64::from(c.width()),
+        f64::from(c.height()),
+    );
+    let (cx, cy) = (f64::from(c.cx()), f64::from(c.cy()));
     let k = |sx: f64, sy: f64, dx: f64, dy: f64| {
         [
             [f * sx, 0.0, cx + dx * w],
@@ -43,11 +47,11 @@ pub fn physical_calib(rig: &StereoRig) -> OpenCvCalib {
     };
     let axis = Vector3::new(0.3, 1.0, 0.4).normalize();
     let r = Rotation3::from_scaled_axis(axis * RELATIVE_ROTATION_DEG.to_radians()).into_inner();
-    let b = f64::from(rig.baseline_m);
+    let b = f64::from(rig.baseline_m());
     let c_right = Vector3::new(b, 0.01 * b, -0.008 * b);
     let t = -(r * c_right);
     OpenCvCalib {
-        image_size: [c.width, c.height],
+        image_size: [c.width(), c.height()],
         left: OpenCvCamera {
             k: k(1.004, 1.002, 0.006, -0.004),
             dist: LEFT_DIST.to_vec(),

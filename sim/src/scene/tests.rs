@@ -166,7 +166,7 @@ fn known_point_appears_at_predicted_pixels_in_both_images() {
         let rig = scene.rig(baseline);
         let pose = look_pose([0.1, 0.0, 1.0], [0.2, 2.0, 0.0], 25f32.to_radians());
         let pair = scene.render_pair(&light, &rig, &pose, &RenderOptions::clean(4));
-        let w = rig.cam.width as usize;
+        let w = rig.cam().width() as usize;
         for m in markers {
             let p_left = pose.inverse().transform_point(&Vec3::new(m[0], m[1], m[2]));
             let (pl, pr) = rig.project_stereo(&p_left).unwrap();
@@ -203,7 +203,7 @@ fn known_point_appears_at_predicted_pixels_in_both_images() {
             }
             // Rectified: same row; disparity fx·B/Z.
             assert!((cl[1] - cr[1]).abs() < 0.2);
-            let disp = rig.cam.fx * baseline / p_left.z;
+            let disp = rig.cam().fx() * baseline / p_left.z;
             assert!(
                 ((cl[0] - cr[0]) - disp).abs() < 0.4,
                 "disparity {} vs {disp}",
@@ -258,7 +258,7 @@ fn capture_grid_follows_the_paper_layout() {
     let grid = capture_grid();
     assert_eq!(grid.len(), 120);
     let rig = scene.rig(0.40);
-    let hfov = 2.0 * ((rig.cam.width as f32 * 0.5) / rig.cam.fx).atan();
+    let hfov = 2.0 * ((rig.cam().width() as f32 * 0.5) / rig.cam().fx()).atan();
     assert!((hfov.to_degrees() - HFOV_DEG).abs() < 1e-3);
     for c in &grid {
         let pose = capture_pose(&scene.terrain, c);
@@ -281,11 +281,11 @@ fn capture_grid_follows_the_paper_layout() {
         let (l, rpx) = rig.project_stereo(&p).unwrap();
         let mid_u = 0.5 * (l[0] + rpx[0]);
         assert!(
-            (mid_u - rig.cam.cx).abs() < 0.05,
+            (mid_u - rig.cam().cx()).abs() < 0.05,
             "{c:?}: tube at u = {mid_u}, centre {}",
-            rig.cam.cx
+            rig.cam().cx()
         );
-        assert!(rig.cam.contains(l[0], l[1], 0.0));
+        assert!(rig.cam().contains(l[0], l[1], 0.0));
     }
     for kind in [Trajectory::Wave, Trajectory::Forward] {
         assert_eq!(mapping_trajectory(&scene.terrain, kind, 1).len(), 60);
@@ -353,4 +353,19 @@ fn export_writes_design_files_and_refuses_to_overwrite() {
     assert_eq!(std::fs::read(dir.join("truth.json")).unwrap(), before);
     export::write_scene(&dir, &files, true).unwrap();
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Every profile's camera and both paper baselines pass the core's checks
+/// (`Scene::camera` and `Scene::rig` rely on it).
+/// Verifies: VTSM-SIM-001
+#[test]
+fn every_profile_has_a_valid_rig() {
+    for profile in [Profile::Paper, Profile::Demo, Profile::Test] {
+        let (w, h) = profile.image_size();
+        let f = (w as f32 * 0.5) / (HFOV_DEG.to_radians() * 0.5).tan();
+        let cam = Camera::new(f, f, (w as f32 - 1.0) * 0.5, (h as f32 - 1.0) * 0.5, w, h).unwrap();
+        for b in [0.20, 0.40] {
+            assert_eq!(StereoRig::new(cam, b).unwrap().baseline_m(), b);
+        }
+    }
 }

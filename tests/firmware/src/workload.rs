@@ -329,8 +329,8 @@ pub mod devices {
 
     impl StereoCamera for SceneCamera<'_, '_> {
         fn capture(&mut self, left: &mut [u8], right: &mut [u8], _timeout_ticks: u64) -> Result<FrameInfo, ErrorKind> {
-            let cam = self.rig.cam;
-            let (w, h) = (cam.width as usize, cam.height as usize);
+            let cam = self.rig.cam();
+            let (w, h) = (cam.width() as usize, cam.height() as usize);
             let n = w.saturating_mul(h);
             let (Some(left), Some(right)) = (left.get_mut(..n), right.get_mut(..n)) else { return Err(ErrorKind::Other) };
             let (mut inten, mut depth, mut mdepth) = ([0u8; TILE * TILE], [0u32; TILE * TILE], [0u32; TILE * TILE]);
@@ -356,7 +356,7 @@ pub mod devices {
                 }
             }
             self.sequence = self.sequence.wrapping_add(1);
-            Ok(FrameInfo { width: cam.width, height: cam.height, stride: cam.width, sequence: self.sequence, timestamp_ticks: (self.clock)(), exposure_us: 2000 })
+            Ok(FrameInfo { width: cam.width(), height: cam.height(), stride: cam.width(), sequence: self.sequence, timestamp_ticks: (self.clock)(), exposure_us: 2000 })
         }
     }
 
