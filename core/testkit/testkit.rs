@@ -61,6 +61,11 @@ pub fn value_noise(rng: &mut Rng, cell: usize, amp: f32, out: &mut [f32]) {
 
 /// The encoded map product of the scene for `seed`.
 pub fn build_map(seed: u64) -> Vec<u8> {
+    build_map_with_mask(seed, |_| true)
+}
+
+/// [`build_map`] with triangle `i` in M̂ when `in_mask(i)`.
+pub fn build_map_with_mask(seed: u64, in_mask: impl Fn(usize) -> bool) -> Vec<u8> {
     let mut rng = Rng::new(seed);
     let bumps: Vec<(f32, f32, f32)> = (0..25)
         .map(|_| {
@@ -98,7 +103,7 @@ pub fn build_map(seed: u64) -> Vec<u8> {
             uvs.push([uv_of(i, j), uv_of(i + 1, j + 1), uv_of(i, j + 1)]);
         }
     }
-    let mask = vec![true; triangles.len()];
+    let mask: Vec<bool> = (0..triangles.len()).map(in_mask).collect();
     let mut acc = vec![128.0f32; TEX * TEX];
     value_noise(&mut rng, 64, 50.0, &mut acc);
     value_noise(&mut rng, 16, 40.0, &mut acc);
@@ -114,7 +119,8 @@ pub fn build_map(seed: u64) -> Vec<u8> {
         origin: [0.0; 3],
     };
     let mut out = vec![0u8; vtsm_core::map::encoded_len(&src).unwrap()];
-    vtsm_core::map::encode(&src, &mut out).unwrap();
+    let n = vtsm_core::map::encode(&src, &mut out).unwrap();
+    out.truncate(n);
     out
 }
 

@@ -233,6 +233,7 @@ pub struct ManualClock {
     ticks: Rc<Cell<u64>>,
     cycles: Option<Rc<Cell<u64>>>,
     hz: u32,
+    per_read: u64,
 }
 
 impl ManualClock {
@@ -242,7 +243,16 @@ impl ManualClock {
             ticks: Rc::new(Cell::new(0)),
             cycles: None,
             hz: hz.max(1),
+            per_read: 0,
         }
+    }
+
+    /// The same clock, advancing by `dt` ticks at every read through the
+    /// trait (before the read), so time passes with each runner step; clones
+    /// made before this call keep reading without advancing.
+    pub fn with_ticks_per_read(mut self, dt: u64) -> Self {
+        self.per_read = dt;
+        self
     }
 
     /// The same clock with a cycle counter starting at 0.
@@ -278,6 +288,7 @@ impl Clock for ManualClock {
         self.hz
     }
     fn now_ticks(&mut self) -> Result<u64, Self::Error> {
+        self.advance(self.per_read);
         Ok(self.ticks.get())
     }
     fn cycles(&mut self) -> Option<u64> {

@@ -58,6 +58,10 @@ pub struct DeviceFaults {
     pub store: FaultConfig,
     /// Seed of both fault streams.
     pub seed: u64,
+    /// Simulated time: ticks the runner's clock advances at each read (0:
+    /// time moves only while a camera capture times out). With 1, the
+    /// runner's elapsed ticks count its clock reads (one per engine step).
+    pub clock_ticks_per_read: u64,
 }
 
 /// Workspace sizes the engine built for `params` with the default policy
@@ -148,6 +152,9 @@ pub struct DeviceRun {
     pub elapsed: Duration,
     /// Workspace bytes allocated for the core.
     pub workspace_bytes: usize,
+    /// The simulated clock at the end of the run, ticks from 0 (camera
+    /// timeouts and, with [`DeviceFaults::clock_ticks_per_read`], every clock read).
+    pub ticks: u64,
 }
 
 /// [`relocalize_on_devices`], keeping the runner's log and telemetry whatever
@@ -191,6 +198,8 @@ pub fn run_on_devices(
         }),
     };
     let telemetry = FramedTelemetry::new(RecordingSink::new());
+    let probe = clock.clone();
+    let clock = clock.with_ticks_per_read(faults.clock_ticks_per_read);
     let mut runner = Runner::new(camera, clock, store, prior, telemetry, runner_config(w, h));
     let (mut left, mut right, mut map) = (vec![0u8; n], vec![0u8; n], vec![0u8; req.map.len()]);
     let bufs = Buffers {
@@ -207,6 +216,7 @@ pub fn run_on_devices(
         telemetry: runner.telemetry.writer().frames().frames,
         elapsed,
         workspace_bytes: sizes.total_bytes(),
+        ticks: probe.ticks(),
     })
 }
 

@@ -4,6 +4,8 @@
 //! the generator of `fsw-docs/failure-codes.md` and the parsers of the
 //! requirement tables and `Verifies:` tags.
 
+pub mod upsets;
+
 use std::path::{Path, PathBuf};
 use vtsm_core::failure::{Retry, Severity};
 use vtsm_core::FailureCode;

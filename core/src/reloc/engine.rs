@@ -20,6 +20,11 @@ const STREAM_RESEED: u64 = 3;
 /// Stream of multi-seed poses (forked by seed index).
 const STREAM_SEED: u64 = 4;
 
+#[cfg(feature = "upset-injection")]
+mod upset;
+#[cfg(feature = "upset-injection")]
+pub use upset::UpsetRegion;
+
 /// What [`Relocalizer::step`] reports.
 ///
 /// `Done` borrows the outcome kept by the engine (no copy of it per call);

@@ -28,6 +28,8 @@ pub mod solver;
 pub mod viewpoint;
 pub mod workspace;
 
+#[cfg(feature = "upset-injection")]
+pub use engine::UpsetRegion;
 pub use engine::{Relocalizer, StepResult};
 pub use pipeline::Pipeline;
 pub use policy::{MatchPolicy, Variant};

@@ -81,6 +81,18 @@ fn search_rect(px: [f32; 2], l: usize, r: i32, cap: usize, w: usize, h: usize) -
 }
 
 impl<'a, 'w> Pipeline<'a, 'w> {
+    /// The workspace, for upset injection.
+    #[cfg(feature = "upset-injection")]
+    pub(super) fn workspace(&self) -> &Workspace<'w> {
+        &self.ws
+    }
+
+    /// The workspace, for upset injection.
+    #[cfg(feature = "upset-injection")]
+    pub(super) fn workspace_mut(&mut self) -> &mut Workspace<'w> {
+        &mut self.ws
+    }
+
     /// A pipeline over `map` and the real stereo pair, from inputs that
     /// [`super::Setup::build`] has checked (params, policy, image sizes, workspace, mask).
     pub(super) fn from_checked(
