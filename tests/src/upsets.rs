@@ -120,8 +120,8 @@ impl Scene {
                 return Self::empty();
             };
             (
-                testkit::render_full(&view, &rig.cam, &truth, 0.85, 20.0),
-                testkit::render_full(&view, &rig.cam, &rig.world_from_right(&truth), 0.85, 20.0),
+                testkit::render_full(&view, &rig.cam(), &truth, 0.85, 20.0),
+                testkit::render_full(&view, &rig.cam(), &rig.world_from_right(&truth), 0.85, 20.0),
             )
         };
         let prior = Pose::new(
@@ -312,7 +312,7 @@ pub fn engine_run(
     let view = MapView::new_checked(&scene.map)?;
     let rig = testkit::rig();
     let params = testkit::test_params();
-    let (w, h) = (rig.cam.width as usize, rig.cam.height as usize);
+    let (w, h) = (rig.cam().width() as usize, rig.cam().height() as usize);
     let left = GrayView::new(&scene.left, w, h, w)?;
     let right = GrayView::new(&scene.right, w, h, w)?;
     let sizes = workspace_sizes(&params);

@@ -51,8 +51,8 @@ fn scene() -> &'static Scene {
 fn render_pair(view: &MapView, pose: &Pose) -> (Vec<u8>, Vec<u8>) {
     let rig = testkit::rig();
     (
-        testkit::render_full(view, &rig.cam, pose, 0.85, 20.0),
-        testkit::render_full(view, &rig.cam, &rig.world_from_right(pose), 0.85, 20.0),
+        testkit::render_full(view, &rig.cam(), pose, 0.85, 20.0),
+        testkit::render_full(view, &rig.cam(), &rig.world_from_right(pose), 0.85, 20.0),
     )
 }
 
