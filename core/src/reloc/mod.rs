@@ -12,6 +12,13 @@
 //! Output: an [`Outcome`] with the pose, an optional [`FailureCode`], its
 //! [`Quality`] (inliers, RMS, per-iteration history) and work [`Stats`].
 //!
+//! Integrity: a success is reported only when the final estimate passes the
+//! [`Gates`] of [`integrity`] (pose within a factor of the prior's
+//! uncertainty, spread-out inliers, reprojection residual within the
+//! matcher's tolerance), each with its own failure code; [`Verify`] adds the
+//! upset checks (the final solve repeated from a second random stream and
+//! compared, the map product re-checked before the result is returned).
+//!
 //! Bounds: every call to [`Relocalizer::step`] does exactly one work unit (one
 //! attempt, the start of a solve, or one chunk of [`RANSAC_CHUNK`] RANSAC hypotheses); the number of units of a whole run is bounded by
 //! [`Relocalizer::max_work_units`], computed from validated parameters. All
