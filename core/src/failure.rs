@@ -194,6 +194,16 @@ failure_codes! {
         "The left and right images are identical on every sampled row (one sensor delivered twice); relocalization does not start.";
     RelocNoEvidence = 0x080C, Fatal, NewInput, "RELOC_NO_EVIDENCE",
         "No correspondence was accepted in the first Options::no_evidence_attempts attempts; the frame does not show the map here, and the run stops early.";
+    RelocPoseOutsidePrior = 0x080D, Fatal, NewInput, "RELOC_POSE_OUTSIDE_PRIOR",
+        "The final estimate lies farther from the prior than Options::gates.prior_factor times the prior's uncertainty, in translation or rotation; the pose is not trusted and the relocalization fails.";
+    RelocInliersDegenerate = 0x080E, Fatal, NewInput, "RELOC_INLIERS_DEGENERATE",
+        "The final inliers' camera points span less than Options::gates.min_spread_m across their principal direction (one cluster or one line), so they do not fix the pose; the relocalization fails.";
+    RelocResidualHigh = 0x080F, Fatal, NewInput, "RELOC_RESIDUAL_HIGH",
+        "The RMS reprojection residual of the final inliers exceeds Options::gates.max_reproj_px, more than the matcher's noise explains; the pose is not trusted and the relocalization fails.";
+    RelocVerifyDisagree = 0x0810, Fatal, Same, "RELOC_VERIFY_DISAGREE",
+        "The repeated final solve (Options::verify.repeat_solve) found no solution or one farther from the final estimate than its tolerance: one computation was upset; the pose is not trusted, run again.";
+    RelocMapChanged = 0x0811, Fatal, NewInput, "RELOC_MAP_CHANGED",
+        "The map product failed its re-check before the result was returned (Options::verify.recheck_map) although it passed at load: it changed in memory; the pose is not trusted, reload the map.";
     // 0x09xx hardware
     HalCameraTimeout = 0x0901, Degraded, Same, "HAL_CAMERA_TIMEOUT",
         "The stereo camera did not deliver a frame within its timeout; capture again.";

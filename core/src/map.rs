@@ -702,6 +702,11 @@ impl<'a> MapView<'a> {
         self.texture
     }
 
+    /// The whole encoded product this view was checked from (to check it again).
+    pub fn bytes(&self) -> &'a [u8] {
+        self.bytes
+    }
+
     /// The texture's texels, row-major with stride = width (`width · height` bytes).
     pub fn texture_bytes(&self) -> &'a [u8] {
         // The view was made from exactly the texture section (stride = width).

@@ -19,6 +19,8 @@ const STREAM_SOLVE: u64 = 2;
 const STREAM_RESEED: u64 = 3;
 /// Stream of multi-seed poses (forked by seed index).
 const STREAM_SEED: u64 = 4;
+/// Stream of the repeated final solve of `Verify::repeat_solve` (forked by round).
+const STREAM_VERIFY: u64 = 5;
 
 #[cfg(feature = "upset-injection")]
 mod upset;
@@ -43,6 +45,10 @@ enum Phase {
     Solve,
     /// A chunked solve is under way.
     Chunks,
+    /// The repeated final solve (`Verify::repeat_solve`) starts.
+    Verify,
+    /// The repeated final solve is under way in chunks.
+    VerifyChunks,
 }
 
 /// The relocalization engine. Generic over the per-attempt pipeline `A` and
@@ -63,6 +69,8 @@ pub struct Relocalizer<A, S> {
     phase: Phase,
     pairs: heapless::Vec<Correspondence, MAX_CORR>,
     inlier_mask: [bool; MAX_CORR],
+    /// Inliers of the repeated final solve.
+    verify_mask: [bool; MAX_CORR],
     candidates: heapless::Vec<Candidate, MAX_POSE_CANDIDATES>,
     round: u32,
     round_attempts: u32,
@@ -72,7 +80,8 @@ pub struct Relocalizer<A, S> {
     /// Next seed to evaluate while `seeding`.
     seed_index: u16,
     seeding: bool,
-    best_seed: Option<(Solution, u16)>,
+    /// Best seed so far: its solution, pairs given to it, inlier spread.
+    best_seed: Option<(Solution, u16, f32)>,
     max_units: u32,
     quality: Quality,
     stats: Stats,
@@ -134,6 +143,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             phase: Phase::Collect,
             pairs: heapless::Vec::new(),
             inlier_mask: [false; MAX_CORR],
+            verify_mask: [false; MAX_CORR],
             candidates: heapless::Vec::new(),
             round: 0,
             round_attempts: 0,
@@ -163,14 +173,15 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
     /// rounds that continue (the next failure ends the run); there are at most
     /// `n_iter` successes, plus `seeds` seed rounds; each round does at most
     /// `attempts_per_iter` attempts, one solve start and ⌈`ransac_iter` /
-    /// [`super::RANSAC_CHUNK`]⌉ RANSAC chunks.
+    /// [`super::RANSAC_CHUNK`]⌉ RANSAC chunks; the repeated final solve of
+    /// [`super::Verify::repeat_solve`] adds one solve start and its chunks.
     pub fn max_work_units(params: &Params) -> u32 {
         let fails = u64::from(params.max_stall) + u64::from(params.max_reseed);
         let n_iter = u64::from(params.n_iter);
         let rounds = u64::from(params.seeds) + n_iter + (n_iter + 1) * fails + 1;
-        let per_round =
-            u64::from(params.attempts_per_iter) + 1 + u64::from(Self::max_chunks(params));
-        let units = rounds * per_round;
+        let solve = 1 + u64::from(Self::max_chunks(params));
+        let per_round = u64::from(params.attempts_per_iter) + solve;
+        let units = rounds * per_round + solve;
         u32::try_from(units).unwrap_or(u32::MAX)
     }
 
@@ -191,6 +202,8 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
                 Phase::Collect => self.collect_one(now),
                 Phase::Solve => self.solve(now),
                 Phase::Chunks => self.solve_chunk(now),
+                Phase::Verify => self.verify_start(now),
+                Phase::VerifyChunks => self.verify_chunk(now),
             }
         }
     }
@@ -409,8 +422,8 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         self.seeding = false;
         self.center = self.anchor;
         match self.best_seed.take() {
-            Some((sol, pairs)) => {
-                self.apply_success(sol, pairs, now);
+            Some((sol, pairs, spread)) => {
+                self.apply_success(sol, pairs, spread, now);
             }
             // No seed gave a transform: search from the prior as without seeds.
             None => self.start_round(),
@@ -419,21 +432,24 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
 
     fn round_succeeded(&mut self, sol: Solution, now: u64) {
         let pairs = u16::try_from(self.pairs.len()).unwrap_or(u16::MAX);
+        let n = self.pairs.len();
+        let spread =
+            super::integrity::spread_m(&self.pairs, self.inlier_mask.get(..n).unwrap_or(&[]));
         if self.seeding {
             let better = self
                 .best_seed
                 .as_ref()
-                .is_none_or(|(b, _)| sol.inliers > b.inliers);
+                .is_none_or(|(b, _, _)| sol.inliers > b.inliers);
             if better {
-                self.best_seed = Some((sol, pairs));
+                self.best_seed = Some((sol, pairs, spread));
             }
             self.next_seed(now);
             return;
         }
-        self.apply_success(sol, pairs, now);
+        self.apply_success(sol, pairs, spread, now);
     }
 
-    fn apply_success(&mut self, sol: Solution, pairs: u16, now: u64) {
+    fn apply_success(&mut self, sol: Solution, pairs: u16, spread_m: f32, now: u64) {
         let update_m = (sol.pose.translation() - self.anchor.translation()).norm();
         // At most n_iter ≤ MAX_ITER successes are recorded, so the push cannot fail.
         let _ = self.quality.history.push(IterationRecord {
@@ -446,6 +462,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             update_m,
         });
         self.record_fit(&sol, pairs);
+        self.quality.spread_m = spread_m;
         self.center = sol.pose;
         self.stats.successes = self.stats.successes.saturating_add(1);
         self.consecutive_stall = 0;
@@ -462,7 +479,11 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         let enough = self.stats.successes >= u16::from(self.params.n_iter);
         if enough || update_m < self.params.convergence_m {
             self.refine_final(now);
-            self.finish(None, now);
+            if self.opts.verify.repeat_solve && !self.pairs.is_empty() {
+                self.phase = Phase::Verify;
+            } else {
+                self.accept(now);
+            }
         } else {
             self.reuse_inliers(sol.inliers);
             self.start_round();
@@ -555,6 +576,109 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         }
     }
 
+    /// Verify::repeat_solve, first unit: GetTransform again on the pairs of
+    /// the final solve, from a second random stream.
+    fn verify_start(&mut self, now: u64) {
+        self.stats.work_units = self.stats.work_units.saturating_add(1);
+        self.stats.verify_units = self.stats.verify_units.saturating_add(1);
+        let mut rng = self.root.fork(STREAM_VERIFY).fork(u64::from(self.round));
+        let n = self.pairs.len();
+        self.verify_mask.iter_mut().for_each(|m| *m = false);
+        self.round_chunks = 0;
+        match self.solver.start(&self.pairs, rng) {
+            Ok(true) => {
+                let mask = self.verify_mask.get_mut(..n).unwrap_or(&mut []);
+                let result = self.solver.solve(&self.pairs, &mut rng, mask);
+                self.verify_conclude(result, now);
+            }
+            Ok(false) => self.phase = Phase::VerifyChunks,
+            Err(code) => self.verify_conclude(Err(code), now),
+        }
+    }
+
+    fn verify_chunk(&mut self, now: u64) {
+        self.stats.work_units = self.stats.work_units.saturating_add(1);
+        self.stats.verify_units = self.stats.verify_units.saturating_add(1);
+        self.round_chunks = self.round_chunks.saturating_add(1);
+        let done = match self.solver.run_chunk(&self.pairs, super::RANSAC_CHUNK) {
+            Ok(done) => done || self.round_chunks >= Self::max_chunks(&self.params),
+            Err(code) => return self.verify_conclude(Err(code), now),
+        };
+        if done {
+            let n = self.pairs.len();
+            let mask = self.verify_mask.get_mut(..n).unwrap_or(&mut []);
+            let result = self.solver.finish(&self.pairs, mask);
+            self.verify_conclude(result, now);
+        }
+    }
+
+    /// Compare the repeated solve, refined the same way as the final
+    /// estimate, with it: a disagreement beyond the tolerances (or a repeat
+    /// that finds no acceptable solution) means one of the two computations
+    /// was upset, and neither is trusted.
+    fn verify_conclude(&mut self, result: Result<Solution, FailureCode>, now: u64) {
+        let n = self.pairs.len();
+        let again = match result {
+            Ok(sol) if sol.inliers >= self.opts.min_inliers && pose_is_valid(&sol.pose) => {
+                let mask = self.verify_mask.get(..n).unwrap_or(&[]);
+                match self.solver.refine(&self.pairs, mask, &sol.pose) {
+                    Some(Ok(r)) if r.stats.accepted && pose_is_valid(&r.pose) => Some(r.pose),
+                    _ => Some(sol.pose),
+                }
+            }
+            Ok(sol) => {
+                self.log.record(
+                    FailureCode::PoseRansacNoConsensus,
+                    now,
+                    u32::from(sol.inliers),
+                );
+                None
+            }
+            Err(code) => {
+                self.log.record(code, now, self.round);
+                None
+            }
+        };
+        let v = self.opts.verify;
+        let agree = again.is_some_and(|p| {
+            let (dt, dr) = super::integrity::distance_to(&self.anchor, &p);
+            self.quality.verify_diff = Some((dt, dr));
+            dt <= v.tolerance_m && dr <= v.tolerance_rad
+        });
+        if agree {
+            self.accept(now);
+        } else {
+            self.finish(Some(FailureCode::RelocVerifyDisagree), now);
+        }
+    }
+
+    /// The last unit of a run whose search succeeded: the integrity gates,
+    /// then the map re-check, then success.
+    fn accept(&mut self, now: u64) {
+        let (t, r) = if self.params.seeds > 0 {
+            (
+                self.params.t0_m.max(self.opts.seed_t_m),
+                self.params.r0_deg.max(self.opts.seed_r_deg),
+            )
+        } else {
+            (self.params.t0_m, self.params.r0_deg)
+        };
+        let refined = self.quality.covariance.is_some();
+        let ev = super::integrity::Evidence {
+            pose: self.anchor,
+            prior: self.prior,
+            prior_t_m: t,
+            prior_r_rad: r.to_radians(),
+            spread_m: self.quality.spread_m,
+            reproj_px: refined.then_some(self.quality.reproj_rms_px),
+        };
+        let mut code = super::integrity::check(&self.opts.gates, &ev);
+        if code.is_none() && self.opts.verify.recheck_map {
+            code = self.attempt.recheck().err();
+        }
+        self.finish(code, now);
+    }
+
     /// Make `sol` (fitted to `pairs` correspondences) the current estimate.
     fn record_fit(&mut self, sol: &Solution, pairs: u16) {
         self.quality.inliers = sol.inliers;
@@ -570,8 +694,9 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
     fn finish_budget(&mut self, now: u64) -> &Outcome {
         // Anytime: the best seed so far beats the prior if seeding was cut short.
         if self.seeding {
-            if let Some((sol, pairs)) = self.best_seed.take() {
+            if let Some((sol, pairs, spread)) = self.best_seed.take() {
                 self.record_fit(&sol, pairs);
+                self.quality.spread_m = spread;
             }
         }
         self.finish(Some(FailureCode::RelocBudgetExhausted), now)
@@ -609,6 +734,9 @@ mod tests {
         fail: FailFn,
         next_id: u32,
         contexts: Vec<AttemptContext>,
+        /// What `recheck` reports, and how often it was called.
+        recheck: Result<(), FailureCode>,
+        rechecks: u32,
     }
 
     impl FakeAttempt {
@@ -617,6 +745,8 @@ mod tests {
                 fail: Box::new(fail),
                 next_id: 0,
                 contexts: Vec::new(),
+                recheck: Ok(()),
+                rechecks: 0,
             }
         }
         fn ok() -> Self {
@@ -645,6 +775,11 @@ mod tests {
                 cam: v,
                 sigma_m: 0.01,
             })
+        }
+
+        fn recheck(&mut self) -> Result<(), FailureCode> {
+            self.rechecks += 1;
+            self.recheck
         }
     }
 
@@ -714,9 +849,12 @@ mod tests {
         }
     }
 
+    /// Options of the search tests: the fakes' poses and points are not a
+    /// scene, so the integrity gates (tested on their own) are off.
     fn opts(p: &Params) -> Options {
         Options {
             min_inliers: 5,
+            gates: super::super::Gates::OFF,
             ..Options::for_params(p)
         }
     }
@@ -1007,6 +1145,146 @@ mod tests {
         assert_eq!(out.quality.inliers, 0);
     }
 
+    /// Verifies: VTSM-RELOC-031
+    #[test]
+    fn a_success_far_from_the_prior_fails_with_the_prior_gate() {
+        let p = Params {
+            n_iter: 1,
+            ..small_params()
+        };
+        for (x, want) in [
+            (0.55, None),
+            (0.65, Some(FailureCode::RelocPoseOutsidePrior)),
+            (30.0, Some(FailureCode::RelocPoseOutsidePrior)),
+        ] {
+            let solver =
+                FakeSolver::new(move |_, pairs, mask| Ok(even_inliers(at_x(x), pairs, mask)));
+            let o = Options {
+                gates: super::super::Gates {
+                    prior_factor: 3.0,
+                    ..super::super::Gates::OFF
+                },
+                ..opts(&p)
+            };
+            let out = Relocalizer::new(FakeAttempt::ok(), solver, &p, &o, &at_x(0.0), 1)
+                .unwrap()
+                .run_to_completion(0);
+            // t̃₀ = 0.2 m: the gate is at 0.6 m.
+            assert_eq!(out.failure, want, "x = {x}");
+            assert_eq!(out.pose, at_x(x));
+            assert_eq!(out.stats.successes, 1);
+            if let Some(code) = want {
+                assert_eq!(out.log.count(code), 1);
+            }
+        }
+        // Options with a gate out of range are refused.
+        let bad = Options {
+            gates: super::super::Gates {
+                prior_factor: 0.5,
+                ..super::super::Gates::OFF
+            },
+            ..opts(&p)
+        };
+        let solver = FakeSolver::new(|_, _, _| Err(FailureCode::PoseDegenerate));
+        assert_eq!(
+            Relocalizer::new(FakeAttempt::ok(), solver, &p, &bad, &at_x(0.0), 1).err(),
+            Some(FailureCode::ConfigParamOutOfRange)
+        );
+    }
+
+    /// Verifies: VTSM-RELOC-032
+    #[test]
+    fn the_repeated_solve_must_agree_with_the_final_estimate() {
+        let p = Params {
+            n_iter: 1,
+            ..small_params()
+        };
+        let verify = super::super::Verify::for_params(&p);
+        // Tolerance: 2 × inlier gate = 0.1 m.
+        for (second, want) in [
+            (0.03, None),
+            (0.5, Some(FailureCode::RelocVerifyDisagree)),
+            (f32::NAN, Some(FailureCode::RelocVerifyDisagree)),
+        ] {
+            let solver = FakeSolver::new(move |call, pairs, mask| {
+                let x = if call == 0 { 0.0 } else { second };
+                Ok(even_inliers(at_x(x), pairs, mask))
+            });
+            let o = Options { verify, ..opts(&p) };
+            let mut r = Relocalizer::new(FakeAttempt::ok(), solver, &p, &o, &at_x(0.0), 1).unwrap();
+            let out = r.run_to_completion(0);
+            assert_eq!(out.failure, want, "second solve at {second}");
+            // One extra solve on the same pairs (the fake solver is not chunked).
+            let calls = &r.solver_ref().calls;
+            assert_eq!(calls.len(), 2);
+            assert_eq!(calls[0], calls[1]);
+            assert_eq!(out.stats.verify_units, 1);
+            assert_eq!(
+                out.stats.work_units,
+                out.stats.attempts + out.stats.solves + out.stats.verify_units
+            );
+            assert_eq!(out.pose, at_x(0.0));
+            if second.is_finite() {
+                let (dt, _) = out.quality.verify_diff.unwrap();
+                assert!((dt - second).abs() < 1e-6);
+            }
+        }
+        // A repeat that finds no solution is a disagreement too.
+        let solver = FakeSolver::new(|call, pairs, mask| {
+            if call == 0 {
+                Ok(even_inliers(at_x(0.0), pairs, mask))
+            } else {
+                Err(FailureCode::PoseRansacNoConsensus)
+            }
+        });
+        let o = Options { verify, ..opts(&p) };
+        let out = Relocalizer::new(FakeAttempt::ok(), solver, &p, &o, &at_x(0.0), 1)
+            .unwrap()
+            .run_to_completion(0);
+        assert_eq!(out.failure, Some(FailureCode::RelocVerifyDisagree));
+        // Off by default: no second solve.
+        let solver = FakeSolver::new(|_, pairs, mask| Ok(even_inliers(at_x(0.0), pairs, mask)));
+        let mut r =
+            Relocalizer::new(FakeAttempt::ok(), solver, &p, &opts(&p), &at_x(0.0), 1).unwrap();
+        let out = r.run_to_completion(0);
+        assert_eq!(out.failure, None);
+        assert_eq!(r.solver_ref().calls.len(), 1);
+        assert_eq!((out.stats.verify_units, out.quality.verify_diff), (0, None));
+    }
+
+    /// Verifies: VTSM-RELOC-033
+    #[test]
+    fn the_map_recheck_runs_before_a_success_and_fails_it() {
+        let p = Params {
+            n_iter: 1,
+            ..small_params()
+        };
+        for (recheck, on, want) in [
+            (Ok(()), true, None),
+            (
+                Err(FailureCode::RelocMapChanged),
+                true,
+                Some(FailureCode::RelocMapChanged),
+            ),
+            (Err(FailureCode::RelocMapChanged), false, None),
+        ] {
+            let mut attempt = FakeAttempt::ok();
+            attempt.recheck = recheck;
+            let solver = FakeSolver::new(|_, pairs, mask| Ok(even_inliers(at_x(0.0), pairs, mask)));
+            let o = Options {
+                verify: super::super::Verify {
+                    recheck_map: on,
+                    ..super::super::Verify::off(&p)
+                },
+                ..opts(&p)
+            };
+            let mut r = Relocalizer::new(attempt, solver, &p, &o, &at_x(0.0), 1).unwrap();
+            let out = r.run_to_completion(0);
+            assert_eq!(out.failure, want);
+            assert_eq!(r.attempt_ref().rechecks, u32::from(on));
+        }
+    }
+
     /// Verifies: VTSM-RELOC-011
     #[test]
     fn sample_cap_fails_the_iteration() {
@@ -1252,7 +1530,7 @@ mod tests {
                 s.iterations = 50;
                 Ok(s)
             });
-            let o = Options { min_inliers: 3, ..Options::for_params(&p) };
+            let o = Options { min_inliers: 3, gates: super::super::Gates::OFF, ..Options::for_params(&p) };
             let mut r = Relocalizer::new(attempt, solver, &p, &o, &at_x(0.0), seed).unwrap();
             let max = Relocalizer::<FakeAttempt, FakeSolver>::max_work_units(&p);
             let mut calls = 0u64;
@@ -1263,7 +1541,7 @@ mod tests {
             let s = out.stats;
             proptest::prop_assert!(out.failure != Some(FailureCode::RelocBudgetExhausted));
             proptest::prop_assert!(calls <= u64::from(max) + 1);
-            proptest::prop_assert_eq!(s.work_units, s.attempts + s.solves + s.ransac_chunks);
+            proptest::prop_assert_eq!(s.work_units, s.attempts + s.solves + s.ransac_chunks + s.verify_units);
             proptest::prop_assert_eq!(s.ransac_chunks, 0);
             proptest::prop_assert!(s.attempts <= s.rounds * p.attempts_per_iter);
             proptest::prop_assert!(s.successes <= u16::from(p.n_iter));

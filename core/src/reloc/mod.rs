@@ -12,6 +12,13 @@
 //! Output: an [`Outcome`] with the pose, an optional [`FailureCode`], its
 //! [`Quality`] (inliers, RMS, per-iteration history) and work [`Stats`].
 //!
+//! Integrity: a success is reported only when the final estimate passes the
+//! [`Gates`] of [`integrity`] (pose within a factor of the prior's
+//! uncertainty, spread-out inliers, reprojection residual within the
+//! matcher's tolerance), each with its own failure code; [`Verify`] adds the
+//! upset checks (the final solve repeated from a second random stream and
+//! compared, the map product re-checked before the result is returned).
+//!
 //! Bounds: every call to [`Relocalizer::step`] does exactly one work unit (one
 //! attempt, the start of a solve, or one chunk of [`RANSAC_CHUNK`] RANSAC hypotheses); the number of units of a whole run is bounded by
 //! [`Relocalizer::max_work_units`], computed from validated parameters. All
@@ -20,6 +27,7 @@
 //! depend on how the work is split across calls.
 
 mod engine;
+pub mod integrity;
 pub mod pipeline;
 pub mod policy;
 pub mod preflight;
@@ -93,6 +101,16 @@ pub trait Attempt {
         rng: &mut Rng,
         stats: &mut PipelineStats,
     ) -> Result<Correspondence, FailureCode>;
+
+    /// Re-check the inputs the attempts read that can be checked again (the
+    /// map product's CRCs), for [`Verify::recheck_map`]. The default has
+    /// nothing to check.
+    ///
+    /// # Errors
+    /// [`FailureCode::RelocMapChanged`] when a check that passed at load fails now.
+    fn recheck(&mut self) -> Result<(), FailureCode> {
+        Ok(())
+    }
 }
 
 /// GetTransform: robust rigid transform `world_from_left` from pairs.
@@ -204,11 +222,113 @@ pub struct Options {
     /// since the start have produced no correspondence at all (0 = never): the
     /// fast "no fix" for a frame that does not show the map from the prior.
     pub no_evidence_attempts: u32,
+    /// Integrity gates applied to the final estimate before it is reported
+    /// as a success.
+    pub gates: Gates,
+    /// Upset tolerance: repeat the final solve, re-check the map product.
+    pub verify: Verify,
+}
+
+/// Integrity gates on the final estimate ("is this answer the depot seen from
+/// near the prior?"). Each gate that fails ends the run with its own code; the
+/// pose is then returned untrusted. A threshold of 0 turns its gate off.
+///
+/// The thresholds follow from the geometry of the problem, not from tuning:
+/// the prior's stated uncertainty, the size of the scene the inliers must
+/// span to fix a rotation, and the matcher's pixel noise.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Gates {
+    /// The estimate must lie within `prior_factor` × the prior's uncertainty
+    /// of the prior, in translation and in rotation, else
+    /// [`FailureCode::RelocPoseOutsidePrior`]. The uncertainty is (t̃₀, r̃₀),
+    /// or the multi-seed spread when it is larger and seeds are used. 0 = off,
+    /// else [1, 100].
+    pub prior_factor: f32,
+    /// Smallest RMS spread of the final inliers' camera points about their
+    /// centroid, across their principal direction (√λ₂ of their scatter),
+    /// metres, else [`FailureCode::RelocInliersDegenerate`]. 0 = off, else ≤ 100.
+    pub min_spread_m: f32,
+    /// Largest RMS reprojection residual of the final inliers, pixels per
+    /// observation, else [`FailureCode::RelocResidualHigh`] (checked only
+    /// when the final refinement ran). 0 = off, else ≤ 1000.
+    pub max_reproj_px: f32,
+}
+
+impl Gates {
+    /// Every gate off: acceptance is the inlier count alone.
+    pub const OFF: Gates = Gates {
+        prior_factor: 0.0,
+        min_spread_m: 0.0,
+        max_reproj_px: 0.0,
+    };
+
+    fn validate(&self) -> bool {
+        let off_or = |v: f32, lo: f32, hi: f32| v == 0.0 || (v.is_finite() && v >= lo && v <= hi);
+        off_or(self.prior_factor, 1.0, 100.0)
+            && off_or(self.min_spread_m, 0.0, 100.0)
+            && off_or(self.max_reproj_px, 0.0, 1000.0)
+    }
+}
+
+/// Upset tolerance in the style of onboard localization that runs a
+/// computation twice and compares before trusting it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Verify {
+    /// After the final estimate, run GetTransform again on the same
+    /// correspondences with a second random stream, refine it the same way,
+    /// and fail with [`FailureCode::RelocVerifyDisagree`] when the two poses
+    /// differ by more than `tolerance_m` or `tolerance_rad`. Costs one more
+    /// solve (at most ⌈ransac_iter / RANSAC_CHUNK⌉ + 1 work units).
+    pub repeat_solve: bool,
+    /// Translation tolerance of `repeat_solve`, metres, > 0.
+    pub tolerance_m: f32,
+    /// Rotation tolerance of `repeat_solve`, radians, > 0.
+    pub tolerance_rad: f32,
+    /// Re-check the map product's CRCs before a success is returned (it was
+    /// checked at load), else [`FailureCode::RelocMapChanged`]. Costs one
+    /// pass over the map bytes in the last work unit.
+    pub recheck_map: bool,
+}
+
+impl Verify {
+    /// Nothing repeated; tolerances of [`Verify::for_params`].
+    pub fn off(params: &Params) -> Self {
+        let refine = crate::pose::RefineConfig::from_params(params);
+        Self {
+            repeat_solve: false,
+            tolerance_m: refine.max_step_m,
+            tolerance_rad: refine.max_step_rad,
+            recheck_map: false,
+        }
+    }
+
+    /// Both checks on; tolerances are the final refinement's safeguard
+    /// (2 × the RANSAC inlier gate, [`crate::pose::DEFAULT_MAX_STEP_RAD`]):
+    /// more than a consistent inlier set moves a pose, less than a different
+    /// solution.
+    pub fn for_params(params: &Params) -> Self {
+        Self {
+            repeat_solve: true,
+            recheck_map: true,
+            ..Self::off(params)
+        }
+    }
+
+    fn validate(&self) -> bool {
+        let pos = |v: f32| v.is_finite() && v > 0.0;
+        pos(self.tolerance_m) && pos(self.tolerance_rad)
+    }
 }
 
 impl Options {
     /// Defaults for `params`: at least 30 % of N_corr as inliers, seeds within
-    /// 0.5 m / 1.5°, and no evidence after max(4·N_corr, 200) attempts.
+    /// 0.5 m / 1.5°, no evidence after max(4·N_corr, 200) attempts; the
+    /// integrity gates on (prior factor [`DEFAULT_PRIOR_FACTOR`]; inlier
+    /// spread at least the RANSAC inlier gate `inlier_m`, below which the
+    /// inliers are a line within the gate's own tolerance; reprojection RMS at
+    /// most the Valid step's row tolerance `epsilon_px`, beyond which the
+    /// inliers are not a consistent set of stereo matches); the upset checks
+    /// off ([`Verify::off`]).
     ///
     /// The no-evidence cap is far above what a frame of the depot needs: on
     /// the simulated and the other renderer's pairs a correspondence comes
@@ -221,6 +341,12 @@ impl Options {
             seed_r_deg: params.r0_deg,
             budget: Budget::UNLIMITED,
             no_evidence_attempts: (4 * u32::from(params.n_corr)).max(200),
+            gates: Gates {
+                prior_factor: DEFAULT_PRIOR_FACTOR,
+                min_spread_m: params.inlier_m,
+                max_reproj_px: params.epsilon_px,
+            },
+            verify: Verify::off(params),
         }
     }
 
@@ -231,7 +357,9 @@ impl Options {
             && self.seed_t_m <= 5.0
             && self.seed_r_deg.is_finite()
             && self.seed_r_deg > 0.0
-            && self.seed_r_deg <= 45.0;
+            && self.seed_r_deg <= 45.0
+            && self.gates.validate()
+            && self.verify.validate();
         if ok {
             Ok(())
         } else {
@@ -240,6 +368,12 @@ impl Options {
     }
 }
 
+/// Default [`Gates::prior_factor`]: the truth lies within the prior's
+/// uncertainty by the prior's contract, and the estimate within a few
+/// centimetres of the truth; 3× leaves room for a prior that understates its
+/// uncertainty up to 3 times (the `uncertainty50` priors, 0.25–0.50 m against
+/// t̃₀ = 0.20 m, still pass) while a pose metres away does not.
+pub const DEFAULT_PRIOR_FACTOR: f32 = 3.0;
 /// Number of template variants counted in [`PipelineStats::matches`]:
 /// size (ℓ, ℓ/2) × filter (gray, Sobel, Laplacian), index `size * 3 + filter`.
 pub const MATCH_VARIANTS: usize = 6;
@@ -296,6 +430,9 @@ pub struct Stats {
     pub seeds_tried: u16,
     /// Final refinement counters (all zero when it did not run).
     pub refine: crate::pose::RefineStats,
+    /// Work units spent on [`Verify::repeat_solve`] (its solve start and
+    /// RANSAC chunks); 0 when it did not run.
+    pub verify_units: u32,
     /// Pipeline counters.
     pub pipeline: PipelineStats,
 }
@@ -336,6 +473,12 @@ pub struct Quality {
     /// RMS reprojection residual of the inliers under `pose`, pixels per
     /// observation (0 if the final refinement did not run).
     pub reproj_rms_px: f32,
+    /// RMS spread of the inliers' camera points across their principal
+    /// direction (√λ₂ of their scatter about the centroid), metres.
+    pub spread_m: f32,
+    /// Translation and rotation (radians) between the final pose and the
+    /// repeated solve of [`Verify::repeat_solve`]; `None` if it did not run.
+    pub verify_diff: Option<(f32, f32)>,
 }
 
 /// The result of a relocalization.

@@ -411,6 +411,14 @@ impl Attempt for Pipeline<'_, '_> {
         let pixels = self.match_pair(&sample, templates, windows, stats)?;
         self.stereo(&sample, pixels, stats)
     }
+
+    /// Every check of [`MapView::new_checked`] again, on the same bytes: an
+    /// upset of the map in memory since load shows as a failed CRC.
+    fn recheck(&mut self) -> Result<(), FailureCode> {
+        MapView::new_checked(self.map.bytes())
+            .map(|_| ())
+            .map_err(|_| FailureCode::RelocMapChanged)
+    }
 }
 
 #[cfg(test)]

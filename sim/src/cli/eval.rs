@@ -17,6 +17,16 @@
 //!   multi-seed mode (`Params.seeds = K`).
 //! - `stepsize`: maps restricted to what sub-sampled wave and forward mapping
 //!   paths see (see [`restrict_to_views`]); reports range to the nearest view.
+//! - `wrongplace`: inputs that must not give a confident answer, per terrain:
+//!   the correct pair with small parameters (N_corr 27, N_iter 1, reseed cap
+//!   3; priors 10–20 cm), the same with a "right" image that is the left one
+//!   shifted by [`SHIFT_PX`] pixels (prior at the truth), frames taken at
+//!   another stop of the grid with the prior of this one, and frames of the
+//!   next terrain's depot at this stop (two or more terrains).
+//!
+//! Every suite ends with an integrity table: successes, and successes whose
+//! true error exceeds [`WRONG_T_MM`] or [`WRONG_R_DEG`] ("confident wrong";
+//! on `wrongplace` frames of another depot, every success).
 //!
 //! `--origin X,Y,Z` offsets the whole scene (mesh, priors, truths) by that
 //! vector: maps are built from the offset mesh through the file readers' path
@@ -59,6 +69,17 @@ pub const SHORT_BASELINE_M: f32 = 0.20;
 pub const PRIOR_M: (f32, f32) = (0.10, 0.20);
 /// Prior translation range of `uncertainty50`, metres.
 pub const PRIOR_50_M: (f32, f32) = (0.25, 0.50);
+/// A success whose true translation error exceeds this is confident wrong, mm:
+/// the smallest displacement of the evaluation priors, so such an answer is
+/// no better than the prior it started from.
+pub const WRONG_T_MM: f64 = 100.0;
+/// A success whose true rotation error exceeds this is confident wrong,
+/// degrees: the largest rotation of the evaluation priors.
+pub const WRONG_R_DEG: f64 = 1.5;
+/// Shift of the "right" image of the `wrongplace` suite, pixels (test
+/// profile; scaled with the image width).
+pub const SHIFT_PX: u32 = 4;
+
 /// Largest prior rotation, degrees (all suites).
 pub const PRIOR_MAX_DEG: f32 = 1.5;
 /// A map triangle counts as seen by a mapping view when its centroid is within
@@ -70,7 +91,7 @@ pub const TILE_M: f32 = 0.5;
 /// Arguments of `vtsm eval`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
-    /// Suite: paper, baseline, uncertainty50 or stepsize.
+    /// Suite: paper, baseline, uncertainty50, stepsize or wrongplace.
     #[arg(long)]
     pub suite: String,
     /// Trials per group.
@@ -152,6 +173,8 @@ pub enum Suite {
     Uncertainty50,
     /// Maps restricted to sub-sampled mapping paths.
     Stepsize,
+    /// Inputs that do not show the map from the prior.
+    Wrongplace,
 }
 
 impl Suite {
@@ -162,6 +185,7 @@ impl Suite {
             "baseline" => Some(Self::Baseline),
             "uncertainty50" => Some(Self::Uncertainty50),
             "stepsize" => Some(Self::Stepsize),
+            "wrongplace" => Some(Self::Wrongplace),
             _ => None,
         }
     }
@@ -173,6 +197,7 @@ impl Suite {
             Self::Baseline => "baseline",
             Self::Uncertainty50 => "uncertainty50",
             Self::Stepsize => "stepsize",
+            Self::Wrongplace => "wrongplace",
         }
     }
 }
@@ -214,7 +239,7 @@ impl SuiteConfig {
             seed,
             profile,
             terrains: TerrainKind::ALL.to_vec(),
-            hours: if suite == Suite::Uncertainty50 {
+            hours: if matches!(suite, Suite::Uncertainty50 | Suite::Wrongplace) {
                 vec![0.0]
             } else {
                 vec![0.0, 3.0, 6.0]
@@ -257,6 +282,24 @@ struct Group {
     seeds: u16,
     method: Method,
     extra: Vec<(&'static str, f64)>,
+    /// What the relocalizer is given as frames.
+    frames: Frames,
+    /// Small parameters (N_corr 27, N_iter 1, reseed cap 3).
+    small: bool,
+}
+
+/// The frames of a trial (`wrongplace` varies them).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Frames {
+    /// The capture of the trial.
+    Truth,
+    /// The left image of the capture as both images, the right one shifted
+    /// left by this many pixels; the prior is the truth.
+    ShiftedRight(u32),
+    /// The capture at the stop half the grid away, prior from this stop.
+    OtherSpot,
+    /// The capture at this stop in the depot of terrain index `.0`.
+    OtherDepot(usize),
 }
 
 /// One map product and the mapping views its distances are measured to.
@@ -441,7 +484,7 @@ fn hours_label(h: f32) -> String {
 pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
     let suite = Suite::parse(&args.suite).ok_or_else(|| {
         Error::msg(format!(
-            "unknown --suite `{}` (paper, baseline, uncertainty50, stepsize)",
+            "unknown --suite `{}` (paper, baseline, uncertainty50, stepsize, wrongplace)",
             args.suite
         ))
     })?;
@@ -549,7 +592,7 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
     let mut groups: Vec<Group> = Vec::new();
     let wave_views = |s: &Scene| mapping_trajectory(&s.terrain, Trajectory::Wave, 1);
     match cfg.suite {
-        Suite::Paper | Suite::Baseline | Suite::Uncertainty50 => {
+        Suite::Paper | Suite::Baseline | Suite::Uncertainty50 | Suite::Wrongplace => {
             let full: Vec<MapEntry> = scenes
                 .par_iter()
                 .zip(&full_meshes)
@@ -566,6 +609,53 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
             for (t, kind) in cfg.terrains.iter().enumerate() {
                 for (hi, &h) in live_hours.iter().enumerate() {
                     let base = format!("{} {}", kind.name(), hours_label(h));
+                    if cfg.suite == Suite::Wrongplace {
+                        let n = cfg.terrains.len();
+                        let shift = SHIFT_PX * (scenes[t].camera().width / 480).max(1);
+                        let mut kinds = vec![
+                            ("correct, small params".to_string(), Frames::Truth),
+                            (
+                                format!("right = left shifted {shift} px, small params"),
+                                Frames::ShiftedRight(shift),
+                            ),
+                            ("another spot".to_string(), Frames::OtherSpot),
+                            ("another spot, small params".to_string(), Frames::OtherSpot),
+                        ];
+                        if n > 1 {
+                            let o = (t + 1) % n;
+                            let other = cfg.terrains[o].name();
+                            kinds.push((format!("{other} depot"), Frames::OtherDepot(o)));
+                            kinds.push((
+                                format!("{other} depot, small params"),
+                                Frames::OtherDepot(o),
+                            ));
+                        }
+                        for (name, frames) in kinds {
+                            groups.push(Group {
+                                small: name.ends_with("small params"),
+                                label: format!("{base} {name}"),
+                                terrain: t,
+                                map: t,
+                                light: light_of(t, hi),
+                                baseline_m: MAIN_BASELINE_M,
+                                prior_m: PRIOR_M,
+                                seeds: 0,
+                                method: Method::Vtsm,
+                                extra: vec![
+                                    ("hours", f64::from(h)),
+                                    (
+                                        "wrong_place",
+                                        f64::from(u8::from(matches!(
+                                            frames,
+                                            Frames::OtherDepot(_)
+                                        ))),
+                                    ),
+                                ],
+                                frames,
+                            });
+                        }
+                        continue;
+                    }
                     let mut push = |label: String, baseline_m, prior_m, seeds: u16| {
                         groups.push(Group {
                             label,
@@ -577,6 +667,8 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
                             seeds,
                             method: Method::Vtsm,
                             extra: vec![("hours", f64::from(h)), ("seeds_k", f64::from(seeds))],
+                            frames: Frames::Truth,
+                            small: false,
                         });
                     };
                     match cfg.suite {
@@ -648,6 +740,8 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
                         ("step", step as f64),
                         ("forward", f64::from(u8::from(traj == Trajectory::Forward))),
                     ],
+                    frames: Frames::Truth,
+                    small: false,
                 });
             }
         }
@@ -736,8 +830,35 @@ fn run_trial(
     let seed = trial_seed(cfg.seed, s.k);
     let capture = capture_for_trial(s.k, cfg.trials, g.baseline_m);
     let (scene, light, map) = (&scenes[g.terrain], &lights[g.light], &maps[g.map]);
-    let (rig, truth, pair) = scene.capture(light, &capture);
-    let prior = prior_in_range(&truth, seed, g.prior_m);
+    let (rig, here, mut pair) = scene.capture(light, &capture);
+    let mut prior = prior_in_range(&here, seed, g.prior_m);
+    // `truth`: where the frames were taken (the errors are measured to it).
+    let truth = match g.frames {
+        Frames::Truth => here,
+        Frames::ShiftedRight(d) => {
+            pair.right = shifted_left(&pair.left, pair.width as usize, d as usize);
+            prior = here;
+            here
+        }
+        Frames::OtherSpot => {
+            let stops = 2 * STOPS_PER_CIRCLE;
+            let k = capture.circle * STOPS_PER_CIRCLE + capture.stop;
+            let other = Capture {
+                circle: ((k + stops / 2) % stops) / STOPS_PER_CIRCLE,
+                stop: ((k + stops / 2) % stops) % STOPS_PER_CIRCLE,
+                ..capture
+            };
+            let (_, there, p) = scene.capture(light, &other);
+            pair = p;
+            there
+        }
+        Frames::OtherDepot(o) => {
+            let hours = live_hour_index(g.light, scenes.len(), lights.len());
+            let (_, there, p) = scenes[o].capture(&lights[o * hours.1 + hours.0], &capture);
+            pair = p;
+            there
+        }
+    };
     // With --origin: truth and prior in the offset (user) frame, the prior given
     // to the relocalizer in the map's local frame, errors measured in f64.
     let truth_user = cfg
@@ -813,6 +934,11 @@ fn run_trial(
     }
     let mut params = locate::params_for_width(rig.cam().width());
     params.seeds = g.seeds;
+    if g.small {
+        params.n_corr = 27;
+        params.n_iter = 1;
+        params.max_reseed = 3;
+    }
     let req = Request {
         map: bytes,
         left: &pair.left,
@@ -865,6 +991,16 @@ fn run_trial(
                 ("stalls", u32::from(out.stats.stalls)),
                 ("reseeds", u32::from(out.stats.reseeds)),
                 ("refine_accepted", u32::from(out.stats.refine.accepted)),
+            ] {
+                o.extra.insert(k.into(), f64::from(v));
+            }
+            // What the integrity gates saw, to show their margins.
+            let (dt, dr) = vtsm_core::reloc::integrity::distance_to(&prior, &out.pose);
+            for (k, v) in [
+                ("spread_m", out.quality.spread_m),
+                ("reproj_px", out.quality.reproj_rms_px),
+                ("prior_dt_m", dt),
+                ("prior_dr_deg", dr.to_degrees()),
             ] {
                 o.extra.insert(k.into(), f64::from(v));
             }
@@ -921,6 +1057,21 @@ pub fn covariance_check(
 const COLORS: [&str; 6] = [
     "#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#17becf",
 ];
+
+/// `img` (`width` wide) shifted left by `d` pixels, the last columns
+/// repeating the edge: every pixel at disparity `d`.
+fn shifted_left(img: &[u8], width: usize, d: usize) -> Vec<u8> {
+    img.chunks(width.max(1))
+        .flat_map(|row| (0..row.len()).map(move |x| row[(x + d).min(row.len() - 1)]))
+        .collect()
+}
+
+/// (hour index, hours per terrain) of lighting index `light`, given that
+/// lightings are laid out terrain-major over the same hours.
+fn live_hour_index(light: usize, terrains: usize, lights: usize) -> (usize, usize) {
+    let per = (lights / terrains.max(1)).max(1);
+    (light % per, per)
+}
 
 fn extra(o: &TrialOutcome, k: &str) -> f64 {
     o.extra.get(k).copied().unwrap_or(f64::NAN)
@@ -1097,8 +1248,98 @@ fn breakdowns(cfg: &SuiteConfig, outcomes: &[TrialOutcome]) -> (String, Vec<(Str
             ));
             notes = range_table(outcomes);
         }
+        Suite::Wrongplace => {}
     }
+    notes.push_str(&integrity_table(outcomes));
     (notes, plots)
+}
+
+/// Codes of the integrity gates on the final estimate. They act only in the
+/// last work unit, after the search, so a trial that ended in one of them is
+/// exactly a trial that reported success before the gates existed.
+pub const GATE_CODES: [&str; 3] = [
+    "RELOC_POSE_OUTSIDE_PRIOR",
+    "RELOC_INLIERS_DEGENERATE",
+    "RELOC_RESIDUAL_HIGH",
+];
+
+/// Whether the trial would have reported success without the integrity gates.
+pub fn success_without_gates(o: &TrialOutcome) -> bool {
+    o.success
+        || o.failure
+            .as_deref()
+            .is_some_and(|f| GATE_CODES.contains(&f))
+}
+
+/// Whether a trial whose success is `success` is a confident wrong answer: a
+/// success whose true error exceeds [`WRONG_T_MM`] or [`WRONG_R_DEG`], or any
+/// success on frames of another depot (extra `wrong_place` = 1).
+pub fn confident_wrong(o: &TrialOutcome, success: bool) -> bool {
+    success
+        && (o.final_t_mm.is_nan()
+            || o.final_t_mm > WRONG_T_MM
+            || o.final_r_deg.is_nan()
+            || o.final_r_deg > WRONG_R_DEG
+            || extra(o, "wrong_place") == 1.0)
+}
+
+/// Per group: trials; successes and confident wrong answers without the
+/// integrity gates (gate codes counted as successes) and with them; the
+/// successes beyond 50 mm (the paper's accuracy threshold) for reference;
+/// the failure codes.
+pub fn integrity_table(outcomes: &[TrialOutcome]) -> String {
+    let mut s = format!(
+        "\nIntegrity: confident wrong = success with true error > {WRONG_T_MM} mm or > {WRONG_R_DEG}° (any success on another depot's frames); \"without gates\" counts the integrity-gate codes as successes (the acceptance before the gates, same trials):\n\n| group | trials | successes without gates | confident wrong without gates | successes | confident wrong | successes > 50 mm | failure codes |\n|---|---:|---:|---:|---:|---:|---:|---|\n"
+    );
+    let mut order: Vec<&str> = Vec::new();
+    for o in outcomes {
+        if !order.contains(&o.group.as_str()) {
+            order.push(&o.group);
+        }
+    }
+    let mut total = [0usize; 6];
+    for g in order {
+        let rows: Vec<&TrialOutcome> = outcomes.iter().filter(|o| o.group == g).collect();
+        let before = rows.iter().filter(|o| success_without_gates(o)).count();
+        let wrong_before = rows
+            .iter()
+            .filter(|o| confident_wrong(o, success_without_gates(o)))
+            .count();
+        let ok = rows.iter().filter(|o| o.success).count();
+        let wrong = rows
+            .iter()
+            .filter(|o| confident_wrong(o, o.success))
+            .count();
+        let over = rows
+            .iter()
+            .filter(|o| o.success && o.final_t_mm > 50.0)
+            .count();
+        let mut codes: BTreeMap<&str, usize> = BTreeMap::new();
+        for o in &rows {
+            if let Some(f) = &o.failure {
+                *codes.entry(f.as_str()).or_default() += 1;
+            }
+        }
+        let codes: Vec<String> = codes.iter().map(|(c, n)| format!("{c} ×{n}")).collect();
+        let _ = writeln!(
+            s,
+            "| {g} | {} | {before} | {wrong_before} | {ok} | {wrong} | {over} | {} |",
+            rows.len(),
+            codes.join(", ")
+        );
+        for (t, v) in total
+            .iter_mut()
+            .zip([rows.len(), before, wrong_before, ok, wrong, over])
+        {
+            *t += v;
+        }
+    }
+    let [tt, tb, twb, ts, tw, t50] = total;
+    let _ = writeln!(
+        s,
+        "| **all** | {tt} | {tb} | {twb} | {ts} | {tw} | {t50} | |"
+    );
+    s
 }
 
 /// VTSM and a baseline next to each other, one row per VTSM group (the
