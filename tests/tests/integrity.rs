@@ -44,8 +44,8 @@ fn depot() -> &'static Depot {
 fn pair(map: &[u8], pose: &Pose) -> (Vec<u8>, Vec<u8>) {
     let view = MapView::new_checked(map).unwrap();
     let rig = testkit::rig();
-    let left = testkit::render_full(&view, &rig.cam, pose, 0.85, 20.0);
-    let right = testkit::render_full(&view, &rig.cam, &rig.world_from_right(pose), 0.85, 20.0);
+    let left = testkit::render_full(&view, &rig.cam(), pose, 0.85, 20.0);
+    let right = testkit::render_full(&view, &rig.cam(), &rig.world_from_right(pose), 0.85, 20.0);
     (left, right)
 }
 

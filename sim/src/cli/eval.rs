@@ -611,7 +611,7 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
                     let base = format!("{} {}", kind.name(), hours_label(h));
                     if cfg.suite == Suite::Wrongplace {
                         let n = cfg.terrains.len();
-                        let shift = SHIFT_PX * (scenes[t].camera().width / 480).max(1);
+                        let shift = SHIFT_PX * (scenes[t].camera().width() / 480).max(1);
                         let mut kinds = vec![
                             ("correct, small params".to_string(), Frames::Truth),
                             (
