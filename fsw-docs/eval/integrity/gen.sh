@@ -8,7 +8,7 @@ head=open('fsw-docs/eval/integrity/head.md').read()
 def margins(paths):
     rows=[]
     for p in paths:
-        try: rows+=[r for r in csv.DictReader(open(p)) if r['success']=='true' and r.get('spread_m')]
+        try: rows+=[r for r in csv.DictReader(open(p)) if r['success']=='true' and r.get('spread_m') and float(r['final_t_mm'])<=100 and float(r['final_r_deg'])<=1.5 and r.get('wrong_place')!='1.0000']
         except FileNotFoundError: pass
     f=lambda k:[float(r[k]) for r in rows]
     return rows,f
@@ -18,7 +18,7 @@ suites=[x for x in suites if os.path.exists(f'/tmp/integ/after-{x[0]}-t{x[1]}/ta
 paths=[f'/tmp/integ/after-{s}-t{n}/trials.csv' for s,n in suites]
 rows,f=margins(paths)
 if rows:
-    head=head.replace('MARGIN_PRIOR','largest distance %.3f m, %.2f° (%d successes)'%(max(f('prior_dt_m')),max(f('prior_dr_deg')),len(rows)))
+    head=head.replace('MARGIN_PRIOR','largest distance %.3f m, %.2f° (%d correct successes)'%(max(f('prior_dt_m')),max(f('prior_dr_deg')),len(rows)))
     head=head.replace('MARGIN_SPREAD','smallest %.3f m'%min(f('spread_m')))
     head=head.replace('MARGIN_REPROJ','largest %.2f px'%max(f('reproj_px')))
 GATES=("RELOC_POSE_OUTSIDE_PRIOR","RELOC_INLIERS_DEGENERATE","RELOC_RESIDUAL_HIGH")
