@@ -20,7 +20,9 @@ pub fn spread_m(pairs: &[Correspondence], mask: &[bool]) -> f32 {
     let mut n = 0u32;
     let mut c = [0.0f64; 3];
     for (p, _) in pairs.iter().zip(mask).filter(|(_, m)| **m) {
-        n += 1;
+        // At most `pairs.len()` ≤ MAX_CORR: saturating only keeps the count
+        // free of an overflow panic path.
+        n = n.saturating_add(1);
         for (k, ck) in c.iter_mut().enumerate() {
             *ck += f64::from(p.cam.get(k).copied().unwrap_or(0.0));
         }
