@@ -10,9 +10,11 @@
 //! ```
 //!
 //! Options: `--target NAME[,NAME..]|all|parsers|stages`, `--iters N` (per target),
-//! `--stage-iters N` (per stage target; default `--iters`), `--seconds T` (cap
+//! `--stage-iters N` (per stage target; default `--iters`), `--iters-for NAME=N`
+//! (one target; repeatable), `--seconds T` (cap
 //! per target), `--seed S`, `--jobs J` (targets run in parallel, each on one
-//! thread; results do not depend on it), `--corpus DIR`, `--crash-dir DIR`,
+//! thread, in the order given; results do not depend on it; the report lists
+//! them in the order of `fuzz::TARGETS`), `--corpus DIR`, `--crash-dir DIR`,
 //! `--write FILE`, `--verbose` (every outcome label). Exit code 1 when a target
 //! crashed; the crashing input is in the crash directory. In the release
 //! profile a panic aborts the process after the input is written.
@@ -28,6 +30,7 @@ struct Opts {
     targets: Vec<&'static FuzzTarget>,
     iters: u64,
     stage_iters: Option<u64>,
+    iters_for: Vec<(String, u64)>,
     seconds: Option<f64>,
     seed: u64,
     jobs: usize,
@@ -42,7 +45,7 @@ struct Opts {
 fn usage(msg: &str) -> ! {
     eprintln!("fuzz: {msg}");
     eprintln!(
-        "usage: fuzz [--target NAME[,NAME..]|all|parsers|stages] [--iters N] [--stage-iters N] \
+        "usage: fuzz [--target NAME[,NAME..]|all|parsers|stages] [--iters N] [--stage-iters N] [--iters-for NAME=N].. \
          [--seconds T] [--seed S] [--jobs J] [--corpus DIR] [--crash-dir DIR] [--write FILE] \
          [--verbose] | --target NAME --replay FILE | --make-corpus DIR"
     );
@@ -63,6 +66,7 @@ fn parse_args(args: &[String]) -> Opts {
         targets: TARGETS.iter().collect(),
         iters: 10_000,
         stage_iters: None,
+        iters_for: Vec::new(),
         seconds: None,
         seed: 1,
         jobs: 1,
@@ -103,6 +107,16 @@ fn parse_args(args: &[String]) -> Opts {
             }
             "--iters" => o.iters = num(val()),
             "--stage-iters" => o.stage_iters = Some(num(val())),
+            "--iters-for" => {
+                let v = val();
+                let Some((name, n)) = v.split_once('=') else {
+                    usage(&format!("--iters-for: `{v}` is not NAME=N"));
+                };
+                if fuzz::target(name).is_none() {
+                    usage(&format!("--iters-for: unknown target `{name}`"));
+                }
+                o.iters_for.push((name.to_string(), num(n.to_string())));
+            }
             "--seconds" => {
                 let v = val();
                 o.seconds = Some(
@@ -188,10 +202,12 @@ fn fmt_count(n: u64) -> String {
 }
 
 fn limits_for(o: &Opts, t: &FuzzTarget) -> Limits {
+    let by_name = o.iters_for.iter().rev().find(|(n, _)| n == t.name);
     Limits {
-        iters: match t.kind {
-            Kind::Parser => o.iters,
-            Kind::Stage => o.stage_iters.unwrap_or(o.iters),
+        iters: match (by_name, t.kind) {
+            (Some((_, n)), _) => *n,
+            (None, Kind::Parser) => o.iters,
+            (None, Kind::Stage) => o.stage_iters.unwrap_or(o.iters),
         },
         time: o.seconds.map(Duration::from_secs_f64),
     }
@@ -254,6 +270,10 @@ fn print_line(t: &FuzzTarget, s: &Stats, verbose: bool) {
 
 fn markdown(o: &Opts, args: &[String], stats: &[Stats], start: &str, load0: &str) -> String {
     let mut s = String::new();
+    let order = |t: &FuzzTarget| TARGETS.iter().position(|x| x.name == t.name);
+    let mut rows: Vec<(&FuzzTarget, &Stats)> =
+        o.targets.iter().copied().zip(stats.iter()).collect();
+    rows.sort_by_key(|(t, _)| order(t));
     let cmd = format!(
         "cargo run --release -p vtsm-tests --bin fuzz -- {}",
         args.join(" ")
@@ -284,17 +304,18 @@ fn markdown(o: &Opts, args: &[String], stats: &[Stats], start: &str, load0: &str
         o.seed,
         o.jobs
     ));
-    s.push_str("| target | kind | executions | exec/s | accepted | rejected | distinct errors | crashes |\n");
-    s.push_str("|---|---|---:|---:|---:|---:|---:|---:|\n");
-    for (t, st) in o.targets.iter().zip(stats) {
+    s.push_str("| target | kind | executions | seconds | exec/s | accepted | rejected | distinct errors | crashes |\n");
+    s.push_str("|---|---|---:|---:|---:|---:|---:|---:|---:|\n");
+    for (t, st) in &rows {
         s.push_str(&format!(
-            "| `{}` | {} | {} | {:.0} | {} | {} | {} | {} |\n",
+            "| `{}` | {} | {} | {:.1} | {:.0} | {} | {} | {} | {} |\n",
             t.name,
             match t.kind {
                 Kind::Parser => "parser",
                 Kind::Stage => "stage",
             },
             fmt_count(st.execs),
+            st.elapsed.as_secs_f64(),
             st.rate(),
             fmt_count(st.accepted),
             fmt_count(st.rejected),
@@ -310,7 +331,7 @@ fn markdown(o: &Opts, args: &[String], stats: &[Stats], start: &str, load0: &str
         crashes
     ));
     s.push_str("## Targets\n\n| target | drives |\n|---|---|\n");
-    for t in &o.targets {
+    for (t, _) in &rows {
         s.push_str(&format!(
             "| `{}` | {} |\n",
             t.name,
@@ -322,7 +343,7 @@ fn markdown(o: &Opts, args: &[String], stats: &[Stats], start: &str, load0: &str
          reader's message with quoted text and numbers blanked; `accepted` when the\n\
          input was taken).\n",
     );
-    for (t, st) in o.targets.iter().zip(stats) {
+    for (t, st) in &rows {
         let mut v: Vec<(&String, &u64)> = st.outcomes.iter().collect();
         v.sort_by(|a, b| b.1.cmp(a.1).then(a.0.cmp(b.0)));
         s.push_str(&format!(
