@@ -2,7 +2,10 @@
 //!
 //! This library holds what those tests share with the `failure_table` tool:
 //! the generator of `fsw-docs/failure-codes.md` and the parsers of the
-//! requirement tables and `Verifies:` tags.
+//! requirement tables and `Verifies:` tags; and the seeded mutation fuzzer
+//! ([`fuzz`]) run by `tests/tests/fuzz_smoke.rs` and the `fuzz` tool.
+
+pub mod fuzz;
 
 pub mod upsets;
 
