@@ -185,12 +185,12 @@ fn known_bad_inputs_get_their_codes() {
         "NCC_TEMPLATE_SIZE_INVALID"
     ));
     let mut render_in = vec![0u8; 64];
-    render_in[0] = 16; // struct-literal camera and pose from the input, window in the image
+    render_in[0] = 16; // camera values and pose from the input, window in the image
     render_in[1] = 0; // fx: special value ...
     render_in[2] = 0; // ... NaN
     assert!(rejected_with(
         &verdict("render", &env, &render_in),
-        "RASTER_CAMERA_INVALID"
+        "STEREO_RIG_INVALID"
     ));
     let mut reloc_in = vec![0u8; 96];
     reloc_in[0] = 3; // rendered frames, arbitrary prior (mode / 8 % 4 == 0)

@@ -128,7 +128,7 @@ pub fn camera_pose(x: f32, y: f32) -> Pose {
 }
 
 fn render_full(map: &MapView, rig: &StereoRig, pose: &Pose) -> Vec<u8> {
-    let (w, h) = (rig.cam.width as usize, rig.cam.height as usize);
+    let (w, h) = (rig.cam().width() as usize, rig.cam().height() as usize);
     let (mut inten, mut depth, mut md) = (vec![0u8; w * h], vec![0u32; w * h], vec![0u32; w * h]);
     let mut t = Target {
         intensity: &mut inten,
@@ -137,7 +137,7 @@ fn render_full(map: &MapView, rig: &StereoRig, pose: &Pose) -> Vec<u8> {
     };
     let _ = raster::render_window(
         map,
-        &rig.cam,
+        &rig.cam(),
         pose,
         Rect::new(0, 0, w as u32, h as u32),
         &mut t,
@@ -148,7 +148,7 @@ fn render_full(map: &MapView, rig: &StereoRig, pose: &Pose) -> Vec<u8> {
 /// The stereo pair of `map` seen by `rig` from `truth` (left, right); blank
 /// images if the map is rejected.
 pub fn render_pair(map: &[u8], rig: &StereoRig, truth: &Pose) -> (Vec<u8>, Vec<u8>) {
-    let n = rig.cam.width as usize * rig.cam.height as usize;
+    let n = rig.cam().width() as usize * rig.cam().height() as usize;
     let Ok(m) = MapView::new_checked(map) else {
         return (vec![0; n], vec![0; n]);
     };

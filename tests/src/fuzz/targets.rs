@@ -525,8 +525,8 @@ fn near_pose(t: &mut Take, base: &Pose, t_m: f32, r_rad: f32) -> Pose {
 pub const RENDER_HEADER: usize = 64;
 
 /// `raster::render_window` of a parsed map (the environment's tiny map, or the
-/// input's own after reseal) from an arbitrary camera (struct literal, any
-/// values), pose (NaN and non-unit quaternions included) and window, into
+/// input's own after reseal) from an arbitrary camera (any values, through
+/// `Camera::new`), pose (NaN and non-unit quaternions included) and window, into
 /// buffers of arbitrary size; then `raster::template_mask` with arbitrary
 /// sizes over those buffers.
 pub fn render(env: &Env, d: &[u8]) -> Verdict {
@@ -534,24 +534,26 @@ pub fn render(env: &Env, d: &[u8]) -> Verdict {
     let mut t = Take::new(head);
     let mode = t.u8();
     let cam = if mode % 4 == 0 {
-        Camera {
-            fx: t.f32(-10.0, 2000.0),
-            fy: t.f32(-10.0, 2000.0),
-            cx: t.f32(-20000.0, 20000.0),
-            cy: t.f32(-20000.0, 20000.0),
-            width: if t.u8() % 2 == 0 {
-                t.u32()
-            } else {
-                t.range(0, 400)
-            },
-            height: if t.u8() % 2 == 0 {
-                t.u32()
-            } else {
-                t.range(0, 400)
-            },
+        // Any values: `Camera::new` is the only way to a camera, so values
+        // outside its ranges end here with its code.
+        let (fx, fy) = (t.f32(-10.0, 2000.0), t.f32(-10.0, 2000.0));
+        let (cx, cy) = (t.f32(-20000.0, 20000.0), t.f32(-20000.0, 20000.0));
+        let width = if t.u8() % 2 == 0 {
+            t.u32()
+        } else {
+            t.range(0, 400)
+        };
+        let height = if t.u8() % 2 == 0 {
+            t.u32()
+        } else {
+            t.range(0, 400)
+        };
+        match Camera::new(fx, fy, cx, cy, width, height) {
+            Ok(c) => c,
+            Err(c) => return Verdict::Rejected(code_label(c)),
         }
     } else {
-        env.rig.cam
+        env.rig.cam()
     };
     let pose = if mode / 4 % 4 == 0 {
         arbitrary_pose(&mut t)
@@ -569,8 +571,8 @@ pub fn render(env: &Env, d: &[u8]) -> Verdict {
         let w = t.range(1, 64);
         let h = t.range(1, 64);
         Rect::new(
-            t.range(0, cam.width.min(1000)) as i32 - 16,
-            t.range(0, cam.height.min(1000)) as i32 - 16,
+            t.range(0, cam.width().min(1000)) as i32 - 16,
+            t.range(0, cam.height().min(1000)) as i32 - 16,
             w,
             h,
         )
@@ -798,7 +800,10 @@ pub fn ncc(_env: &Env, d: &[u8]) -> Verdict {
 pub fn reloc(env: &Env, d: &[u8]) -> Verdict {
     let mut t = Take::new(d);
     let mode = t.u8();
-    let (w, h) = (env.rig.cam.width as usize, env.rig.cam.height as usize);
+    let (w, h) = (
+        env.rig.cam().width() as usize,
+        env.rig.cam().height() as usize,
+    );
     let mut left = env.left.clone();
     let mut right = env.right.clone();
     match mode % 8 {
