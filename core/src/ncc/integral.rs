@@ -171,12 +171,7 @@ pub(super) fn fill_tables(
         ) else {
             return;
         };
-        let Some(frow) = y0
-            .checked_add(r)
-            .and_then(|y| y.checked_mul(win.w))
-            .and_then(|o| o.checked_add(x0))
-            .and_then(|start| win.px.get(start..start.checked_add(rw)?))
-        else {
+        let Some(frow) = y0.checked_add(r).and_then(|y| win.span(x0, y, rw)) else {
             return;
         };
         let (Some((cs0, cs)), Some((cq0, cq))) = (cs.split_first_mut(), cq.split_first_mut())

@@ -42,12 +42,7 @@ pub(super) fn dot_block<const B: usize>(t: &Tpl, win: &Win, px: usize, py: usize
     // the contract read nothing instead of panicking.
     for (r, trow) in t.px.chunks_exact(t.w.max(1)).take(t.h).enumerate() {
         let span = t.w.saturating_add(B.saturating_sub(1));
-        let Some(frow) = py
-            .checked_add(r)
-            .and_then(|y| y.checked_mul(win.w))
-            .and_then(|o| o.checked_add(px))
-            .and_then(|start| win.px.get(start..start.checked_add(span)?))
-        else {
+        let Some(frow) = py.checked_add(r).and_then(|y| win.span(px, y, span)) else {
             continue;
         };
         // `as_chunks`: fixed-size chunks without the divide by a runtime chunk

@@ -317,10 +317,18 @@ pub(super) struct Win<'s> {
     pub(super) h: usize,
 }
 
-impl Win<'_> {
+impl<'s> Win<'s> {
     /// Last valid top-left column and row for a `tw × th` template.
     pub(super) fn last_pos(&self, tw: usize, th: usize) -> (usize, usize) {
         (self.w.saturating_sub(tw), self.h.saturating_sub(th))
+    }
+
+    /// `len` pixels of row `y` from column `x` (row-major, stride `w`), or
+    /// `None` where they would leave the buffer: checked offsets, no panic path.
+    #[inline]
+    pub(super) fn span(&self, x: usize, y: usize, len: usize) -> Option<&'s [u8]> {
+        let start = y.checked_mul(self.w)?.checked_add(x)?;
+        self.px.get(start..start.checked_add(len)?)
     }
 }
 
