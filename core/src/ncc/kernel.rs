@@ -24,6 +24,74 @@ fn chunk_dot<const C: usize>(t: &[u8; C], f: &[u8; C]) -> u32 {
 }
 
 /// Σ t·f of the template at the `B` neighbouring positions `(px + b, py)` of the
+/// window, `b < B`, on x86-64 and AArch64: explicit 256-bit integer vectors
+/// ([`wide`], safe, `no_std`, no allocation). Every template chunk of 16 bytes is
+/// widened to i16 once and feeds `B` widening multiply-adds (`pmaddwd` on SSE2,
+/// `vpmaddwd` with AVX2, `smull`/`addp` on NEON) into `B` vector accumulators
+/// that stay in registers across all rows; each position is reduced to a scalar
+/// once, at the end. Exact: u8 values widened to i16 multiply into pair sums
+/// below 2¹⁸, and the accumulators wrap modulo 2³² like the portable kernel's
+/// (each true sum < 2³², numeric.md), so both kernels return the same bits
+/// (`blocked_kernel_equals_scalar_reference`). Same contract as
+/// [`dot_block_portable`].
+///
+/// The auto-vectorized portable kernel reduces every 16-byte chunk to a scalar
+/// (the shape LLVM vectorizes reliably under fat LTO), which on rows of 16–64
+/// bytes costs as much as the multiply-adds; here the reduction happens once
+/// per position (`fsw-docs/budgets/ncc.md`).
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+#[allow(
+    clippy::arithmetic_side_effects,
+    reason = "vector lane addition wraps (wide's documented semantics); exact modulo 2^32 as above"
+)]
+pub(super) fn dot_block<const B: usize>(t: &Tpl, win: &Win, px: usize, py: usize) -> [u32; B] {
+    use wide::{i16x16, i32x8, u8x16};
+    const C: usize = KERNEL_CHUNK;
+    let mut acc = [i32x8::ZERO; B];
+    let mut s = [0u32; B];
+    let widen = |c: &[u8; C]| i16x16::from(u8x16::from(*c));
+    let span = t.w.saturating_add(B.saturating_sub(1));
+    for (r, trow) in t.px.chunks_exact(t.w.max(1)).take(t.h).enumerate() {
+        let Some(frow) = py.checked_add(r).and_then(|y| win.span(px, y, span)) else {
+            continue;
+        };
+        let (tc, rem) = trow.as_chunks::<C>();
+        let mut o = 0usize;
+        for tt in tc {
+            let tv = widen(tt);
+            let Some(fw) = frow
+                .get(o..)
+                .and_then(|f| f.get(..C.saturating_add(B).saturating_sub(1)))
+            else {
+                break;
+            };
+            for (b, ab) in acc.iter_mut().enumerate() {
+                if let Some(ff) = fw.get(b..).and_then(|f| f.first_chunk::<C>()) {
+                    *ab += tv.dot(widen(ff));
+                }
+            }
+            o = o.saturating_add(C);
+        }
+        for (j, &p) in rem.iter().enumerate() {
+            let Some(fw) = frow.get(o.saturating_add(j)..).and_then(|f| f.get(..B)) else {
+                break;
+            };
+            for (sb, &q) in s.iter_mut().zip(fw) {
+                *sb = sb.wrapping_add(u32::from(p).wrapping_mul(u32::from(q)));
+            }
+        }
+    }
+    for (sb, ab) in s.iter_mut().zip(acc) {
+        *sb = sb.wrapping_add(ab.reduce_add().cast_unsigned());
+    }
+    s
+}
+
+/// Every other target (Cortex-M7, RISC-V without V) runs the portable kernel.
+#[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+pub(super) use dot_block_portable as dot_block;
+
+/// Σ t·f of the template at the `B` neighbouring positions `(px + b, py)` of the
 /// window, `b < B`; exact (each true sum < 2³², see numeric.md; u32 wrapping
 /// makes the order of the additions irrelevant). Every position must be a valid
 /// top-left position (`px + B − 1 + t.w ≤ win.w`, `py + t.h ≤ win.h`).
@@ -34,8 +102,21 @@ fn chunk_dot<const C: usize>(t: &[u8; C], f: &[u8; C]) -> u32 {
 /// with the chunk outside (one template load feeding `B` reductions in one basic
 /// block) the SLP vectorizer emits `pmaddwd` in a non-LTO build but falls back to
 /// scalar multiplies after the workspace's fat-LTO pre-link pipeline, measured
-/// 2–4× slower (`fsw-docs/budgets/ncc.md`).
-pub(super) fn dot_block<const B: usize>(t: &Tpl, win: &Win, px: usize, py: usize) -> [u32; B] {
+/// 2–4× slower (`fsw-docs/budgets/ncc.md`). On the Cortex-M7 it compiles to
+/// `ldrb` + `smlabb` per byte.
+#[cfg_attr(
+    any(target_arch = "x86_64", target_arch = "aarch64"),
+    allow(
+        dead_code,
+        reason = "the vector kernel serves these targets; tests compare both"
+    )
+)]
+pub(super) fn dot_block_portable<const B: usize>(
+    t: &Tpl,
+    win: &Win,
+    px: usize,
+    py: usize,
+) -> [u32; B] {
     const C: usize = KERNEL_CHUNK;
     let mut s = [0u32; B];
     // Checked index arithmetic, once per row and position: positions outside
@@ -138,6 +219,11 @@ mod tests {
                         x + b
                     );
                 }
+                assert_eq!(
+                    got,
+                    dot_block_portable::<KERNEL_BLOCK>(&t, &w, x, y),
+                    "case {case}: vector and portable kernels differ"
+                );
                 let [one] = dot_block::<1>(&t, &w, x, y);
                 assert_eq!(
                     u64::from(one),

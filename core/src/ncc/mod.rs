@@ -247,13 +247,68 @@ fn mul_wide(a: u128, b: u64) -> (u128, u64) {
     (p1 + (p0 >> 64), p0 as u64)
 }
 
+/// `num_a²·var_f_b` against `num_b²·var_f_a` in f64 where the two differ by far
+/// more than the rounding error, `None` where they are too close to tell (the
+/// caller then compares exactly). Every operand is an integer below 2⁵³ and so
+/// exact in f64; each product is rounded twice (relative error < 2.3·10⁻¹⁶), so a
+/// relative gap above 10⁻¹² decides the exact comparison: the result is the
+/// exact order whenever it is `Some`. Only where f64 is hardware (the 64-bit
+/// host and application targets); elsewhere every comparison is the integer one.
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+#[inline]
+#[allow(
+    clippy::cast_precision_loss,
+    reason = "|num|, var_f < 2^48 are exact in f64; the rounding of the products is bounded above"
+)]
+fn cmp_keys_f64(a: &Score, b: &Score) -> Option<Ordering> {
+    let (na, nb) = (a.num.unsigned_abs() as f64, b.num.unsigned_abs() as f64);
+    let la = na * na * b.var_f.unsigned_abs() as f64;
+    let lb = nb * nb * a.var_f.unsigned_abs() as f64;
+    const GAP: f64 = 1e-12;
+    if la > lb + lb * GAP {
+        Some(Ordering::Greater)
+    } else if lb > la + la * GAP {
+        Some(Ordering::Less)
+    } else {
+        None
+    }
+}
+
+/// The integer comparison decides every pair on this target.
+#[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+#[inline]
+fn cmp_keys_f64(_: &Score, _: &Score) -> Option<Ordering> {
+    None
+}
+
 /// Exact order of two scores of the same template (same `var_t`), by
 /// `sign(num)·num²/var_f`, with no division and no square root.
 #[allow(
     clippy::arithmetic_side_effects,
     reason = "|num| < 2^48, so num² < 2^96 fits u128; the 192-bit product is mul_wide's"
 )]
+#[inline]
 pub fn cmp_scores(a: &Score, b: &Score) -> Ordering {
+    let (sa, sb) = (a.num.signum(), b.num.signum());
+    if sa != sb {
+        return sa.cmp(&sb);
+    }
+    if sa == 0 {
+        return Ordering::Equal;
+    }
+    if let Some(o) = cmp_keys_f64(a, b) {
+        return if sa > 0 { o } else { o.reverse() };
+    }
+    cmp_scores_exact(a, b)
+}
+
+/// [`cmp_scores`] by the integer products alone (the reference its f64 shortcut
+/// is tested against).
+#[allow(
+    clippy::arithmetic_side_effects,
+    reason = "|num| < 2^48, so num² < 2^96 fits u128; the 192-bit product is mul_wide's"
+)]
+fn cmp_scores_exact(a: &Score, b: &Score) -> Ordering {
     let (sa, sb) = (a.num.signum(), b.num.signum());
     if sa != sb {
         return sa.cmp(&sb);
@@ -557,6 +612,60 @@ pub fn score_at(
 mod tests {
     extern crate std;
     use super::test_util::*;
+
+    /// The f64 shortcut of `cmp_scores` never changes an order: it agrees with
+    /// the integer comparison on random scores over the whole range, on exact
+    /// ties, and on pairs one unit apart at the top of the range (where the
+    /// shortcut must defer to the integers).
+    #[test]
+    fn cmp_scores_shortcut_equals_exact_comparison() {
+        let mut rng = crate::rng::Rng::new(77);
+        let top = (1i64 << 48) - 1;
+        let draw = |rng: &mut crate::rng::Rng| {
+            let bits = 1 + rng.below(48);
+            let v = i64::from(rng.below(u32::MAX)) << 16 | i64::from(rng.below(1 << 16));
+            v & ((1i64 << bits) - 1)
+        };
+        for case in 0..200_000u32 {
+            let num_a = draw(&mut rng) * if rng.below(2) == 0 { 1 } else { -1 };
+            let var_a = draw(&mut rng).max(1);
+            let (num_b, var_b) = match case % 4 {
+                0 => (num_a, var_a),
+                1 => (
+                    num_a * 2 / 2 + if rng.below(2) == 0 { 1 } else { -1 },
+                    var_a,
+                ),
+                2 => (num_a, (var_a + 1).min(top)),
+                _ => (
+                    draw(&mut rng) * if rng.below(2) == 0 { 1 } else { -1 },
+                    draw(&mut rng).max(1),
+                ),
+            };
+            let a = Score {
+                num: num_a,
+                var_f: var_a,
+                var_t: 5,
+            };
+            let b = Score {
+                num: num_b.clamp(-top, top),
+                var_f: var_b,
+                var_t: 5,
+            };
+            assert_eq!(cmp_scores(&a, &b), cmp_scores_exact(&a, &b), "{a:?} {b:?}");
+            assert_eq!(cmp_scores(&b, &a), cmp_scores_exact(&b, &a), "{b:?} {a:?}");
+        }
+        let a = Score {
+            num: top,
+            var_f: top,
+            var_t: 1,
+        };
+        let b = Score {
+            num: top - 1,
+            var_f: top - 2,
+            var_t: 1,
+        };
+        assert_eq!(cmp_scores(&a, &b), cmp_scores_exact(&a, &b));
+    }
     use super::*;
     use crate::rng::Rng;
     use proptest::prelude::*;
