@@ -19,7 +19,7 @@ use crate::failure::FailureCode;
 use crate::geom::{Pose, StereoRig, Vec3};
 use crate::image::{GrayView, Rect};
 use crate::map::MapView;
-use crate::ncc;
+use crate::ncc::{self, Search};
 use crate::raster::{self, Target};
 use crate::stereo;
 
@@ -182,11 +182,56 @@ struct Templates {
     right: Rect,
 }
 
-/// Search windows of one attempt in the real left and right images.
+/// Search windows of one attempt in the real left and right images, and the
+/// disparity range the right match may take once the left one is known.
 #[derive(Clone, Copy)]
 struct Windows {
     left: Rect,
     right: Rect,
+    /// Smallest and largest plausible disparity of the vertex, pixels.
+    disparity: (f32, f32),
+}
+
+/// Integer bounds `[floor(lo), ceil(hi)]` as i32 (saturating; non-finite
+/// bounds give an empty range).
+fn int_range(lo: f32, hi: f32) -> (i32, i32) {
+    if lo.is_finite() && hi.is_finite() {
+        (libm::floorf(lo) as i32, libm::ceilf(hi) as i32)
+    } else {
+        (1, 0)
+    }
+}
+
+/// The right-image search window for a vertex found at `pl` in the left image
+/// (§III-D Valid, by construction): template top-left positions whose vertex
+/// pixel (at `o` inside the template) lies within ε (+1 px for the sub-pixel
+/// step) of the left row and at a disparity in `disparity` (±1 px), as the
+/// window those positions need, inside `within`. `None` when no position is
+/// left.
+fn epipolar_band(
+    pl: [f32; 2],
+    o: [f32; 2],
+    (tw, th): (usize, usize),
+    disparity: (f32, f32),
+    epsilon_px: f32,
+    within: Rect,
+) -> Option<Rect> {
+    let slack = epsilon_px + 1.0;
+    let (y0, y1) = int_range(pl[1] - o[1] - slack, pl[1] - o[1] + slack);
+    let (x0, x1) = int_range(
+        pl[0] - disparity.1 - o[0] - 1.0,
+        pl[0] - disparity.0 - o[0] + 1.0,
+    );
+    if x1 < x0 || y1 < y0 {
+        return None;
+    }
+    // Positions a..=b of a template of side t need b − a + t pixels.
+    let extent = |a: i32, b: i32, t: usize| {
+        u32::try_from(i64::from(b) - i64::from(a) + i64::try_from(t).ok()?).ok()
+    };
+    let band = Rect::new(x0, y0, extent(x0, x1, tw)?, extent(y0, y1, th)?);
+    band.intersect(&within)
+        .filter(|r| r.w as usize >= tw && r.h as usize >= th)
 }
 
 impl Pipeline<'_, '_> {
@@ -270,9 +315,25 @@ impl Pipeline<'_, '_> {
             0
         };
         let (w, h) = (cam.width as usize, cam.height as usize);
+        // Depth of the vertex in the real camera: within 2·(t̃ + D·r̃) of its
+        // depth in the viewpoint (D its distance), as the window radius above
+        // doubles the projected uncertainty; disparity f·B/Z over that range,
+        // widened by the policy margin. A range reaching the camera leaves the
+        // largest disparity open (the image width).
+        let fb = cam.fx * self.rig.baseline_m;
+        let dz = 2.0 * (ctx.t_m + s.cam.norm() * ctx.r_rad);
+        let m = f32::from(self.policy.margin_px);
+        let near = s.cam.z - dz;
+        let d_hi = if near > 0.0 {
+            (fb / near + m).min(cam.width as f32)
+        } else {
+            cam.width as f32
+        };
+        let d_lo = (fb / (s.cam.z + dz) - m).max(self.policy.min_disparity_px);
         Windows {
             left: search_rect(s.left, l, r_px, self.search_px, w, h),
             right: search_rect(s.right, l, r_px, self.search_px, w, h),
+            disparity: (d_lo, d_hi),
         }
     }
 
@@ -322,32 +383,56 @@ impl Pipeline<'_, '_> {
             };
             let idx = v.index();
             let policy = &self.policy;
-            let mut one = |t, m, img, search| -> Result<ncc::Match, FailureCode> {
+            let mut one = |t, m, img, search, mode| -> Result<ncc::Match, FailureCode> {
                 if let Some(c) = stats.matches.get_mut(idx) {
                     *c = c.saturating_add(1);
                 }
-                let (m, ms) = ncc::match_template(
-                    t,
-                    Some(m),
-                    img,
-                    search,
-                    v.filter,
-                    policy.search,
-                    &mut ws.scratch,
-                )?;
+                let (m, ms) =
+                    ncc::match_template(t, Some(m), img, search, v.filter, mode, &mut ws.scratch)?;
                 stats.ncc_positions = stats.ncc_positions.saturating_add(ms.positions_scored);
                 stats.ncc_macs = stats.ncc_macs.saturating_add(ms.macs);
                 accept(&m, policy)?;
                 Ok(m)
             };
-            let ml = match one(tl, tml, self.left, win.left) {
+            let ml = match one(tl, tml, self.left, win.left, policy.search) {
                 Ok(m) => m,
                 Err(e) => {
                     last = e;
                     continue;
                 }
             };
-            let mr = match one(tr, tmr, self.right, win.right) {
+            // The vertex sits at (projection − template origin) inside the template.
+            let (ol, or) = (
+                [
+                    s.left[0] - t.left.x as f32 - ox,
+                    s.left[1] - t.left.y as f32 - oy,
+                ],
+                [
+                    s.right[0] - t.right.x as f32 - ox,
+                    s.right[1] - t.right.y as f32 - oy,
+                ],
+            );
+            let pl = [ml.sub_x + ol[0], ml.sub_y + ol[1]];
+            // The right match is sought only where Valid can accept it: the
+            // epipolar band of the left match over the plausible disparities.
+            let (tw, th) = (tr.width(), tr.height());
+            let (band, mode) = if policy.epipolar_band {
+                let Some(band) =
+                    epipolar_band(pl, or, (tw, th), win.disparity, self.epsilon_px, win.right)
+                else {
+                    last = FailureCode::StereoEpipolarViolation;
+                    continue;
+                };
+                // A band under two template sides high has too few rows for a pyramid.
+                if (band.h as usize) < th.saturating_mul(2) {
+                    (band, Search::Exhaustive)
+                } else {
+                    (band, policy.search)
+                }
+            } else {
+                (win.right, policy.search)
+            };
+            let mr = match one(tr, tmr, self.right, band, mode) {
                 Ok(m) => m,
                 Err(e) => {
                     last = e;
@@ -357,15 +442,7 @@ impl Pipeline<'_, '_> {
             if let Some(c) = stats.accepted.get_mut(idx) {
                 *c = c.saturating_add(1);
             }
-            // The vertex sits at (projection − template origin) inside the template.
-            let pl = [
-                ml.sub_x + (s.left[0] - t.left.x as f32 - ox),
-                ml.sub_y + (s.left[1] - t.left.y as f32 - oy),
-            ];
-            let pr = [
-                mr.sub_x + (s.right[0] - t.right.x as f32 - ox),
-                mr.sub_y + (s.right[1] - t.right.y as f32 - oy),
-            ];
+            let pr = [mr.sub_x + or[0], mr.sub_y + or[1]];
             return Ok((pl, pr));
         }
         Err(last)
@@ -560,6 +637,48 @@ mod tests {
         let got = pipe.attempt(&sky, &mut Rng::new(1), &mut stats).err();
         assert_eq!(got, Some(FailureCode::RelocSampleOutOfView));
         assert_eq!(stats.out_of_view - before, MAX_SAMPLE_TRIES);
+    }
+
+    /// The right search band holds exactly the template positions whose vertex
+    /// pixel is within ε + 1 px of the left row and at a disparity within the
+    /// range ± 1 px, clipped to the right window; no position, no band.
+    /// Verifies: VTSM-RELOC-034
+    #[test]
+    fn epipolar_band_holds_the_positions_valid_can_accept() {
+        let within = Rect::new(100, 50, 300, 300);
+        let (pl, o, eps) = ([250.4_f32, 180.6_f32], [31.5_f32, 32.25_f32], 2.0);
+        let band = epipolar_band(pl, o, (64, 64), (40.0, 60.0), eps, within).unwrap();
+        // Top-left rows: floor(180.6 − 32.25 − 3) ..= ceil(180.6 − 32.25 + 3).
+        assert_eq!((band.y, band.h), (145, 152 - 145 + 64));
+        // Top-left columns: floor(250.4 − 60 − 31.5 − 1) ..= ceil(250.4 − 40 − 31.5 + 1).
+        assert_eq!((band.x, band.w), (157, 180 - 157 + 64));
+        // Every position in the band satisfies the row and disparity bounds.
+        for ty in band.y..=band.y + band.h as i32 - 64 {
+            for tx in band.x..=band.x + band.w as i32 - 64 {
+                let pr = [tx as f32 + o[0], ty as f32 + o[1]];
+                assert!((pr[1] - pl[1]).abs() <= eps + 1.0 + 1.0);
+                let d = pl[0] - pr[0];
+                assert!((40.0 - 2.0..=60.0 + 2.0).contains(&d), "{d}");
+            }
+        }
+        // Clipped to the right window.
+        let tight = Rect::new(170, 0, 80, 400);
+        let clipped = epipolar_band(pl, o, (64, 64), (40.0, 60.0), eps, tight).unwrap();
+        assert_eq!((clipped.x, clipped.w), (170, 157 + 87 - 170));
+        // A window left of every plausible position, a window too narrow for
+        // the template, and a non-finite range give no band.
+        let left_of = Rect::new(0, 0, 150, 400);
+        assert_eq!(
+            epipolar_band(pl, o, (64, 64), (40.0, 60.0), eps, left_of),
+            None
+        );
+        let narrow = Rect::new(200, 0, 60, 400);
+        assert_eq!(
+            epipolar_band(pl, o, (64, 64), (40.0, 60.0), eps, narrow),
+            None
+        );
+        let nan = epipolar_band(pl, o, (64, 64), (f32::NAN, 60.0), eps, within);
+        assert_eq!(nan, None);
     }
 
     /// Verifies: VTSM-RELOC-016
