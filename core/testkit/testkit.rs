@@ -4,7 +4,8 @@
 //! built on `raster`.
 //!
 //! Compiled into the library only under `cfg(test)` and included by the
-//! examples with `#[path]`; it uses `std` and is never part of a flight build.
+//! examples and by `vtsm-tests` (`vtsm_tests::testkit`) with `#[path]`; it uses
+//! `std` and is never part of a flight build.
 #![allow(clippy::unwrap_used, clippy::expect_used, dead_code)]
 
 extern crate std;

@@ -12,9 +12,6 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-#[path = "../../core/testkit/testkit.rs"]
-mod testkit;
-
 use std::sync::OnceLock;
 use vtsm_core::geom::{Pose, Vec3};
 use vtsm_core::map::{self, MapView};
@@ -24,58 +21,13 @@ use vtsm_hal::runner::{DriveLimits, RelocReport};
 use vtsm_hal::telemetry::{parse_outcome, FrameKind};
 use vtsm_sim::devices::FaultConfig;
 use vtsm_sim::locate::{run_on_devices, runner_config, DeviceFaults, DeviceRun, Request};
-
-struct Scene {
-    map: Vec<u8>,
-    left: Vec<u8>,
-    right: Vec<u8>,
-    truth: Pose,
-}
-
-fn scene() -> &'static Scene {
-    static S: OnceLock<Scene> = OnceLock::new();
-    S.get_or_init(|| {
-        let map = testkit::build_map(1);
-        let view = MapView::new_checked(&map).unwrap();
-        let truth = testkit::camera_pose(0.6, 0.2);
-        let (left, right) = render_pair(&view, &truth);
-        Scene {
-            map,
-            left,
-            right,
-            truth,
-        }
-    })
-}
-
-fn render_pair(view: &MapView, pose: &Pose) -> (Vec<u8>, Vec<u8>) {
-    let rig = testkit::rig();
-    (
-        testkit::render_full(view, &rig.cam(), pose, 0.85, 20.0),
-        testkit::render_full(view, &rig.cam(), &rig.world_from_right(pose), 0.85, 20.0),
-    )
-}
+use vtsm_tests::scene::{render_pair, request, scene};
+use vtsm_tests::testkit;
 
 /// The prior of every scenario unless it is the fault: 12 cm and no rotation
 /// off the truth, inside the paper's 20 cm uncertainty.
 fn prior() -> Pose {
-    let s = scene();
-    Pose::new(
-        s.truth.rotation(),
-        s.truth.translation() + Vec3::new(0.09, -0.08, 0.02),
-    )
-}
-
-fn request<'a>(map: &'a [u8], left: &'a [u8], right: &'a [u8], prior: Pose) -> Request<'a> {
-    Request {
-        map,
-        left,
-        right,
-        rig: testkit::rig(),
-        prior,
-        params: testkit::test_params(),
-        seed: 42,
-    }
+    scene().prior
 }
 
 fn clean_request() -> Request<'static> {

@@ -5,63 +5,24 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-#[path = "../../core/testkit/testkit.rs"]
-mod testkit;
-
-use std::sync::OnceLock;
 use vtsm_core::geom::{Pose, Vec3};
-use vtsm_core::map::MapView;
 use vtsm_core::reloc::Outcome;
 use vtsm_core::FailureCode;
 use vtsm_hal::runner::DriveLimits;
 use vtsm_hal::telemetry::{parse_outcome, FrameKind};
 use vtsm_sim::devices::FaultConfig;
 use vtsm_sim::locate::{run_on_devices, DeviceFaults, DeviceRun, Request};
-
-struct Scene {
-    map: Vec<u8>,
-    left: Vec<u8>,
-    right: Vec<u8>,
-    truth: Pose,
-}
-
-fn scene() -> &'static Scene {
-    static S: OnceLock<Scene> = OnceLock::new();
-    S.get_or_init(|| {
-        let map = testkit::build_map(1);
-        let view = MapView::new_checked(&map).unwrap();
-        let rig = testkit::rig();
-        let truth = testkit::camera_pose(0.6, 0.2);
-        let left = testkit::render_full(&view, &rig.cam(), &truth, 0.85, 20.0);
-        let right =
-            testkit::render_full(&view, &rig.cam(), &rig.world_from_right(&truth), 0.85, 20.0);
-        Scene {
-            map,
-            left,
-            right,
-            truth,
-        }
-    })
-}
+use vtsm_tests::scene::{scene, RELOC_SEED};
+use vtsm_tests::testkit;
 
 fn request(map: &[u8]) -> Request<'_> {
-    let s = scene();
-    let prior = Pose::new(
-        s.truth.rotation(),
-        s.truth.translation() + Vec3::new(0.09, -0.08, 0.02),
-    );
     Request {
-        map,
-        left: &s.left,
-        right: &s.right,
-        rig: testkit::rig(),
-        prior,
         params: vtsm_core::config::Params {
             // Short failing runs are not under test here: only how they end.
             attempts_per_iter: 300,
             ..testkit::test_params()
         },
-        seed: 42,
+        ..scene().request(map, RELOC_SEED)
     }
 }
 
