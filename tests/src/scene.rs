@@ -8,6 +8,7 @@ use crate::testkit;
 use std::sync::OnceLock;
 use vtsm_core::geom::{Pose, Vec3};
 use vtsm_core::map::MapView;
+use vtsm_hal::runner::VerifyChecks;
 use vtsm_sim::locate::Request;
 
 /// Seed of the relocalization of every request built here (the upset
@@ -97,5 +98,6 @@ pub fn request<'a>(map: &'a [u8], left: &'a [u8], right: &'a [u8], prior: Pose) 
         prior,
         params: testkit::test_params(),
         seed: RELOC_SEED,
+        verify: VerifyChecks::OFF,
     }
 }
