@@ -707,6 +707,47 @@ impl<'a> MapView<'a> {
         self.bytes
     }
 
+    /// This view's layout (counts, bounds, section offsets) over `bytes`,
+    /// unchecked: what the engine reads when the memory holding a checked
+    /// product has changed since its check, for upset campaigns (feature
+    /// `upset-injection`, never in a flight build). The accessors stay
+    /// bounds-checked; their contents are whatever `bytes` hold. `None`
+    /// unless `bytes` is exactly as long as the checked product.
+    #[cfg(feature = "upset-injection")]
+    pub fn with_changed_bytes<'b>(&self, bytes: &'b [u8]) -> Option<MapView<'b>> {
+        if bytes.len() != self.bytes.len() {
+            return None;
+        }
+        let tex = self
+            .layout
+            .sec
+            .get(SEC_TEXTURE)
+            .copied()
+            .unwrap_or_default();
+        let texture = GrayView::new(
+            bytes.get(tex.off..tex.off.checked_add(tex.len)?)?,
+            self.texture.width(),
+            self.texture.height(),
+            self.texture.width(),
+        )
+        .ok()?;
+        Some(MapView {
+            bytes,
+            layout: self.layout,
+            vertex_count: self.vertex_count,
+            triangle_count: self.triangle_count,
+            tile_count: self.tile_count,
+            mask_vertex_count: self.mask_vertex_count,
+            tiles_x: self.tiles_x,
+            tiles_y: self.tiles_y,
+            tile_size_m: self.tile_size_m,
+            min: self.min,
+            max: self.max,
+            origin: self.origin,
+            texture,
+        })
+    }
+
     /// The texture's texels, row-major with stride = width (`width · height` bytes).
     pub fn texture_bytes(&self) -> &'a [u8] {
         // The view was made from exactly the texture section (stride = width).

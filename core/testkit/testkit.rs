@@ -1,10 +1,11 @@
 //! Test fixtures shared by the core's unit tests and examples: random poses,
-//! and a synthetic scene — a textured bumpy heightfield over [0, 8] × [-4, 4] m
-//! (every triangle in M̂), a 640×480 stereo rig, and a full-image renderer
-//! built on `raster`.
+//! a heightfield mesh builder, and a synthetic scene — a textured bumpy
+//! heightfield over [0, 8] × [-4, 4] m (every triangle in M̂), a 640×480
+//! stereo rig, and a full-image renderer built on `raster`.
 //!
 //! Compiled into the library only under `cfg(test)` and included by the
-//! examples with `#[path]`; it uses `std` and is never part of a flight build.
+//! examples and by `vtsm-tests` (`vtsm_tests::testkit`) with `#[path]`; it uses
+//! `std` and is never part of a flight build.
 #![allow(clippy::unwrap_used, clippy::expect_used, dead_code)]
 
 extern crate std;
@@ -59,6 +60,46 @@ pub fn value_noise(rng: &mut Rng, cell: usize, amp: f32, out: &mut [f32]) {
     }
 }
 
+/// A heightfield mesh: vertices, triangles and per-corner texture coordinates.
+pub struct GridMesh {
+    /// Vertices, row by row (`j * n + i`), metres.
+    pub vertices: Vec<[f32; 3]>,
+    /// Two triangles per grid cell, counter-clockwise seen from above.
+    pub triangles: Vec<[u32; 3]>,
+    /// Texture coordinates of each triangle's corners: the texture spans the grid once.
+    pub uvs: Vec<[[f32; 2]; 3]>,
+}
+
+/// An `n`×`n`-vertex heightfield over [0, `side_m`] × [−`side_m`/2, `side_m`/2]
+/// with `z = height(x, y)` (`n` ≥ 2).
+pub fn grid_mesh(n: usize, side_m: f32, height: impl Fn(f32, f32) -> f32) -> GridMesh {
+    let step = side_m / (n - 1) as f32;
+    let y0 = -0.5 * side_m;
+    let mut vertices = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            let (x, y) = (i as f32 * step, y0 + j as f32 * step);
+            vertices.push([x, y, height(x, y)]);
+        }
+    }
+    let uv_of = |i: usize, j: usize| [i as f32 / (n - 1) as f32, j as f32 / (n - 1) as f32];
+    let (mut triangles, mut uvs) = (Vec::new(), Vec::new());
+    for j in 0..n - 1 {
+        for i in 0..n - 1 {
+            let v = |i: usize, j: usize| (j * n + i) as u32;
+            triangles.push([v(i, j), v(i + 1, j), v(i + 1, j + 1)]);
+            uvs.push([uv_of(i, j), uv_of(i + 1, j), uv_of(i + 1, j + 1)]);
+            triangles.push([v(i, j), v(i + 1, j + 1), v(i, j + 1)]);
+            uvs.push([uv_of(i, j), uv_of(i + 1, j + 1), uv_of(i, j + 1)]);
+        }
+    }
+    GridMesh {
+        vertices,
+        triangles,
+        uvs,
+    }
+}
+
 /// The encoded map product of the scene for `seed`.
 pub fn build_map(seed: u64) -> Vec<u8> {
     build_map_with_mask(seed, |_| true)
@@ -84,25 +125,11 @@ pub fn build_map_with_mask(seed: u64, in_mask: impl Fn(usize) -> bool) -> Vec<u8
         }
         z
     };
-    let step = EXTENT_M / (GRID - 1) as f32;
-    let mut vertices = Vec::new();
-    for j in 0..GRID {
-        for i in 0..GRID {
-            let (x, y) = (i as f32 * step, -4.0 + j as f32 * step);
-            vertices.push([x, y, height(x, y)]);
-        }
-    }
-    let uv_of = |i: usize, j: usize| [i as f32 / (GRID - 1) as f32, j as f32 / (GRID - 1) as f32];
-    let (mut triangles, mut uvs) = (Vec::new(), Vec::new());
-    for j in 0..GRID - 1 {
-        for i in 0..GRID - 1 {
-            let v = |i: usize, j: usize| (j * GRID + i) as u32;
-            triangles.push([v(i, j), v(i + 1, j), v(i + 1, j + 1)]);
-            uvs.push([uv_of(i, j), uv_of(i + 1, j), uv_of(i + 1, j + 1)]);
-            triangles.push([v(i, j), v(i + 1, j + 1), v(i, j + 1)]);
-            uvs.push([uv_of(i, j), uv_of(i + 1, j + 1), uv_of(i, j + 1)]);
-        }
-    }
+    let GridMesh {
+        vertices,
+        triangles,
+        uvs,
+    } = grid_mesh(GRID, EXTENT_M, height);
     let mask: Vec<bool> = (0..triangles.len()).map(in_mask).collect();
     let mut acc = vec![128.0f32; TEX * TEX];
     value_noise(&mut rng, 64, 50.0, &mut acc);

@@ -15,7 +15,8 @@
 //! [`Runner::relocalize`] is the flight path of one relocalization: it
 //! acquires the map (checked with `MapView::new_checked`), the prior and the
 //! stereo pair through the devices, builds the engine with the core's one
-//! constructor ([`Setup`]) over the caller's workspace, and drives it with
+//! constructor ([`Setup`]) over the caller's workspace, with the upset checks
+//! the configuration asks for ([`RunnerConfig::verify`]), and drives it with
 //! `now` from the clock under a step, work and tick budget ([`DriveLimits`]),
 //! ending with the anytime result when the budget runs out. The outcome and
 //! the failure log go out as telemetry frames.
@@ -34,7 +35,7 @@ use vtsm_core::failure::{FailureLog, Retry};
 use vtsm_core::geom::StereoRig;
 use vtsm_core::image::GrayView;
 use vtsm_core::map::MapView;
-use vtsm_core::reloc::{Outcome, Setup, StepResult, Workspace};
+use vtsm_core::reloc::{Engine, Outcome, Setup, StepResult, Workspace};
 use vtsm_core::FailureCode;
 
 /// Cap on attempts of one device operation.
@@ -42,7 +43,38 @@ pub const MAX_DEVICE_ATTEMPTS: u8 = 16;
 /// Cap on whole-product reads of the map.
 pub const MAX_PRODUCT_ATTEMPTS: u8 = 8;
 
-/// Retry and size settings of the runner. Checked by [`RunnerConfig::validate`].
+/// The engine's upset checks ([`vtsm_core::reloc::Verify`]) a run asks for;
+/// their tolerances are the core's defaults for the parameters.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct VerifyChecks {
+    /// Repeat the final solve from a second random stream and compare
+    /// ([`vtsm_core::reloc::Verify::repeat_solve`], else `RELOC_VERIFY_DISAGREE`).
+    pub repeat_solve: bool,
+    /// Re-check the map product before a success is returned
+    /// ([`vtsm_core::reloc::Verify::recheck_map`], else `RELOC_MAP_CHANGED`).
+    pub recheck_map: bool,
+}
+
+impl VerifyChecks {
+    /// No upset check (the engine's default).
+    pub const OFF: VerifyChecks = VerifyChecks {
+        repeat_solve: false,
+        recheck_map: false,
+    };
+    /// Both upset checks.
+    pub const ALL: VerifyChecks = VerifyChecks {
+        repeat_solve: true,
+        recheck_map: true,
+    };
+
+    /// Whether any check is asked for.
+    pub const fn any(self) -> bool {
+        self.repeat_solve || self.recheck_map
+    }
+}
+
+/// Retry, size and check settings of the runner. Checked by [`RunnerConfig::validate`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RunnerConfig {
@@ -56,6 +88,8 @@ pub struct RunnerConfig {
     pub capture_timeout_ticks: u64,
     /// Expected image size (width, height) from the calibration.
     pub image_size: (u32, u32),
+    /// Upset checks of the engine built by [`Runner::relocalize`].
+    pub verify: VerifyChecks,
 }
 
 impl RunnerConfig {
@@ -518,10 +552,11 @@ where
 
     /// One relocalization on the flight path: [`Runner::acquire`] the map,
     /// prior and stereo pair into `bufs`, build the engine with [`Setup`]
-    /// (`params`, `rig`, `seed`, the prior's pose) over `ws`, and drive it with
-    /// the clock under `limits`; if the budget ends first, the engine's anytime
-    /// result ([`FailureCode::RelocBudgetExhausted`]) is returned. The outcome
-    /// and the failure log are sent as telemetry.
+    /// (`params`, `rig`, `seed`, the prior's pose, the upset checks of
+    /// [`RunnerConfig::verify`]) over `ws`, and drive it with the clock under
+    /// `limits`; if the budget ends first, the engine's anytime result
+    /// ([`FailureCode::RelocBudgetExhausted`]) is returned. The outcome and the
+    /// failure log are sent as telemetry.
     ///
     /// # Errors
     /// The failure code of acquisition (device faults after their retries, a
@@ -537,7 +572,31 @@ where
         seed: u64,
         limits: &DriveLimits,
     ) -> Result<(Outcome, RelocReport), FailureCode> {
-        let result = self.relocalize_inner(bufs, rig, params, ws, seed, limits);
+        self.relocalize_with(bufs, rig, params, ws, seed, limits, |_, _| {})
+    }
+
+    /// [`Runner::relocalize`], calling `between(engine, now)` before every
+    /// step call: the caller's own work between engine steps (a watchdog, a
+    /// ground abort through [`vtsm_core::reloc::Relocalizer::stop`]), or a
+    /// simulator's upset injection (core feature `upset-injection`).
+    ///
+    /// # Errors
+    /// As [`Runner::relocalize`].
+    #[allow(clippy::too_many_arguments)] // `relocalize`'s inputs and the hook
+    pub fn relocalize_with<'w, F>(
+        &mut self,
+        bufs: Buffers<'_>,
+        rig: &StereoRig,
+        params: &Params,
+        ws: Workspace<'w>,
+        seed: u64,
+        limits: &DriveLimits,
+        between: F,
+    ) -> Result<(Outcome, RelocReport), FailureCode>
+    where
+        F: FnMut(&mut Engine<'_, 'w>, u64),
+    {
+        let result = self.relocalize_inner(bufs, rig, params, ws, seed, limits, between);
         if let Ok((o, _)) = &result {
             let summary = outcome_payload(&OutcomeSummary::of(o));
             self.send(FrameKind::Outcome as u8, &summary);
@@ -546,7 +605,8 @@ where
         result
     }
 
-    fn relocalize_inner<'w>(
+    #[allow(clippy::too_many_arguments)] // as `relocalize_with`
+    fn relocalize_inner<'w, F>(
         &mut self,
         bufs: Buffers<'_>,
         rig: &StereoRig,
@@ -554,19 +614,26 @@ where
         ws: Workspace<'w>,
         seed: u64,
         limits: &DriveLimits,
-    ) -> Result<(Outcome, RelocReport), FailureCode> {
+        mut between: F,
+    ) -> Result<(Outcome, RelocReport), FailureCode>
+    where
+        F: FnMut(&mut Engine<'_, 'w>, u64),
+    {
         // Acquisition logs its own faults; the checks after it log theirs here.
         let inputs = self.acquire(bufs, |b| MapView::new_checked(b).map(|_| ()))?;
         let start = inputs.start_ticks;
         let map =
             MapView::new_checked(inputs.map).inspect_err(|&c| self.log.record(c, start, 0))?;
         let prior = inputs.prior.world_from_left;
-        let setup = Setup::new(&map, inputs.left, inputs.right, rig, params, &prior, seed);
+        let mut setup = Setup::new(&map, inputs.left, inputs.right, rig, params, &prior, seed);
+        setup.options.verify.repeat_solve = self.cfg.verify.repeat_solve;
+        setup.options.verify.recheck_map = self.cfg.verify.recheck_map;
         let mut engine = setup
             .build(ws)
             .inspect_err(|&c| self.log.record(c, start, 0))?;
         let units = limits.units_per_step.max(1);
         let (drive, _) = self.drive(limits.max_steps, limits.budget_ticks, |now| {
+            between(&mut engine, now);
             Ok(match engine.step_n(now, units) {
                 StepResult::Running => StepStatus::Continue,
                 StepResult::Done(_) => StepStatus::Done,

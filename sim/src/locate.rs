@@ -19,9 +19,9 @@ use vtsm_core::image::Rect;
 use vtsm_core::map::MapView;
 use vtsm_core::ncc::Run;
 use vtsm_core::raster::{self, Target};
-use vtsm_core::reloc::{MatchPolicy, Outcome, Workspace, WorkspaceSizes};
+use vtsm_core::reloc::{Engine, MatchPolicy, Outcome, Workspace, WorkspaceSizes};
 use vtsm_core::FailureCode;
-use vtsm_hal::runner::{Buffers, DriveLimits, RelocReport, Runner, RunnerConfig};
+use vtsm_hal::runner::{Buffers, DriveLimits, RelocReport, Runner, RunnerConfig, VerifyChecks};
 use vtsm_hal::{Covariance, FramedTelemetry, PriorEstimate};
 
 /// The parameters used for an image width: the paper's, with ℓ and the
@@ -47,6 +47,8 @@ pub struct Request<'a> {
     pub params: Params,
     /// Seed of the relocalization's random streams.
     pub seed: u64,
+    /// The engine's upset checks (the runner's [`RunnerConfig::verify`]).
+    pub verify: VerifyChecks,
 }
 
 /// Seeded faults of the simulated devices one relocalization runs on.
@@ -70,7 +72,8 @@ pub fn workspace_sizes(params: &Params) -> WorkspaceSizes {
     WorkspaceSizes::for_params(params, MatchPolicy::for_params(params).search)
 }
 
-/// Retry and size settings of the desktop runner for a `width × height` rig.
+/// Retry and size settings of the desktop runner for a `width × height` rig,
+/// without upset checks.
 pub fn runner_config(width: u32, height: u32) -> RunnerConfig {
     RunnerConfig {
         attempts: 3,
@@ -78,6 +81,7 @@ pub fn runner_config(width: u32, height: u32) -> RunnerConfig {
         chunk_len: 1 << 16,
         capture_timeout_ticks: 1_000,
         image_size: (width, height),
+        verify: VerifyChecks::OFF,
     }
 }
 
@@ -169,6 +173,23 @@ pub fn run_on_devices(
     faults: &DeviceFaults,
     limits: &DriveLimits,
 ) -> Result<DeviceRun> {
+    run_on_devices_with(req, faults, limits, |_, _| {})
+}
+
+/// [`run_on_devices`] through [`Runner::relocalize_with`]: `between(engine,
+/// now)` is called before every step call (upset injection between steps).
+///
+/// # Errors
+/// As [`run_on_devices`].
+pub fn run_on_devices_with<F>(
+    req: &Request<'_>,
+    faults: &DeviceFaults,
+    limits: &DriveLimits,
+    between: F,
+) -> Result<DeviceRun>
+where
+    F: for<'m, 'w> FnMut(&mut Engine<'m, 'w>, u64),
+{
     let (w, h) = (req.rig.cam().width(), req.rig.cam().height());
     let n = (w as usize) * (h as usize);
     if req.left.len() != n || req.right.len() != n {
@@ -200,7 +221,11 @@ pub fn run_on_devices(
     let telemetry = FramedTelemetry::new(RecordingSink::new());
     let probe = clock.clone();
     let clock = clock.with_ticks_per_read(faults.clock_ticks_per_read);
-    let mut runner = Runner::new(camera, clock, store, prior, telemetry, runner_config(w, h));
+    let cfg = RunnerConfig {
+        verify: req.verify,
+        ..runner_config(w, h)
+    };
+    let mut runner = Runner::new(camera, clock, store, prior, telemetry, cfg);
     let (mut left, mut right, mut map) = (vec![0u8; n], vec![0u8; n], vec![0u8; req.map.len()]);
     let bufs = Buffers {
         left: &mut left,
@@ -208,7 +233,7 @@ pub fn run_on_devices(
         map: &mut map,
     };
     let start = Instant::now();
-    let result = runner.relocalize(bufs, &req.rig, &req.params, ws, req.seed, limits);
+    let result = runner.relocalize_with(bufs, &req.rig, &req.params, ws, req.seed, limits, between);
     let elapsed = start.elapsed();
     Ok(DeviceRun {
         result,

@@ -1,4 +1,6 @@
-//! `vtsm map build` and `vtsm relocalize` input handling, through the binary.
+//! `vtsm map build` and `vtsm relocalize` input handling, and the upset
+//! checks of `--verify` end to end (`vtsm relocalize` on an exported
+//! test-profile scene, `vtsm demo`, `vtsm eval`), through the binary.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, missing_docs)]
 
 use std::path::{Path, PathBuf};
@@ -421,4 +423,211 @@ fn budget_prints_the_config_capacities() {
         get("template, MAX_TEMPLATE_PX² u8"),
         Some((c::MAX_TEMPLATE_PX * c::MAX_TEMPLATE_PX) as u64)
     );
+}
+
+// ---- --verify ------------------------------------------------------------------
+
+/// A test-profile Flagstone scene (the one of `tests/tests/e2e_file_path.rs`)
+/// written by `vtsm scene export`, and its map product built by
+/// `vtsm map build`.
+fn exported() -> PathBuf {
+    let dir = dir("verify_scene");
+    let run = |args: &[&str]| {
+        let o = vtsm(args);
+        assert_eq!(o.status.code(), Some(0), "{args:?}: {o:?}");
+    };
+    run(&[
+        "scene",
+        "export",
+        "--terrain",
+        "flagstone",
+        "--hours",
+        "am",
+        "--profile",
+        "test",
+        "--seed",
+        "3",
+        "--stop",
+        "3",
+        "--out",
+        s(&dir),
+    ]);
+    run(&[
+        "map",
+        "build",
+        "--mesh",
+        s(&dir.join("map.obj")),
+        "--mask",
+        s(&dir.join("mask.obj")),
+        "--out",
+        s(&dir.join("d.vmap")),
+    ]);
+    dir
+}
+
+/// The arguments of `vtsm relocalize` on the exported scene, writing `out`.
+fn relocalize_args(dir: &Path, out: &Path) -> Vec<String> {
+    let file = |name: &str| dir.join(name).display().to_string();
+    [
+        "relocalize",
+        "--map",
+        &file("d.vmap"),
+        "--calib",
+        &file("calib.json"),
+        "--left",
+        &file("left.png"),
+        "--right",
+        &file("right.png"),
+        "--prior",
+        &file("prior.json"),
+        "--seed",
+        "3",
+        "--out",
+        s(out),
+    ]
+    .map(str::to_string)
+    .to_vec()
+}
+
+/// `vtsm relocalize` on the exported scene with `extra` arguments, writing
+/// `out`; the exit code and the parsed result.
+fn relocalize(dir: &Path, out: &Path, extra: &[&str]) -> (Option<i32>, serde_json::Value) {
+    let mut args = relocalize_args(dir, out);
+    args.extend(extra.iter().map(|a| a.to_string()));
+    let o = vtsm(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let text = std::fs::read_to_string(out)
+        .unwrap_or_else(|e| panic!("{} not written ({e}): {o:?}", out.display()));
+    (o.status.code(), serde_json::from_str(&text).unwrap())
+}
+
+fn verified(r: &serde_json::Value) -> (bool, bool) {
+    let v = &r["verified"];
+    (
+        v["repeat_solve"].as_bool().unwrap(),
+        v["recheck_map"].as_bool().unwrap(),
+    )
+}
+
+/// `vtsm relocalize --verify` succeeds on a scene it relocalizes and says in
+/// `result.json` that both checks ran; `--verify map` runs the re-check
+/// alone; without `--verify` neither runs; the pose is the same in all three.
+/// An unknown check is bad input: exit 2, nothing written.
+///
+/// Verifies: VTSM-CLI-039
+#[test]
+fn relocalize_verify_runs_the_checks_and_says_so() {
+    let dir = exported();
+    let (code, both) = relocalize(&dir, &dir.join("both.json"), &["--verify"]);
+    println!("{both}");
+    assert_eq!(code, Some(0));
+    assert_eq!(both["status"], "ok");
+    assert!(both["failure"].is_null());
+    assert_eq!(verified(&both), (true, true));
+    assert!(both["stats"]["verify_units"].as_u64().unwrap() >= 1);
+
+    let (code, map_only) = relocalize(&dir, &dir.join("map.json"), &["--verify", "map"]);
+    assert_eq!(code, Some(0));
+    assert_eq!(verified(&map_only), (false, true));
+
+    let (code, plain) = relocalize(&dir, &dir.join("plain.json"), &[]);
+    assert_eq!(code, Some(0));
+    assert_eq!(verified(&plain), (false, false));
+    assert_eq!(plain["stats"]["verify_units"], 0);
+    for r in [&map_only, &plain] {
+        assert_eq!(r["world_from_left"], both["world_from_left"]);
+        assert_eq!(r["inliers"], both["inliers"]);
+    }
+
+    let bad = dir.join("bad.json");
+    let mut args = relocalize_args(&dir, &bad);
+    args.extend(["--verify".to_string(), "repeat,crc".to_string()]);
+    let o = vtsm(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("unknown check `crc`"), "{err}");
+    assert!(!bad.exists());
+}
+
+/// `vtsm demo --verify` relocalizes its test-profile scene, reports the
+/// checks and writes a `result.json` that says both ran.
+///
+/// Verifies: VTSM-CLI-039
+#[test]
+fn demo_verify_echoes_the_checks() {
+    let out = dir("verify_demo");
+    let o = vtsm(&[
+        "demo",
+        "--profile",
+        "test",
+        "--seed",
+        "3",
+        "--verify",
+        "--out",
+        s(&out),
+    ]);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    println!("{stdout}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("result.json")).unwrap()).unwrap();
+    assert_eq!(o.status.code(), Some(0), "{stdout}");
+    assert_eq!(r["status"], "ok");
+    assert_eq!(verified(&r), (true, true));
+    assert!(r["stats"]["verify_units"].as_u64().unwrap() >= 1, "{r}");
+    assert!(
+        stdout.contains("upset checks: repeated solve ran"),
+        "{stdout}"
+    );
+}
+
+/// `vtsm eval --verify` runs every VTSM trial with both checks, records them
+/// in `summary.json`'s parameters and says per trial which ran; without it
+/// the trials carry no such columns.
+///
+/// Verifies: VTSM-CLI-039
+#[test]
+fn eval_verify_records_the_checks_per_trial() {
+    let run = |name: &str, extra: &[&str]| -> serde_json::Value {
+        let out = dir(name);
+        let mut args = vec![
+            "eval",
+            "--suite",
+            "paper",
+            "--profile",
+            "test",
+            "--trials",
+            "1",
+            "--terrains",
+            "flagstone",
+            "--hours",
+            "0",
+            "--quiet",
+            "--out",
+            s(&out),
+        ];
+        args.extend_from_slice(extra);
+        let o = vtsm(&args);
+        assert_eq!(o.status.code(), Some(0), "{o:?}");
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap()
+    };
+    let checked = run("verify_eval", &["--verify"]);
+    let v = &checked["meta"]["params"]["verify"];
+    assert_eq!(
+        (v["repeat_solve"].as_bool(), v["recheck_map"].as_bool()),
+        (Some(true), Some(true))
+    );
+    let t = &checked["trials"][0];
+    assert_eq!(t["success"], true, "{t}");
+    assert_eq!(t["extra"]["verify_repeat_solve"], 1.0);
+    assert_eq!(t["extra"]["verify_recheck_map"], 1.0);
+
+    let plain = run("verify_eval_plain", &[]);
+    let v = &plain["meta"]["params"]["verify"];
+    assert_eq!(
+        (v["repeat_solve"].as_bool(), v["recheck_map"].as_bool()),
+        (Some(false), Some(false))
+    );
+    assert!(plain["trials"][0]["extra"]
+        .get("verify_repeat_solve")
+        .is_none());
+    assert_eq!(plain["trials"][0]["final_t_mm"], t["final_t_mm"]);
 }

@@ -175,6 +175,10 @@ fn result_file_has_the_design_fields() {
                 .map(|i| if i % 7 == 0 { 1e-6 } else { 0.0 })
                 .collect(),
         ),
+        verified: json::Verified {
+            repeat_solve: true,
+            recheck_map: false,
+        },
     };
     let text = json::result_text(&r);
     let v: serde_json::Value = serde_json::from_str(&text).unwrap();
@@ -193,5 +197,15 @@ fn result_file_has_the_design_fields() {
     assert_eq!(v["stats"]["templates_rendered"], 12);
     assert_eq!(v["covariance"].as_array().unwrap().len(), 36);
     assert_eq!(v["covariance"][7], 1e-6);
+    assert_eq!(v["verified"]["repeat_solve"], true);
+    assert_eq!(v["verified"]["recheck_map"], false);
     assert_eq!(json::parse_result(text.as_bytes(), p()).unwrap(), r);
+    // A result written before `verified` existed reads as "no check ran".
+    let old = text.replace(
+        ",\n  \"verified\": {\n    \"repeat_solve\": true,\n    \"recheck_map\": false\n  }",
+        "",
+    );
+    assert!(!old.contains("verified"), "{old}");
+    let back = json::parse_result(old.as_bytes(), p()).unwrap();
+    assert_eq!(back.verified, json::Verified::default());
 }

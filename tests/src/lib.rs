@@ -2,10 +2,19 @@
 //!
 //! This library holds what those tests share with the `failure_table` tool:
 //! the generator of `fsw-docs/failure-codes.md` and the parsers of the
-//! requirement tables and `Verifies:` tags; and the seeded mutation fuzzer
-//! ([`fuzz`]) run by `tests/tests/fuzz_smoke.rs` and the `fuzz` tool.
+//! requirement tables and `Verifies:` tags; the seeded mutation fuzzer
+//! ([`fuzz`]) run by `tests/tests/fuzz_smoke.rs` and the `fuzz` tool; the
+//! core's test kit ([`testkit`]) and the flight-path scene built on it
+//! ([`scene`]); and the upset campaign ([`upsets`]).
 
 pub mod fuzz;
+
+pub mod scene;
+
+// The core's shared test scene (`core/testkit/testkit.rs`), compiled here once
+// for the tests, the fuzz corpus and the upset campaign.
+#[path = "../../core/testkit/testkit.rs"]
+pub mod testkit;
 
 pub mod upsets;
 

@@ -1,7 +1,7 @@
 //! Single-bit-upset campaign in the simulator: seeded, deterministic trials
 //! that each flip one bit and classify how the relocalization ended.
 //!
-//! Three campaigns, all on the test-kit scene (an 8 m textured heightfield,
+//! Three campaigns, all on the test-kit scene ([`Scene`]: an 8 m textured heightfield,
 //! a 640×480 pair, the test profile ℓ = 64, N_corr = 40):
 //! * **map in storage**: one bit of the stored map product is flipped and the
 //!   relocalization runs through the HAL runner (`run_on_devices`), which
@@ -17,9 +17,8 @@
 //!
 //! Each trial is compared with the clean run: [`Class`].
 
-#[path = "../../core/testkit/testkit.rs"]
-mod testkit;
-
+use crate::scene::{Scene, RELOC_SEED};
+use crate::testkit;
 use std::collections::BTreeMap;
 use vtsm_core::geom::Pose;
 use vtsm_core::image::GrayView;
@@ -29,7 +28,7 @@ use vtsm_core::reloc::{Outcome, Setup, StepResult, UpsetRegion, Workspace};
 use vtsm_core::rng::Rng;
 use vtsm_core::FailureCode;
 use vtsm_hal::runner::DriveLimits;
-use vtsm_sim::locate::{run_on_devices, workspace_sizes, DeviceFaults, Request};
+use vtsm_sim::locate::{run_on_devices, workspace_sizes, DeviceFaults};
 
 /// How one upset trial ended, compared with the clean run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -93,72 +92,6 @@ pub struct Trial {
     pub code: Option<FailureCode>,
     /// Pose error to the truth, metres, when a pose was returned.
     pub error_m: Option<f32>,
-}
-
-/// The scene every trial runs on.
-pub struct Scene {
-    /// Encoded map product.
-    pub map: Vec<u8>,
-    /// Left image.
-    pub left: Vec<u8>,
-    /// Right image.
-    pub right: Vec<u8>,
-    /// True `world_from_left`.
-    pub truth: Pose,
-    /// The prior: 12 cm off the truth.
-    pub prior: Pose,
-}
-
-impl Scene {
-    /// The test-kit scene (map seed 1, camera at (0.6, 0.2)).
-    pub fn test_profile() -> Self {
-        let map = testkit::build_map(1);
-        let rig = testkit::rig();
-        let truth = testkit::camera_pose(0.6, 0.2);
-        let (left, right) = {
-            let Ok(view) = MapView::new_checked(&map) else {
-                return Self::empty();
-            };
-            (
-                testkit::render_full(&view, &rig.cam(), &truth, 0.85, 20.0),
-                testkit::render_full(&view, &rig.cam(), &rig.world_from_right(&truth), 0.85, 20.0),
-            )
-        };
-        let prior = Pose::new(
-            truth.rotation(),
-            truth.translation() + vtsm_core::geom::Vec3::new(0.09, -0.08, 0.02),
-        );
-        Self {
-            map,
-            left,
-            right,
-            truth,
-            prior,
-        }
-    }
-
-    fn empty() -> Self {
-        Self {
-            map: Vec::new(),
-            left: Vec::new(),
-            right: Vec::new(),
-            truth: Pose::identity(),
-            prior: Pose::identity(),
-        }
-    }
-
-    /// The runner request for `map`.
-    pub fn request<'a>(&'a self, map: &'a [u8], seed: u64) -> Request<'a> {
-        Request {
-            map,
-            left: &self.left,
-            right: &self.right,
-            rig: testkit::rig(),
-            prior: self.prior,
-            params: testkit::test_params(),
-            seed,
-        }
-    }
 }
 
 /// Regions of the map product: the header and the six sections, by the
@@ -236,10 +169,6 @@ fn classify(
 pub fn params() -> vtsm_core::config::Params {
     testkit::test_params()
 }
-
-/// Seed of the relocalization of every trial (the upset campaign's own seed
-/// only chooses the bits).
-pub const RELOC_SEED: u64 = 42;
 
 /// The clean run through the runner.
 ///

@@ -9,6 +9,7 @@
 use std::sync::OnceLock;
 use vtsm_core::geom::{Pose, StereoRig, Vec3};
 use vtsm_core::reloc::Outcome;
+use vtsm_hal::runner::VerifyChecks;
 use vtsm_sim::locate::{self, Request};
 use vtsm_sim::scene::{perturbed_prior, Capture, Profile, Scene, StereoPair};
 use vtsm_sim::terrain::TerrainKind;
@@ -79,6 +80,7 @@ fn relocalize_with(
         prior,
         params,
         seed,
+        verify: VerifyChecks::OFF,
     };
     locate::relocalize(&req).unwrap().outcome
 }

@@ -7,6 +7,7 @@ use vtsm_core::config as cfg;
 use vtsm_core::ncc::Run;
 use vtsm_core::reloc::workspace::{PAPER_WORKSPACE_BYTES, TEST_WORKSPACE_BYTES};
 use vtsm_core::reloc::{Outcome, Pipeline, RansacSolver, Relocalizer};
+use vtsm_hal::runner::VerifyChecks;
 use vtsm_sim::cli::budget::{measured_rows, rows, Row, MEASURED_SCENE};
 use vtsm_sim::locate::{self, Request};
 use vtsm_sim::scene::{perturbed_prior, Capture, Profile, Scene};
@@ -74,6 +75,7 @@ fn budget_measured_rows_are_a_real_run() {
         prior,
         params: locate::params_for_width(rig.cam().width()),
         seed,
+        verify: VerifyChecks::OFF,
     })
     .unwrap();
     let o = &report.outcome;

@@ -6,6 +6,7 @@
 
 use std::path::{Path, PathBuf};
 use vtsm_core::geom::{Pose, Vec3};
+use vtsm_hal::runner::VerifyChecks;
 use vtsm_sim::cli::map_build::DEFAULT_TILE_SIZE_M;
 use vtsm_sim::cli::relocalize::{self, load_inputs, outcome_from_core, run_engine, Args};
 use vtsm_sim::error::{EXIT_BAD_INPUT, EXIT_RELOC_FAILED};
@@ -80,6 +81,7 @@ fn args(dir: &Path, prior: &str, out: Option<PathBuf>) -> Args {
         prior: Some(dir.join(prior)),
         pairs: None,
         seed: SEED,
+        verify: Default::default(),
         out,
         force: false,
         tile_size_m: DEFAULT_TILE_SIZE_M,
@@ -150,9 +152,10 @@ fn file_path_equals_in_memory_path_bit_for_bit() {
         prior: e.prior,
         params: locate::params_for_width(e.rig.cam().width()),
         seed: SEED,
+        verify: VerifyChecks::OFF,
     };
     let report = locate::relocalize(&req).unwrap();
-    let in_memory = outcome_from_core(&report.outcome);
+    let in_memory = outcome_from_core(&report.outcome, VerifyChecks::OFF);
     assert_eq!(
         bits(from_files.pose.as_ref().unwrap()),
         bits(in_memory.pose.as_ref().unwrap())

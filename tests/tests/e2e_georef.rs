@@ -100,6 +100,7 @@ fn args(dir: &Path, prior: &str, origin: Option<&str>) -> Args {
         prior: Some(dir.join(prior)),
         pairs: None,
         seed: SEED,
+        verify: Default::default(),
         out: None,
         force: false,
         tile_size_m: DEFAULT_TILE_SIZE_M,

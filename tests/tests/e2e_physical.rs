@@ -28,6 +28,7 @@ fn args(dir: &Path) -> Args {
         prior: Some(dir.join("prior.json")),
         pairs: None,
         seed: SEED,
+        verify: Default::default(),
         out: None,
         force: false,
         tile_size_m: DEFAULT_TILE_SIZE_M,

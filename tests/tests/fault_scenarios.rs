@@ -7,75 +7,34 @@
 //! units, runner steps, and ticks of the simulated clock, which advances one
 //! tick per clock read and a capture timeout per timed-out capture.
 //!
+//! A map product upset in memory after its check at load is injected between
+//! two engine steps through the runner's step hook (`run_on_devices_with`,
+//! the core's `upset-injection` feature).
+//!
 //! Every bound is a named constant with the reason for it. The whole binary
 //! runs in seconds in the test profile.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
-
-#[path = "../../core/testkit/testkit.rs"]
-mod testkit;
 
 use std::sync::OnceLock;
 use vtsm_core::geom::{Pose, Vec3};
 use vtsm_core::map::{self, MapView};
 use vtsm_core::reloc::{Options, Outcome};
 use vtsm_core::FailureCode;
-use vtsm_hal::runner::{DriveLimits, RelocReport};
+use vtsm_hal::runner::{DriveLimits, RelocReport, VerifyChecks};
 use vtsm_hal::telemetry::{parse_outcome, FrameKind};
 use vtsm_sim::devices::FaultConfig;
-use vtsm_sim::locate::{run_on_devices, runner_config, DeviceFaults, DeviceRun, Request};
-
-struct Scene {
-    map: Vec<u8>,
-    left: Vec<u8>,
-    right: Vec<u8>,
-    truth: Pose,
-}
-
-fn scene() -> &'static Scene {
-    static S: OnceLock<Scene> = OnceLock::new();
-    S.get_or_init(|| {
-        let map = testkit::build_map(1);
-        let view = MapView::new_checked(&map).unwrap();
-        let truth = testkit::camera_pose(0.6, 0.2);
-        let (left, right) = render_pair(&view, &truth);
-        Scene {
-            map,
-            left,
-            right,
-            truth,
-        }
-    })
-}
-
-fn render_pair(view: &MapView, pose: &Pose) -> (Vec<u8>, Vec<u8>) {
-    let rig = testkit::rig();
-    (
-        testkit::render_full(view, &rig.cam(), pose, 0.85, 20.0),
-        testkit::render_full(view, &rig.cam(), &rig.world_from_right(pose), 0.85, 20.0),
-    )
-}
+use vtsm_sim::locate::{
+    run_on_devices, run_on_devices_with, runner_config, DeviceFaults, DeviceRun, Request,
+};
+use vtsm_tests::scene::{render_pair, request, scene};
+use vtsm_tests::testkit;
+use vtsm_tests::upsets::map_regions;
 
 /// The prior of every scenario unless it is the fault: 12 cm and no rotation
 /// off the truth, inside the paper's 20 cm uncertainty.
 fn prior() -> Pose {
-    let s = scene();
-    Pose::new(
-        s.truth.rotation(),
-        s.truth.translation() + Vec3::new(0.09, -0.08, 0.02),
-    )
-}
-
-fn request<'a>(map: &'a [u8], left: &'a [u8], right: &'a [u8], prior: Pose) -> Request<'a> {
-    Request {
-        map,
-        left,
-        right,
-        rig: testkit::rig(),
-        prior,
-        params: testkit::test_params(),
-        seed: 42,
-    }
+    scene().prior
 }
 
 fn clean_request() -> Request<'static> {
@@ -575,6 +534,95 @@ fn map_of_degenerate_triangles() {
     let passes = u16::from(runner_config(640, 480).product_attempts);
     assert_refused(&r, FailureCode::MapNoSurface, passes);
     assert!(w.ticks <= ACQUISITION_TICKS - 3 * 1_000, "{w:?}");
+}
+
+// ---- upsets after load ------------------------------------------------------------
+
+/// The scene's map product with one bit of its texture flipped, seen through
+/// the layout of the product checked at load: what the engine reads once the
+/// memory holding the map has been upset after that check.
+fn changed_map() -> &'static MapView<'static> {
+    static BYTES: OnceLock<Vec<u8>> = OnceLock::new();
+    static VIEW: OnceLock<MapView<'static>> = OnceLock::new();
+    VIEW.get_or_init(|| {
+        let s = scene();
+        let bytes = BYTES.get_or_init(|| {
+            let (_, start, end) = map_regions(&s.map)
+                .into_iter()
+                .find(|r| r.0 == "texture")
+                .unwrap();
+            let mut b = s.map.clone();
+            b[(start + end) / 2] ^= 0x80;
+            b
+        });
+        let view = MapView::new_checked(&s.map).unwrap();
+        assert!(
+            MapView::new_checked(bytes).is_err(),
+            "the flip breaks a CRC"
+        );
+        view.with_changed_bytes(bytes).unwrap()
+    })
+}
+
+/// Run `req` on fault-free devices with the map upset before the second
+/// engine step (after the load check and some engine work); the hook's calls.
+fn run_with_map_upset(req: &Request<'_>) -> (DeviceRun, u32) {
+    let mut calls = 0u32;
+    let r = run_on_devices_with(
+        req,
+        &faults(FaultConfig::NONE, FaultConfig::NONE),
+        &DriveLimits::UNLIMITED,
+        |engine, _now| {
+            calls += 1;
+            if calls == 2 {
+                engine.upset_map(changed_map());
+            }
+        },
+    )
+    .unwrap();
+    (r, calls)
+}
+
+/// The map product changes in memory after the runner checked it at load
+/// (one texture bit, between two engine steps). With the runner's map
+/// re-check on (`RunnerConfig::verify`), the run ends in `RELOC_MAP_CHANGED`
+/// instead of a success, with the work of the same run without the check:
+/// the re-check is part of the last unit. Without it the change goes
+/// unnoticed and the same pose is reported as a success; on an unchanged map
+/// the re-check passes.
+///
+/// Verifies: VTSM-HAL-025, VTSM-RELOC-033
+#[test]
+fn map_changed_after_load() {
+    let recheck = Request {
+        verify: VerifyChecks {
+            repeat_solve: false,
+            recheck_map: true,
+        },
+        ..clean_request()
+    };
+    let (checked, calls) = run_with_map_upset(&recheck);
+    let w = work(&checked);
+    println!("map changed after load: {w:?}, {calls} steps");
+    assert!(calls >= 3, "the upset fell between two steps of the run");
+    let o = assert_outcome(&checked, FailureCode::RelocMapChanged);
+    assert_eq!(o.log.count(FailureCode::RelocMapChanged), 1);
+    // The runner had accepted the product on its first read.
+    let (_, rep) = checked.result.as_ref().unwrap();
+    assert_eq!(rep.map_read.product_attempts, 1);
+    assert_eq!(checked.log.count(FailureCode::MapCrcMismatch), 0);
+
+    let (unchecked, _) = run_with_map_upset(&clean_request());
+    let (u, _) = unchecked.result.as_ref().unwrap();
+    assert_eq!(u.failure, None, "without the re-check nothing notices");
+    assert_eq!(u.pose.t().map(f32::to_bits), o.pose.t().map(f32::to_bits));
+    let wu = work(&unchecked);
+    assert_eq!((w.attempts, w.work_units), (wu.attempts, wu.work_units));
+    assert_eq!(w.steps, wu.steps);
+
+    let clean = run(&recheck, &faults(FaultConfig::NONE, FaultConfig::NONE));
+    let (c, _) = clean.result.as_ref().unwrap();
+    assert_eq!(c.failure, None, "the re-check passes an unchanged map");
 }
 
 /// Offset of the triangle section: the third (offset, length, CRC) entry of

@@ -19,6 +19,7 @@ use vtsm_core::geom::Pose;
 use vtsm_core::map::MapView;
 use vtsm_core::reloc::Outcome;
 use vtsm_core::FailureCode;
+use vtsm_hal::runner::VerifyChecks;
 use vtsm_sim::locate::{relocalize, Request};
 
 /// True translation error above which a success is confident wrong, metres.
@@ -98,6 +99,7 @@ fn run(
         prior,
         params,
         seed,
+        verify: VerifyChecks::OFF,
     };
     let outcome = relocalize(&req).unwrap().outcome;
     let (t, r) = outcome.pose.error_to(truth);

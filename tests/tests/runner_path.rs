@@ -5,63 +5,24 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-#[path = "../../core/testkit/testkit.rs"]
-mod testkit;
-
-use std::sync::OnceLock;
 use vtsm_core::geom::{Pose, Vec3};
-use vtsm_core::map::MapView;
 use vtsm_core::reloc::Outcome;
 use vtsm_core::FailureCode;
-use vtsm_hal::runner::DriveLimits;
+use vtsm_hal::runner::{DriveLimits, VerifyChecks};
 use vtsm_hal::telemetry::{parse_outcome, FrameKind};
 use vtsm_sim::devices::FaultConfig;
 use vtsm_sim::locate::{run_on_devices, DeviceFaults, DeviceRun, Request};
-
-struct Scene {
-    map: Vec<u8>,
-    left: Vec<u8>,
-    right: Vec<u8>,
-    truth: Pose,
-}
-
-fn scene() -> &'static Scene {
-    static S: OnceLock<Scene> = OnceLock::new();
-    S.get_or_init(|| {
-        let map = testkit::build_map(1);
-        let view = MapView::new_checked(&map).unwrap();
-        let rig = testkit::rig();
-        let truth = testkit::camera_pose(0.6, 0.2);
-        let left = testkit::render_full(&view, &rig.cam(), &truth, 0.85, 20.0);
-        let right =
-            testkit::render_full(&view, &rig.cam(), &rig.world_from_right(&truth), 0.85, 20.0);
-        Scene {
-            map,
-            left,
-            right,
-            truth,
-        }
-    })
-}
+use vtsm_tests::scene::{scene, RELOC_SEED};
+use vtsm_tests::testkit;
 
 fn request(map: &[u8]) -> Request<'_> {
-    let s = scene();
-    let prior = Pose::new(
-        s.truth.rotation(),
-        s.truth.translation() + Vec3::new(0.09, -0.08, 0.02),
-    );
     Request {
-        map,
-        left: &s.left,
-        right: &s.right,
-        rig: testkit::rig(),
-        prior,
         params: vtsm_core::config::Params {
             // Short failing runs are not under test here: only how they end.
             attempts_per_iter: 300,
             ..testkit::test_params()
         },
-        seed: 42,
+        ..scene().request(map, RELOC_SEED)
     }
 }
 
@@ -128,6 +89,40 @@ fn runner_relocalizes_and_step_granularity_does_not_change_the_outcome() {
         assert_eq!(s.quality, o.quality);
         assert!(srep.drive.steps >= o.stats.work_units / units);
     }
+}
+
+/// The runner builds the engine with the upset checks of its configuration
+/// (`RunnerConfig::verify`): with both on, the clean run repeats its final
+/// solve in work units of its own (the two solves agreeing), re-checks the
+/// map, and returns the pose of the run without them after the same search.
+///
+/// Verifies: VTSM-HAL-024, VTSM-RELOC-032
+#[test]
+fn runner_config_turns_the_upset_checks_on() {
+    let plain = run(DeviceFaults::default(), DriveLimits::UNLIMITED);
+    let req = Request {
+        verify: VerifyChecks::ALL,
+        ..request(&scene().map)
+    };
+    let checked = run_on_devices(&req, &DeviceFaults::default(), &DriveLimits::UNLIMITED).unwrap();
+    let (p, _) = plain.result.as_ref().unwrap();
+    let (c, _) = checked.result.as_ref().unwrap();
+    println!(
+        "upset checks: {} of {} work units, solves {:?} apart",
+        c.stats.verify_units, c.stats.work_units, c.quality.verify_diff
+    );
+    assert_eq!((p.stats.verify_units, p.quality.verify_diff), (0, None));
+    assert_eq!(c.failure, None);
+    assert!(c.stats.verify_units >= 1);
+    assert_eq!(
+        c.stats.work_units,
+        p.stats.work_units + c.stats.verify_units
+    );
+    assert_eq!(c.stats.attempts, p.stats.attempts);
+    assert_eq!(c.pose.t().map(f32::to_bits), p.pose.t().map(f32::to_bits));
+    assert_eq!(c.pose.q().map(f32::to_bits), p.pose.q().map(f32::to_bits));
+    let (dt, dr) = c.quality.verify_diff.unwrap();
+    assert!(dt < 0.01 && dr < 0.2f32.to_radians(), "{dt} m {dr} rad");
 }
 
 /// Verifies: VTSM-HAL-024

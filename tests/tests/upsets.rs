@@ -8,7 +8,8 @@
 use vtsm_core::reloc::UpsetRegion;
 use vtsm_core::rng::Rng;
 use vtsm_core::FailureCode;
-use vtsm_tests::upsets::{clean_run, engine_run, map_regions, map_trial, params, Class, Scene};
+use vtsm_tests::scene::Scene;
+use vtsm_tests::upsets::{clean_run, engine_run, map_regions, map_trial, params, Class};
 
 /// Map flips in this test: enough to land in several sections, few enough to
 /// stay in seconds (each is one checked load of a 1.7 MB product).

@@ -93,6 +93,12 @@ impl<'a, 'w> Pipeline<'a, 'w> {
         &mut self.ws
     }
 
+    /// Read the map through `map` from now on, for upset injection.
+    #[cfg(feature = "upset-injection")]
+    pub(super) fn set_map(&mut self, map: &'a MapView<'a>) {
+        self.map = map;
+    }
+
     /// A pipeline over `map` and the real stereo pair, from inputs that
     /// [`super::Setup::build`] has checked (params, policy, image sizes, workspace, mask).
     pub(super) fn from_checked(

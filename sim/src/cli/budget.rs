@@ -18,6 +18,7 @@ use vtsm_core::reloc::workspace::{
     WorkspaceSizes, PAPER_WORKSPACE, PAPER_WORKSPACE_BYTES, TEST_WORKSPACE, TEST_WORKSPACE_BYTES,
 };
 use vtsm_core::reloc::{Outcome, Pipeline, RansacSolver, Relocalizer};
+use vtsm_hal::runner::VerifyChecks;
 
 /// RAM of the flight envelope the budgets are held against (10 MB).
 pub const ENVELOPE_RAM_BYTES: u64 = 10_000_000;
@@ -342,6 +343,7 @@ pub fn measured_rows(seed: u64) -> crate::Result<Vec<Row>> {
         prior,
         params: locate::params_for_width(rig.cam().width()),
         seed,
+        verify: VerifyChecks::OFF,
     };
     let report = locate::relocalize(&req)?;
     let o = &report.outcome;

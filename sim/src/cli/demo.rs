@@ -38,6 +38,9 @@ pub struct Args {
     /// Image profile: demo (1368×912), test (480×320) or paper (5472×3648).
     #[arg(long, default_value = "demo")]
     pub profile: String,
+    /// `--verify [repeat,map]`: the engine's upset checks.
+    #[command(flatten)]
+    pub verify: super::VerifyArg,
     /// Output directory (default: the first free `vtsm-demo/run-N`).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -119,6 +122,7 @@ pub fn run(args: &Args) -> Result<u8> {
         prior,
         params: locate::params_for_width(rig.cam().width()),
         seed: args.seed,
+        verify: args.verify.checks(),
     };
     let report = locate::relocalize(&req)?;
     let o = &report.outcome;
@@ -168,6 +172,27 @@ pub fn run(args: &Args) -> Result<u8> {
             if o.stats.refine.accepted { "yes" } else { "no" }
         );
     }
+    let result = outcome_result(&outcome_from_core(o, req.verify));
+    if req.verify.any() {
+        let v = result.verified;
+        let ran = |asked: bool, ran: bool| match (asked, ran) {
+            (false, _) => "off",
+            (true, false) => "not reached",
+            (true, true) => "ran",
+        };
+        let diff = o.quality.verify_diff.map_or(String::new(), |(dt, dr)| {
+            format!(
+                " (the two solves {:.1} mm, {:.3}° apart)",
+                dt * 1e3,
+                dr.to_degrees()
+            )
+        });
+        println!(
+            "  upset checks: repeated solve {}{diff}, map re-check {}",
+            ran(req.verify.repeat_solve, v.repeat_solve),
+            ran(req.verify.recheck_map, v.recheck_map)
+        );
+    }
     println!(
         "  relocalization time {:.2} s (single thread), workspace {:.1} MB",
         report.elapsed.as_secs_f64(),
@@ -189,7 +214,6 @@ pub fn run(args: &Args) -> Result<u8> {
     std::fs::create_dir_all(&out)
         .map_err(|e| Error::file(&out, format!("cannot create directory: {e}")))?;
     canvas.save_png(&panel_path, args.force)?;
-    let result = outcome_result(&outcome_from_core(o));
     json::write_result(&result_path, &result, args.force)?;
     println!(
         "  wrote {} and {}  [total {:.1} s]",

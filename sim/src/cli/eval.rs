@@ -60,6 +60,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 use vtsm_core::geom::{Camera, Pose, Vec3};
 use vtsm_core::rng::Rng;
+use vtsm_hal::runner::VerifyChecks;
 
 /// Stereo baseline of the paper's main results, metres.
 pub const MAIN_BASELINE_M: f32 = 0.40;
@@ -133,6 +134,9 @@ pub struct Args {
     /// UTM coordinates; the results are the same.
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
     pub origin: Option<String>,
+    /// `--verify [repeat,map]`: the engine's upset checks.
+    #[command(flatten)]
+    pub verify: super::VerifyArg,
 }
 
 /// A relocalizer evaluated on the suite's trials.
@@ -227,6 +231,8 @@ pub struct SuiteConfig {
     pub progress: bool,
     /// Offset of the whole scene (`--origin`), `None` for the simulator's frame.
     pub origin: Option<[f64; 3]>,
+    /// Upset checks of every VTSM trial (`--verify`).
+    pub verify: VerifyChecks,
 }
 
 impl SuiteConfig {
@@ -249,6 +255,7 @@ impl SuiteConfig {
             baseline: None,
             progress: false,
             origin: None,
+            verify: VerifyChecks::OFF,
         }
     }
 }
@@ -547,6 +554,7 @@ pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
         .as_deref()
         .map(crate::frame::parse_origin)
         .transpose()?;
+    cfg.verify = args.verify.checks();
     Ok(cfg)
 }
 
@@ -793,6 +801,10 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
             "tile_m": TILE_M,
             "baseline": cfg.baseline.map(Method::name),
             "origin": cfg.origin,
+            "verify": {
+                "repeat_solve": cfg.verify.repeat_solve,
+                "recheck_map": cfg.verify.recheck_map,
+            },
             "features": cfg.baseline.map(|_| {
                 format!("{:?}", crate::features::FeatureParams::for_width(scenes[0].camera().width()))
             }),
@@ -947,6 +959,7 @@ fn run_trial(
         prior,
         params,
         seed,
+        verify: cfg.verify,
     };
     if g.method == Method::Features {
         let fp = crate::features::FeatureParams::for_width(rig.cam().width());
@@ -1007,6 +1020,16 @@ fn run_trial(
             if let Some(c) = &out.quality.covariance {
                 for (k, v) in covariance_check(&out.pose, &truth, c) {
                     o.extra.insert(k.into(), v);
+                }
+            }
+            // Which upset checks ran (1) or not (0), only when asked for.
+            if cfg.verify.any() {
+                let v = crate::cli::relocalize::verified(out, cfg.verify);
+                for (k, ran) in [
+                    ("verify_repeat_solve", v.repeat_solve),
+                    ("verify_recheck_map", v.recheck_map),
+                ] {
+                    o.extra.insert(k.into(), f64::from(u8::from(ran)));
                 }
             }
         }
@@ -1671,6 +1694,7 @@ mod tests {
             baseline: Some("features".into()),
             quiet: true,
             origin: None,
+            verify: crate::cli::VerifyArg::default(),
         };
         assert!(config_from_args(&args).is_err());
         args.suite = "baseline".into();

@@ -14,7 +14,7 @@
 use crate::error::{Error, Result, EXIT_RELOC_FAILED};
 use crate::io::calib_opencv::{self, CalibFile};
 use crate::io::image::{self as img, Gray8};
-use crate::io::json::{self, Calib, ResultFile};
+use crate::io::json::{self, Calib, ResultFile, Verified};
 use crate::io::{self, mesh};
 use crate::rectify::Rectifier;
 use std::collections::BTreeMap;
@@ -22,6 +22,7 @@ use std::path::PathBuf;
 use vtsm_core::geom::{Pose, StereoRig};
 use vtsm_core::map::MapView;
 use vtsm_core::FailureCode;
+use vtsm_hal::runner::VerifyChecks;
 
 /// Arguments of `vtsm relocalize`.
 #[derive(Debug, Clone, clap::Args)]
@@ -63,6 +64,9 @@ pub struct Args {
     /// Seed of the relocalizer's random draws (same inputs + seed = same result).
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub seed: u64,
+    /// `--verify [repeat,map]`: the engine's upset checks.
+    #[command(flatten)]
+    pub verify: super::VerifyArg,
     /// Where to write result.json; without it the result is printed to stdout.
     #[arg(long, value_name = "result.json")]
     pub out: Option<PathBuf>,
@@ -102,6 +106,8 @@ pub struct Inputs {
     pub prior: Pose,
     /// Seed.
     pub seed: u64,
+    /// Upset checks asked for (`--verify`).
+    pub verify: VerifyChecks,
     /// The rectifier of a physical pair (OpenCV form of `calib.json`); the
     /// images above are already rectified.
     pub physical: Option<Rectifier>,
@@ -207,6 +213,7 @@ pub fn load_inputs_with_map(args: &Args, map: Vec<u8>) -> Result<Inputs> {
         right,
         prior,
         seed: args.seed,
+        verify: args.verify.checks(),
         physical,
         origin,
     })
@@ -276,6 +283,8 @@ pub struct Outcome {
     pub stats: BTreeMap<String, u64>,
     /// Pose covariance from the final refinement (`vtsm_core::pose::Covariance`).
     pub covariance: Option<vtsm_core::pose::Covariance>,
+    /// The upset checks that ran.
+    pub verified: Verified,
 }
 
 /// The relocalization engine call: the same [`crate::locate::relocalize`] as
@@ -294,11 +303,12 @@ pub fn run_engine(inputs: &Inputs) -> Result<Outcome> {
         prior: inputs.prior,
         params: crate::locate::params_for_width(inputs.rig.cam().width()),
         seed: inputs.seed,
+        verify: inputs.verify,
     };
     let report = crate::locate::relocalize(&req)?;
     let mut outcome = Outcome {
         origin: inputs.origin,
-        ..outcome_from_core(&report.outcome)
+        ..outcome_from_core(&report.outcome, inputs.verify)
     };
     // The core solved for the rectified left camera; report the physical one.
     if let (Some(r), Some(p)) = (&inputs.physical, outcome.pose.as_mut()) {
@@ -307,9 +317,21 @@ pub fn run_engine(inputs: &Inputs) -> Result<Outcome> {
     Ok(outcome)
 }
 
-/// The command-line view of a core outcome (pose, inliers, iterations and
-/// every work counter by name), for a map at origin 0.
-pub fn outcome_from_core(o: &vtsm_core::reloc::Outcome) -> Outcome {
+/// Which of the upset checks `asked` ran in `o`: the repeated solve when it
+/// did work; the map re-check when the run reached it (it is the last step
+/// before a success: the run then succeeded or ended with `RELOC_MAP_CHANGED`).
+pub fn verified(o: &vtsm_core::reloc::Outcome, asked: VerifyChecks) -> Verified {
+    Verified {
+        repeat_solve: asked.repeat_solve && o.stats.verify_units > 0,
+        recheck_map: asked.recheck_map
+            && matches!(o.failure, None | Some(FailureCode::RelocMapChanged)),
+    }
+}
+
+/// The command-line view of a core outcome (pose, inliers, iterations,
+/// every work counter by name, and which of the upset checks `asked` ran),
+/// for a map at origin 0.
+pub fn outcome_from_core(o: &vtsm_core::reloc::Outcome, asked: VerifyChecks) -> Outcome {
     let s = &o.stats;
     let p = &s.pipeline;
     let mut stats = BTreeMap::new();
@@ -338,6 +360,7 @@ pub fn outcome_from_core(o: &vtsm_core::reloc::Outcome) -> Outcome {
         ("triangulations", u64::from(p.triangulations)),
         ("refine_iterations", u64::from(s.refine.iterations)),
         ("refine_accepted", u64::from(s.refine.accepted)),
+        ("verify_units", u64::from(s.verify_units)),
     ] {
         stats.insert(k.to_string(), v);
     }
@@ -349,6 +372,7 @@ pub fn outcome_from_core(o: &vtsm_core::reloc::Outcome) -> Outcome {
         iterations: u32::from(s.successes),
         stats,
         covariance: o.quality.covariance,
+        verified: verified(o, asked),
     }
 }
 
@@ -367,6 +391,7 @@ pub fn outcome_result(o: &Outcome) -> ResultFile {
         covariance: o
             .covariance
             .map(|c| c.m.iter().map(|&v| f64::from(v)).collect()),
+        verified: o.verified,
     }
 }
 

@@ -213,6 +213,23 @@ pub struct ResultFile {
     /// radians (`fsw-docs/interfaces/files.md`); `null` when not estimated.
     #[serde(default)]
     pub covariance: Option<Vec<f64>>,
+    /// The upset checks that ran on this result (`--verify`); both false when
+    /// absent (files written before the field).
+    #[serde(default)]
+    pub verified: Verified,
+}
+
+/// The upset checks that ran on a relocalization (`result.json` `verified`).
+/// A check that ran and failed ended the run with its failure code.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Verified {
+    /// The final solve was repeated from a second random stream and compared
+    /// with the final estimate (`--verify repeat`; `RELOC_VERIFY_DISAGREE`).
+    pub repeat_solve: bool,
+    /// The map product was re-checked before the result was returned
+    /// (`--verify map`; `RELOC_MAP_CHANGED`).
+    pub recheck_map: bool,
 }
 
 /// The 1-based line on which `"key"` first appears in `text`, if it does.

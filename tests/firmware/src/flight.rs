@@ -12,7 +12,7 @@ use vtsm_core::config::Params;
 use vtsm_core::geom::{Camera, Pose, StereoRig, Vec3};
 use vtsm_core::ncc::Search;
 use vtsm_core::reloc::{MatchPolicy, Storage, WorkspaceSizes};
-use vtsm_hal::runner::{Buffers, DriveLimits, Runner, RunnerConfig};
+use vtsm_hal::runner::{Buffers, DriveLimits, Runner, RunnerConfig, VerifyChecks};
 
 pub mod scene {
     include!(concat!(env!("VTSM_FLIGHT_DIR"), "/scene.rs"));
@@ -71,7 +71,7 @@ pub fn run(clock: &dyn Fn() -> u64) -> FlightSummary {
         FlashStore(&MAP_FLASH),
         FixedPrior(prior),
         CountingTelemetry::default(),
-        RunnerConfig { attempts: 3, product_attempts: 2, chunk_len: 1 << 16, capture_timeout_ticks: u64::MAX, image_size: (WIDTH as u32, HEIGHT as u32) },
+        RunnerConfig { attempts: 3, product_attempts: 2, chunk_len: 1 << 16, capture_timeout_ticks: u64::MAX, image_size: (WIDTH as u32, HEIGHT as u32), verify: VerifyChecks::OFF },
     );
     // SAFETY: `run` is called once, from the single thread of the image, and
     // these statics are not touched anywhere else: each reference is unique.

@@ -165,7 +165,7 @@ fn reloc_block(d: &mut Digest, clock: &dyn Fn() -> u64) -> Summary {
     use vtsm_core::map::{MapSource, MapView};
     use vtsm_core::reloc::{MatchPolicy, Storage, WorkspaceSizes};
     use vtsm_core::rng::Rng;
-    use vtsm_hal::runner::{Buffers, DriveLimits, Runner, RunnerConfig};
+    use vtsm_hal::runner::{Buffers, DriveLimits, Runner, RunnerConfig, VerifyChecks};
 
     let fail = |code: u16| Summary { success: false, failure: code, final_error_um: u32::MAX, initial_error_um: 0, attempts: 0, engine_ticks: 0, steps: 0, telemetry_frames: 0, telemetry_bytes: 0 };
     let mut rng = Rng::new(7);
@@ -264,7 +264,7 @@ fn reloc_block(d: &mut Digest, clock: &dyn Fn() -> u64) -> Summary {
         devices::FlashStore(encoded),
         devices::FixedPrior(prior),
         devices::CountingTelemetry::default(),
-        RunnerConfig { attempts: 3, product_attempts: 2, chunk_len: 4096, capture_timeout_ticks: u64::MAX, image_size: (W as u32, H as u32) },
+        RunnerConfig { attempts: 3, product_attempts: 2, chunk_len: 4096, capture_timeout_ticks: u64::MAX, image_size: (W as u32, H as u32), verify: VerifyChecks::OFF },
     );
     let mut left = [0u8; W * H];
     let mut right = [0u8; W * H];

@@ -12,9 +12,8 @@
 
 use std::time::Instant;
 use vtsm_core::reloc::UpsetRegion;
-use vtsm_tests::upsets::{
-    clean_run, engine_campaign, engine_run, map_campaign, Class, Scene, RELOC_SEED,
-};
+use vtsm_tests::scene::{Scene, RELOC_SEED};
+use vtsm_tests::upsets::{clean_run, engine_campaign, engine_run, map_campaign, Class};
 
 fn load() -> String {
     std::fs::read_to_string("/proc/loadavg")

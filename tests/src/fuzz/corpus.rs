@@ -8,11 +8,11 @@
 
 use super::targets::MTL_SEPARATOR;
 use super::FuzzTarget;
+use crate::testkit::{self, GridMesh};
 use std::path::Path;
-use vtsm_core::geom::{Pose, StereoRig, Vec3};
+use vtsm_core::geom::{Pose, StereoRig};
 use vtsm_core::image::{GrayView, Rect};
 use vtsm_core::map::{MapSource, MapView};
-use vtsm_core::nalgebra::{Matrix3, Rotation3, UnitQuaternion};
 use vtsm_core::raster::{self, Target};
 use vtsm_core::rng::Rng;
 
@@ -45,30 +45,18 @@ fn png(img: &vtsm_sim::io::image::Gray8) -> Vec<u8> {
 }
 
 /// A small map product: a 9×9-vertex bumpy heightfield over [0, 4] × [-2, 2] m
-/// (128 triangles, all in M̂; the last row of triangles outside it in
-/// `variant` 1), a 64×64 noise texture (16×16 in variant 1), 1 m tiles.
+/// (the test kit's [`testkit::grid_mesh`]; 128 triangles, all in M̂; the last
+/// row of triangles outside it in `variant` 1), a 64×64 noise texture (16×16
+/// in variant 1), 1 m tiles.
 pub fn tiny_map_variant(variant: u32) -> Vec<u8> {
     let n = 9usize;
-    let step = 4.0 / (n - 1) as f32;
-    let mut vertices = Vec::new();
-    for j in 0..n {
-        for i in 0..n {
-            let (x, y) = (i as f32 * step, -2.0 + j as f32 * step);
-            let z = 0.08 * libm::sinf(2.1 * x) * libm::cosf(1.7 * y);
-            vertices.push([x, y, z]);
-        }
-    }
-    let uv = |i: usize, j: usize| [i as f32 / (n - 1) as f32, j as f32 / (n - 1) as f32];
-    let (mut triangles, mut uvs) = (Vec::new(), Vec::new());
-    for j in 0..n - 1 {
-        for i in 0..n - 1 {
-            let v = |i: usize, j: usize| (j * n + i) as u32;
-            triangles.push([v(i, j), v(i + 1, j), v(i + 1, j + 1)]);
-            uvs.push([uv(i, j), uv(i + 1, j), uv(i + 1, j + 1)]);
-            triangles.push([v(i, j), v(i + 1, j + 1), v(i, j + 1)]);
-            uvs.push([uv(i, j), uv(i + 1, j + 1), uv(i, j + 1)]);
-        }
-    }
+    let GridMesh {
+        vertices,
+        triangles,
+        uvs,
+    } = testkit::grid_mesh(n, 4.0, |x, y| {
+        0.08 * libm::sinf(2.1 * x) * libm::cosf(1.7 * y)
+    });
     let mask: Vec<bool> = (0..triangles.len())
         .map(|k| variant == 0 || k < triangles.len() - 2 * (n - 1))
         .collect();
@@ -112,19 +100,6 @@ pub fn tiny_map_variant(variant: u32) -> Vec<u8> {
 /// [`tiny_map_variant`] 0.
 pub fn tiny_map() -> Vec<u8> {
     tiny_map_variant(0)
-}
-
-/// Left camera at (x, y, 1.2 m) looking along world +x, pitched 40° down.
-pub fn camera_pose(x: f32, y: f32) -> Pose {
-    let p = 40.0f32.to_radians();
-    let zc = Vec3::new(libm::cosf(p), 0.0, -libm::sinf(p));
-    let xc = Vec3::new(0.0, -1.0, 0.0);
-    let yc = zc.cross(&xc);
-    let r = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[xc, yc, zc]));
-    Pose::new(
-        UnitQuaternion::from_rotation_matrix(&r),
-        Vec3::new(x, y, 1.2),
-    )
 }
 
 fn render_full(map: &MapView, rig: &StereoRig, pose: &Pose) -> Vec<u8> {

@@ -363,7 +363,7 @@ impl Env {
         }
         let map = corpus::tiny_map();
         let rig = targets::small_rig();
-        let truth = corpus::camera_pose(0.3, 0.0);
+        let truth = crate::testkit::camera_pose(0.3, 0.0);
         let (left, right) = corpus::render_pair(&map, &rig, &truth);
         Ok(Self {
             dir,

@@ -8,9 +8,16 @@
 //! the search bounds, the Distribute candidates). [`Relocalizer::upset_bits`]
 //! says how many bits a region holds now; [`Relocalizer::flip_bit`] flips one.
 //! Both are O(1) and cannot panic.
+//!
+//! The map product is not a region: the engine only borrows it, read-only.
+//! [`Relocalizer::upset_map`] stands in for an upset of the memory holding it
+//! after its check at load: from then on the engine reads the product through
+//! a view of the same layout over other bytes
+//! ([`MapView::with_changed_bytes`]), e.g. a copy with one bit flipped.
 
 use super::Relocalizer;
 use crate::geom::Pose;
+use crate::map::MapView;
 use crate::reloc::pipeline::Pipeline;
 use crate::reloc::solver::RansacSolver;
 
@@ -148,6 +155,15 @@ impl<'a, 'w> Relocalizer<Pipeline<'a, 'w>, RansacSolver> {
             UpsetRegion::SearchBounds => 2 * 32,
             UpsetRegion::Candidates => self.candidates.len() as u64 * POSE_BITS,
         }
+    }
+
+    /// From now on read the map product through `changed`: the memory that
+    /// held the product checked at load now holds `changed`'s bytes (a view
+    /// from [`MapView::with_changed_bytes`]). Nothing else notices; with
+    /// [`crate::reloc::Verify::recheck_map`] the re-check before a success
+    /// does.
+    pub fn upset_map(&mut self, changed: &'a MapView<'a>) {
+        self.attempt.set_map(changed);
     }
 
     /// Flip bit `bit` of `region` (as counted by [`Self::upset_bits`]);
