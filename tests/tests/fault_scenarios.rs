@@ -604,7 +604,9 @@ fn map_changed_after_load() {
     let (checked, calls) = run_with_map_upset(&recheck);
     let w = work(&checked);
     println!("map changed after load: {w:?}, {calls} steps");
-    assert!(calls >= 3, "the upset fell between two steps of the run");
+    // The hook runs before every step and flips the bit at its second call:
+    // after the first step and before the second, so at least two steps ran.
+    assert!(calls >= 2, "the upset fell between two steps of the run");
     let o = assert_outcome(&checked, FailureCode::RelocMapChanged);
     assert_eq!(o.log.count(FailureCode::RelocMapChanged), 1);
     // The runner had accepted the product on its first read.

@@ -364,16 +364,21 @@ pub struct MatchStats {
     pub candidates: u8,
 }
 
-/// One run of kept pixels in a row of a masked template: columns `x0..x1` of `row`.
+/// One rectangle of kept pixels of a masked template: columns `x0..x1` of the
+/// `rows` rows from `row` (consecutive rows with the same single run of kept
+/// pixels share one rectangle, so a fully kept template is one rectangle and
+/// its window sums cost four table reads per position).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Run {
-    /// Template row.
+    /// First template row.
     pub row: u16,
     /// First kept column.
     pub x0: u16,
     /// One past the last kept column.
     pub x1: u16,
+    /// Number of rows, ≥ 1.
+    pub rows: u16,
 }
 
 /// Caller-provided working memory; size it with [`ScratchSizes`].

@@ -424,8 +424,14 @@ pub(super) fn build_template_levels<'s>(
             break;
         }
         let runs = if mask.is_some() {
-            let mut count = 0;
+            let mut count = 0usize;
+            // The row whose only run ends the list (it may grow downwards).
+            let mut prev_single_row: Option<usize> = None;
             for (y, mrow) in (0..h).zip(mk.chunks_exact(w.max(1))) {
+                let mut first_of_row = true;
+                if prev_single_row != Some(y.wrapping_sub(1)) {
+                    prev_single_row = None;
+                }
                 let mut x = 0usize;
                 // `x < w` bounds both loops, so the increments cannot wrap.
                 while x < w {
@@ -437,14 +443,31 @@ pub(super) fn build_template_levels<'s>(
                     while x < w && mrow.get(x).copied().unwrap_or(0) != 0 {
                         x = x.wrapping_add(1);
                     }
-                    let r = rbuf.get_mut(count).ok_or(FailureCode::NccScratchTooSmall)?;
-                    *r = Run {
-                        row: y as u16,
-                        x0: x0 as u16,
-                        x1: x as u16,
-                    };
-                    // `rbuf.get_mut(count)` succeeded, so count < rbuf.len().
-                    count = count.wrapping_add(1);
+                    let (row, x0, x1) = (y as u16, x0 as u16, x as u16);
+                    // A row whose only run repeats the previous row's only run
+                    // extends that rectangle (rows < h ≤ MAX_TEMPLATE_PX).
+                    let single = x >= w || !mrow.iter().skip(x).any(|&v| v != 0);
+                    let extend = single
+                        && first_of_row
+                        && count > 0
+                        && prev_single_row == Some(y.wrapping_sub(1))
+                        && rbuf
+                            .get(count.wrapping_sub(1))
+                            .is_some_and(|p| (p.x0, p.x1) == (x0, x1));
+                    if extend {
+                        if let Some(p) = rbuf.get_mut(count.wrapping_sub(1)) {
+                            p.rows = p.rows.wrapping_add(1);
+                        }
+                    } else {
+                        let r = rbuf.get_mut(count).ok_or(FailureCode::NccScratchTooSmall)?;
+                        *r = Run { row, x0, x1, rows: 1 };
+                        // `rbuf.get_mut(count)` succeeded, so count < rbuf.len().
+                        count = count.wrapping_add(1);
+                    }
+                    // Only a run that was the first of its row and is the row's
+                    // only run may be extended by the next row.
+                    prev_single_row = (single && first_of_row).then_some(y);
+                    first_of_row = false;
                 }
             }
             let (mine, rest) = core::mem::take(&mut rbuf)

@@ -45,7 +45,7 @@ pub(super) fn eval_positions<F: FnMut(usize, usize, Score)>(
                     rx.wrapping_add(usize::from(run.x0)),
                     ry.wrapping_add(usize::from(run.row)),
                     usize::from(run.x1.wrapping_sub(run.x0)),
-                    1,
+                    usize::from(run.rows),
                 );
                 (s.wrapping_add(a), q.wrapping_add(b))
             }),

@@ -158,6 +158,7 @@ impl<const BYTES: usize, const WORDS: usize, const RUNS: usize> Storage<BYTES, W
                 row: 0,
                 x0: 0,
                 x1: 0,
+                rows: 0,
             }; RUNS],
         }
     }
