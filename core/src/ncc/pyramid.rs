@@ -460,7 +460,12 @@ pub(super) fn build_template_levels<'s>(
                         }
                     } else {
                         let r = rbuf.get_mut(count).ok_or(FailureCode::NccScratchTooSmall)?;
-                        *r = Run { row, x0, x1, rows: 1 };
+                        *r = Run {
+                            row,
+                            x0,
+                            x1,
+                            rows: 1,
+                        };
                         // `rbuf.get_mut(count)` succeeded, so count < rbuf.len().
                         count = count.wrapping_add(1);
                     }
