@@ -18,7 +18,10 @@
 //! constructor ([`Setup`]) over the caller's workspace, and drives it with
 //! `now` from the clock under a step, work and tick budget ([`DriveLimits`]),
 //! ending with the anytime result when the budget runs out. The outcome and
-//! the failure log go out as telemetry frames.
+//! the failure log go out as telemetry frames. [`Runner::relocalize_by_stage`]
+//! is the same path with the engine stepped one [`Stage`] at a time and each
+//! stage reported to an observer, so a host can time the stages with its own
+//! clock; the outcome is the same.
 
 use crate::camera::{FrameInfo, StereoCamera};
 use crate::clock::Clock;
@@ -34,7 +37,7 @@ use vtsm_core::failure::{FailureLog, Retry};
 use vtsm_core::geom::StereoRig;
 use vtsm_core::image::GrayView;
 use vtsm_core::map::MapView;
-use vtsm_core::reloc::{Outcome, Setup, StepResult, Workspace};
+use vtsm_core::reloc::{Outcome, Setup, Stage, StepResult, Workspace};
 use vtsm_core::FailureCode;
 
 /// Cap on attempts of one device operation.
@@ -340,6 +343,18 @@ impl DriveLimits {
     };
 }
 
+/// What [`Runner::relocalize_by_stage`] tells its observer, in order: one
+/// `Start`, then one `Ran` per engine step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum StageEvent {
+    /// The inputs are acquired and checked and the engine is built; its
+    /// first step comes next.
+    Start,
+    /// The engine ran one stage ([`vtsm_core::reloc::Relocalizer::step_stage`]).
+    Ran(Stage),
+}
+
 /// What one [`Runner::relocalize`] did besides the engine's outcome.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -537,7 +552,47 @@ where
         seed: u64,
         limits: &DriveLimits,
     ) -> Result<(Outcome, RelocReport), FailureCode> {
-        let result = self.relocalize_inner(bufs, rig, params, ws, seed, limits);
+        self.relocalize_observed(bufs, rig, params, ws, seed, limits, None)
+    }
+
+    /// [`Runner::relocalize`] with the engine stepped one stage at a time
+    /// ([`vtsm_core::reloc::Relocalizer::step_stage`]): `observe` gets
+    /// [`StageEvent::Start`] once the engine is built and
+    /// [`StageEvent::Ran`] after each step, so a host can read its own clock
+    /// at each event and attribute the time between two events to the stage
+    /// just reported. `limits.units_per_step` is not used (each step is one
+    /// stage) and `limits.max_steps` counts stages. With a clock that does
+    /// not move between steps, the outcome is bit-identical to
+    /// [`Runner::relocalize`]'s.
+    ///
+    /// # Errors
+    /// As [`Runner::relocalize`].
+    #[allow(clippy::too_many_arguments)]
+    pub fn relocalize_by_stage<'w>(
+        &mut self,
+        bufs: Buffers<'_>,
+        rig: &StereoRig,
+        params: &Params,
+        ws: Workspace<'w>,
+        seed: u64,
+        limits: &DriveLimits,
+        observe: &mut dyn FnMut(StageEvent),
+    ) -> Result<(Outcome, RelocReport), FailureCode> {
+        self.relocalize_observed(bufs, rig, params, ws, seed, limits, Some(observe))
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn relocalize_observed<'w>(
+        &mut self,
+        bufs: Buffers<'_>,
+        rig: &StereoRig,
+        params: &Params,
+        ws: Workspace<'w>,
+        seed: u64,
+        limits: &DriveLimits,
+        observe: Option<&mut dyn FnMut(StageEvent)>,
+    ) -> Result<(Outcome, RelocReport), FailureCode> {
+        let result = self.relocalize_inner(bufs, rig, params, ws, seed, limits, observe);
         if let Ok((o, _)) = &result {
             let summary = outcome_payload(&OutcomeSummary::of(o));
             self.send(FrameKind::Outcome as u8, &summary);
@@ -546,6 +601,7 @@ where
         result
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn relocalize_inner<'w>(
         &mut self,
         bufs: Buffers<'_>,
@@ -554,6 +610,7 @@ where
         ws: Workspace<'w>,
         seed: u64,
         limits: &DriveLimits,
+        observe: Option<&mut dyn FnMut(StageEvent)>,
     ) -> Result<(Outcome, RelocReport), FailureCode> {
         // Acquisition logs its own faults; the checks after it log theirs here.
         let inputs = self.acquire(bufs, |b| MapView::new_checked(b).map(|_| ()))?;
@@ -565,13 +622,28 @@ where
         let mut engine = setup
             .build(ws)
             .inspect_err(|&c| self.log.record(c, start, 0))?;
-        let units = limits.units_per_step.max(1);
-        let (drive, _) = self.drive(limits.max_steps, limits.budget_ticks, |now| {
-            Ok(match engine.step_n(now, units) {
-                StepResult::Running => StepStatus::Continue,
-                StepResult::Done(_) => StepStatus::Done,
-            })
-        });
+        let status = |r: StepResult<'_>| match r {
+            StepResult::Running => StepStatus::Continue,
+            StepResult::Done(_) => StepStatus::Done,
+        };
+        let (drive, _) = match observe {
+            None => {
+                let units = limits.units_per_step.max(1);
+                self.drive(limits.max_steps, limits.budget_ticks, |now| {
+                    Ok(status(engine.step_n(now, units)))
+                })
+            }
+            Some(observe) => {
+                observe(StageEvent::Start);
+                self.drive(limits.max_steps, limits.budget_ticks, |now| {
+                    let (stage, r) = engine.step_stage(now);
+                    if let Some(s) = stage {
+                        observe(StageEvent::Ran(s));
+                    }
+                    Ok(status(r))
+                })
+            }
+        };
         let now = self.now();
         let outcome = engine.stop(now).clone();
         Ok((

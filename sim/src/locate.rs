@@ -3,7 +3,8 @@
 //! runner, which acquires the inputs, builds the engine with the core's one
 //! constructor ([`vtsm_core::reloc::Setup`]) over a heap workspace, and drives it. Used by `vtsm demo`,
 //! `vtsm relocalize`, `vtsm eval` and the end-to-end tests, so every path runs
-//! exactly the same code.
+//! exactly the same code. [`relocalize_by_stage`] is the same run with the
+//! engine stepped one stage at a time and each stage reported (`vtsm bench`).
 
 use crate::devices::{
     DecodedFrame, FaultConfig, FaultInjector, FixedCamera, FixedPrior, ManualClock, MemMapStore,
@@ -21,7 +22,7 @@ use vtsm_core::ncc::Run;
 use vtsm_core::raster::{self, Target};
 use vtsm_core::reloc::{MatchPolicy, Outcome, Workspace, WorkspaceSizes};
 use vtsm_core::FailureCode;
-use vtsm_hal::runner::{Buffers, DriveLimits, RelocReport, Runner, RunnerConfig};
+use vtsm_hal::runner::{Buffers, DriveLimits, RelocReport, Runner, RunnerConfig, StageEvent};
 use vtsm_hal::{Covariance, FramedTelemetry, PriorEstimate};
 
 /// The parameters used for an image width: the paper's, with ℓ and the
@@ -125,7 +126,32 @@ pub fn relocalize_on_devices(
     faults: &DeviceFaults,
     limits: &DriveLimits,
 ) -> Result<Report> {
-    let run = run_on_devices(req, faults, limits)?;
+    let run = run_on_devices_observed(req, faults, limits, None)?;
+    into_report(req, run)
+}
+
+/// [`relocalize`] with the engine stepped one stage at a time through
+/// [`Runner::relocalize_by_stage`]: `observe` gets [`StageEvent::Start`] once
+/// the engine is built and [`StageEvent::Ran`] after each stage, and may read
+/// a clock at each event. The outcome is bit-identical to [`relocalize`]'s
+/// (the simulated clock does not move between steps).
+///
+/// # Errors
+/// As [`relocalize_on_devices`].
+pub fn relocalize_by_stage(
+    req: &Request<'_>,
+    observe: &mut dyn FnMut(StageEvent),
+) -> Result<Report> {
+    let run = run_on_devices_observed(
+        req,
+        &DeviceFaults::default(),
+        &DriveLimits::UNLIMITED,
+        Some(observe),
+    )?;
+    into_report(req, run)
+}
+
+fn into_report(req: &Request<'_>, run: DeviceRun) -> Result<Report> {
     let (outcome, report) = run.result?;
     Ok(Report {
         outcome,
@@ -169,6 +195,15 @@ pub fn run_on_devices(
     faults: &DeviceFaults,
     limits: &DriveLimits,
 ) -> Result<DeviceRun> {
+    run_on_devices_observed(req, faults, limits, None)
+}
+
+fn run_on_devices_observed(
+    req: &Request<'_>,
+    faults: &DeviceFaults,
+    limits: &DriveLimits,
+    observe: Option<&mut dyn FnMut(StageEvent)>,
+) -> Result<DeviceRun> {
     let (w, h) = (req.rig.cam().width(), req.rig.cam().height());
     let n = (w as usize) * (h as usize);
     if req.left.len() != n || req.right.len() != n {
@@ -208,7 +243,12 @@ pub fn run_on_devices(
         map: &mut map,
     };
     let start = Instant::now();
-    let result = runner.relocalize(bufs, &req.rig, &req.params, ws, req.seed, limits);
+    let result = match observe {
+        None => runner.relocalize(bufs, &req.rig, &req.params, ws, req.seed, limits),
+        Some(observe) => {
+            runner.relocalize_by_stage(bufs, &req.rig, &req.params, ws, req.seed, limits, observe)
+        }
+    };
     let elapsed = start.elapsed();
     Ok(DeviceRun {
         result,
@@ -265,4 +305,57 @@ pub fn render_template(
         depth,
         mask,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use crate::scene::{perturbed_prior, Capture, Profile, Scene};
+    use crate::terrain::TerrainKind;
+    use vtsm_core::reloc::Stage;
+
+    /// Verifies: VTSM-RELOC-034
+    #[test]
+    fn stepping_by_stage_through_the_runner_gives_the_same_outcome() {
+        let scene = Scene::new(TerrainKind::Flagstone, 3, Profile::Test);
+        let light = scene.lighting(9.5);
+        let map = scene.map(&light).encode_map(0.5).unwrap();
+        let (rig, truth, pair) = scene.capture(&light, &Capture::from_index(5, 0, 0.40));
+        let req = Request {
+            map: &map,
+            left: &pair.left,
+            right: &pair.right,
+            rig,
+            prior: perturbed_prior(&truth, 3),
+            params: params_for_width(rig.cam().width()),
+            seed: 3,
+        };
+        let whole = relocalize(&req).unwrap();
+        let mut events = Vec::new();
+        let staged = relocalize_by_stage(&req, &mut |e| events.push(e)).unwrap();
+        let (a, b) = (&whole.outcome, &staged.outcome);
+        let bits = |o: &Outcome| {
+            let (t, q) = (o.pose.t(), o.pose.q());
+            (t.map(f32::to_bits), q.map(f32::to_bits))
+        };
+        assert_eq!(bits(a), bits(b));
+        assert_eq!(
+            (a.stats, &a.quality, a.failure),
+            (b.stats, &b.quality, b.failure)
+        );
+        assert_eq!(
+            a.log.counters().collect::<Vec<_>>(),
+            b.log.counters().collect::<Vec<_>>()
+        );
+        // One Start, then one event per step the runner made.
+        assert_eq!(events.first(), Some(&StageEvent::Start));
+        assert_eq!(events.len() as u32, staged.run.drive.steps + 1);
+        let renders = events
+            .iter()
+            .filter(|e| **e == StageEvent::Ran(Stage::Render))
+            .count() as u32;
+        assert_eq!(renders, b.stats.attempts);
+        assert!(events.contains(&StageEvent::Ran(Stage::Pose)));
+    }
 }
