@@ -4,6 +4,7 @@
 use crate::error::{Error, EXIT_BAD_INPUT};
 
 pub mod batch;
+pub mod bench;
 pub mod budget;
 pub mod demo;
 pub mod eval;
