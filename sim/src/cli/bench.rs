@@ -61,7 +61,8 @@ pub const OPENCV_SCRIPT: &str = include_str!("../../bench/opencv_ncc.py");
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
     /// Profiles to relocalize, comma-separated, from test, demo and paper.
-    /// The paper profile (5472×3648) takes minutes.
+    /// The paper profile (5472×3648) is the slowest: tens of seconds to
+    /// build its scene and as many to relocalize.
     #[arg(long, value_name = "LIST", default_value = "test,demo,paper")]
     pub profiles: String,
     /// Timed samples per NCC case, 1..=1000; the median is reported
