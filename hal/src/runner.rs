@@ -19,7 +19,10 @@
 //! the configuration asks for ([`RunnerConfig::verify`]), and drives it with
 //! `now` from the clock under a step, work and tick budget ([`DriveLimits`]),
 //! ending with the anytime result when the budget runs out. The outcome and
-//! the failure log go out as telemetry frames.
+//! the failure log go out as telemetry frames. [`Runner::relocalize_by_stage`]
+//! is the same path with the engine stepped one [`Stage`] at a time and each
+//! stage reported to an observer, so a host can time the stages with its own
+//! clock; the outcome is the same.
 
 use crate::camera::{FrameInfo, StereoCamera};
 use crate::clock::Clock;
@@ -35,7 +38,7 @@ use vtsm_core::failure::{FailureLog, Retry};
 use vtsm_core::geom::StereoRig;
 use vtsm_core::image::GrayView;
 use vtsm_core::map::MapView;
-use vtsm_core::reloc::{Engine, Outcome, Setup, StepResult, Workspace};
+use vtsm_core::reloc::{Engine, Outcome, Setup, Stage, StepResult, Workspace};
 use vtsm_core::FailureCode;
 
 /// Cap on attempts of one device operation.
@@ -374,6 +377,18 @@ impl DriveLimits {
     };
 }
 
+/// What [`Runner::relocalize_by_stage`] tells its observer, in order: one
+/// `Start`, then one `Ran` per engine step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum StageEvent {
+    /// The inputs are acquired and checked and the engine is built; its
+    /// first step comes next.
+    Start,
+    /// The engine ran one stage ([`vtsm_core::reloc::Relocalizer::step_stage`]).
+    Ran(Stage),
+}
+
 /// What one [`Runner::relocalize`] did besides the engine's outcome.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -572,7 +587,7 @@ where
         seed: u64,
         limits: &DriveLimits,
     ) -> Result<(Outcome, RelocReport), FailureCode> {
-        self.relocalize_with(bufs, rig, params, ws, seed, limits, |_, _| {})
+        self.relocalize_inner(bufs, rig, params, ws, seed, limits, |_, _| {}, None)
     }
 
     /// [`Runner::relocalize`], calling `between(engine, now)` before every
@@ -596,16 +611,48 @@ where
     where
         F: FnMut(&mut Engine<'_, 'w>, u64),
     {
-        let result = self.relocalize_inner(bufs, rig, params, ws, seed, limits, between);
-        if let Ok((o, _)) = &result {
-            let summary = outcome_payload(&OutcomeSummary::of(o));
-            self.send(FrameKind::Outcome as u8, &summary);
-        }
-        self.send_failure_log();
-        result
+        self.relocalize_inner(bufs, rig, params, ws, seed, limits, between, None)
     }
 
-    #[allow(clippy::too_many_arguments)] // as `relocalize_with`
+    /// [`Runner::relocalize`] with the engine stepped one stage at a time
+    /// ([`vtsm_core::reloc::Relocalizer::step_stage`]): `observe` gets
+    /// [`StageEvent::Start`] once the engine is built and
+    /// [`StageEvent::Ran`] after each step, so a host can read its own clock
+    /// at each event and attribute the time between two events to the stage
+    /// just reported. `limits.units_per_step` is not used (each step is one
+    /// stage) and `limits.max_steps` counts stages. With a clock that does
+    /// not move between steps, the outcome is bit-identical to
+    /// [`Runner::relocalize`]'s.
+    ///
+    /// # Errors
+    /// As [`Runner::relocalize`].
+    #[allow(clippy::too_many_arguments)]
+    pub fn relocalize_by_stage<'w>(
+        &mut self,
+        bufs: Buffers<'_>,
+        rig: &StereoRig,
+        params: &Params,
+        ws: Workspace<'w>,
+        seed: u64,
+        limits: &DriveLimits,
+        observe: &mut dyn FnMut(StageEvent),
+    ) -> Result<(Outcome, RelocReport), FailureCode> {
+        self.relocalize_inner(
+            bufs,
+            rig,
+            params,
+            ws,
+            seed,
+            limits,
+            |_, _| {},
+            Some(observe),
+        )
+    }
+
+    /// The one path of every `relocalize*`: acquire, build, drive with the
+    /// hook before each step (and the observer after each stage when
+    /// stepping by stage), then send the outcome and the failure log.
+    #[allow(clippy::too_many_arguments)] // `relocalize`'s inputs, the hook and the observer
     fn relocalize_inner<'w, F>(
         &mut self,
         bufs: Buffers<'_>,
@@ -614,7 +661,32 @@ where
         ws: Workspace<'w>,
         seed: u64,
         limits: &DriveLimits,
+        between: F,
+        observe: Option<&mut dyn FnMut(StageEvent)>,
+    ) -> Result<(Outcome, RelocReport), FailureCode>
+    where
+        F: FnMut(&mut Engine<'_, 'w>, u64),
+    {
+        let result = self.run_engine(bufs, rig, params, ws, seed, limits, between, observe);
+        if let Ok((o, _)) = &result {
+            let summary = outcome_payload(&OutcomeSummary::of(o));
+            self.send(FrameKind::Outcome as u8, &summary);
+        }
+        self.send_failure_log();
+        result
+    }
+
+    #[allow(clippy::too_many_arguments)] // as `relocalize_inner`
+    fn run_engine<'w, F>(
+        &mut self,
+        bufs: Buffers<'_>,
+        rig: &StereoRig,
+        params: &Params,
+        ws: Workspace<'w>,
+        seed: u64,
+        limits: &DriveLimits,
         mut between: F,
+        observe: Option<&mut dyn FnMut(StageEvent)>,
     ) -> Result<(Outcome, RelocReport), FailureCode>
     where
         F: FnMut(&mut Engine<'_, 'w>, u64),
@@ -631,14 +703,30 @@ where
         let mut engine = setup
             .build(ws)
             .inspect_err(|&c| self.log.record(c, start, 0))?;
-        let units = limits.units_per_step.max(1);
-        let (drive, _) = self.drive(limits.max_steps, limits.budget_ticks, |now| {
-            between(&mut engine, now);
-            Ok(match engine.step_n(now, units) {
-                StepResult::Running => StepStatus::Continue,
-                StepResult::Done(_) => StepStatus::Done,
-            })
-        });
+        let status = |r: StepResult<'_>| match r {
+            StepResult::Running => StepStatus::Continue,
+            StepResult::Done(_) => StepStatus::Done,
+        };
+        let (drive, _) = match observe {
+            None => {
+                let units = limits.units_per_step.max(1);
+                self.drive(limits.max_steps, limits.budget_ticks, |now| {
+                    between(&mut engine, now);
+                    Ok(status(engine.step_n(now, units)))
+                })
+            }
+            Some(observe) => {
+                observe(StageEvent::Start);
+                self.drive(limits.max_steps, limits.budget_ticks, |now| {
+                    between(&mut engine, now);
+                    let (stage, r) = engine.step_stage(now);
+                    if let Some(s) = stage {
+                        observe(StageEvent::Ran(s));
+                    }
+                    Ok(status(r))
+                })
+            }
+        };
         let now = self.now();
         let outcome = engine.stop(now).clone();
         Ok((

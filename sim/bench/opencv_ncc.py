@@ -4,7 +4,8 @@
 Times cv2.matchTemplate(TM_CCOEFF_NORMED) + minMaxLoc, single thread, 8-bit, on
 the images written by `cargo run --release -p vtsm-core --example bench_ncc -- --out DIR`
 (256-in-800, 128-in-800, 64-in-200 and 32-in-96) and prints the same quantities as the Rust example (wall-clock median and thread
-CPU time per match, best position and score).
+CPU time per match, best position and score). `vtsm bench` embeds this script, runs it on
+the same images in a temporary directory and parses its output (`sim/src/cli/bench.rs`).
 
     pip install opencv-python-headless numpy
     python3 sim/bench/opencv_ncc.py DIR [--repeat N]

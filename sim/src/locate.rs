@@ -3,7 +3,8 @@
 //! runner, which acquires the inputs, builds the engine with the core's one
 //! constructor ([`vtsm_core::reloc::Setup`]) over a heap workspace, and drives it. Used by `vtsm demo`,
 //! `vtsm relocalize`, `vtsm eval` and the end-to-end tests, so every path runs
-//! exactly the same code.
+//! exactly the same code. [`relocalize_by_stage`] is the same run with the
+//! engine stepped one stage at a time and each stage reported (`vtsm bench`).
 
 use crate::devices::{
     DecodedFrame, FaultConfig, FaultInjector, FixedCamera, FixedPrior, ManualClock, MemMapStore,
@@ -21,7 +22,9 @@ use vtsm_core::ncc::Run;
 use vtsm_core::raster::{self, Target};
 use vtsm_core::reloc::{Engine, MatchPolicy, Outcome, Workspace, WorkspaceSizes};
 use vtsm_core::FailureCode;
-use vtsm_hal::runner::{Buffers, DriveLimits, RelocReport, Runner, RunnerConfig, VerifyChecks};
+use vtsm_hal::runner::{
+    Buffers, DriveLimits, RelocReport, Runner, RunnerConfig, StageEvent, VerifyChecks,
+};
 use vtsm_hal::{Covariance, FramedTelemetry, PriorEstimate};
 
 /// The parameters used for an image width: the paper's, with ℓ and the
@@ -129,7 +132,33 @@ pub fn relocalize_on_devices(
     faults: &DeviceFaults,
     limits: &DriveLimits,
 ) -> Result<Report> {
-    let run = run_on_devices(req, faults, limits)?;
+    let run = run_on_devices_observed(req, faults, limits, |_, _| {}, None)?;
+    into_report(req, run)
+}
+
+/// [`relocalize`] with the engine stepped one stage at a time through
+/// [`Runner::relocalize_by_stage`]: `observe` gets [`StageEvent::Start`] once
+/// the engine is built and [`StageEvent::Ran`] after each stage, and may read
+/// a clock at each event. The outcome is bit-identical to [`relocalize`]'s
+/// (the simulated clock does not move between steps).
+///
+/// # Errors
+/// As [`relocalize_on_devices`].
+pub fn relocalize_by_stage(
+    req: &Request<'_>,
+    observe: &mut dyn FnMut(StageEvent),
+) -> Result<Report> {
+    let run = run_on_devices_observed(
+        req,
+        &DeviceFaults::default(),
+        &DriveLimits::UNLIMITED,
+        |_, _| {},
+        Some(observe),
+    )?;
+    into_report(req, run)
+}
+
+fn into_report(req: &Request<'_>, run: DeviceRun) -> Result<Report> {
     let (outcome, report) = run.result?;
     Ok(Report {
         outcome,
@@ -173,7 +202,7 @@ pub fn run_on_devices(
     faults: &DeviceFaults,
     limits: &DriveLimits,
 ) -> Result<DeviceRun> {
-    run_on_devices_with(req, faults, limits, |_, _| {})
+    run_on_devices_observed(req, faults, limits, |_, _| {}, None)
 }
 
 /// [`run_on_devices`] through [`Runner::relocalize_with`]: `between(engine,
@@ -186,6 +215,19 @@ pub fn run_on_devices_with<F>(
     faults: &DeviceFaults,
     limits: &DriveLimits,
     between: F,
+) -> Result<DeviceRun>
+where
+    F: for<'m, 'w> FnMut(&mut Engine<'m, 'w>, u64),
+{
+    run_on_devices_observed(req, faults, limits, between, None)
+}
+
+fn run_on_devices_observed<F>(
+    req: &Request<'_>,
+    faults: &DeviceFaults,
+    limits: &DriveLimits,
+    between: F,
+    observe: Option<&mut dyn FnMut(StageEvent)>,
 ) -> Result<DeviceRun>
 where
     F: for<'m, 'w> FnMut(&mut Engine<'m, 'w>, u64),
@@ -233,7 +275,12 @@ where
         map: &mut map,
     };
     let start = Instant::now();
-    let result = runner.relocalize_with(bufs, &req.rig, &req.params, ws, req.seed, limits, between);
+    let result = match observe {
+        None => runner.relocalize_with(bufs, &req.rig, &req.params, ws, req.seed, limits, between),
+        Some(observe) => {
+            runner.relocalize_by_stage(bufs, &req.rig, &req.params, ws, req.seed, limits, observe)
+        }
+    };
     let elapsed = start.elapsed();
     Ok(DeviceRun {
         result,
@@ -290,4 +337,58 @@ pub fn render_template(
         depth,
         mask,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use crate::scene::{perturbed_prior, Capture, Profile, Scene};
+    use crate::terrain::TerrainKind;
+    use vtsm_core::reloc::Stage;
+
+    /// Verifies: VTSM-RELOC-035
+    #[test]
+    fn stepping_by_stage_through_the_runner_gives_the_same_outcome() {
+        let scene = Scene::new(TerrainKind::Flagstone, 3, Profile::Test);
+        let light = scene.lighting(9.5);
+        let map = scene.map(&light).encode_map(0.5).unwrap();
+        let (rig, truth, pair) = scene.capture(&light, &Capture::from_index(5, 0, 0.40));
+        let req = Request {
+            map: &map,
+            left: &pair.left,
+            right: &pair.right,
+            rig,
+            prior: perturbed_prior(&truth, 3),
+            params: params_for_width(rig.cam().width()),
+            seed: 3,
+            verify: VerifyChecks::OFF,
+        };
+        let whole = relocalize(&req).unwrap();
+        let mut events = Vec::new();
+        let staged = relocalize_by_stage(&req, &mut |e| events.push(e)).unwrap();
+        let (a, b) = (&whole.outcome, &staged.outcome);
+        let bits = |o: &Outcome| {
+            let (t, q) = (o.pose.t(), o.pose.q());
+            (t.map(f32::to_bits), q.map(f32::to_bits))
+        };
+        assert_eq!(bits(a), bits(b));
+        assert_eq!(
+            (a.stats, &a.quality, a.failure),
+            (b.stats, &b.quality, b.failure)
+        );
+        assert_eq!(
+            a.log.counters().collect::<Vec<_>>(),
+            b.log.counters().collect::<Vec<_>>()
+        );
+        // One Start, then one event per step the runner made.
+        assert_eq!(events.first(), Some(&StageEvent::Start));
+        assert_eq!(events.len() as u32, staged.run.drive.steps + 1);
+        let renders = events
+            .iter()
+            .filter(|e| **e == StageEvent::Ran(Stage::Render))
+            .count() as u32;
+        assert_eq!(renders, b.stats.attempts);
+        assert!(events.contains(&StageEvent::Ran(Stage::Pose)));
+    }
 }

@@ -1,10 +1,11 @@
 //! The [`Relocalizer`] state machine: rounds of correspondence collection and
-//! GetTransform, with the §III-E mechanisms, one work unit per [`Relocalizer::step`].
+//! GetTransform, with the §III-E mechanisms, one work unit per [`Relocalizer::step`]
+//! (one [`Stage`] per [`Relocalizer::step_stage`]).
 
 use super::viewpoint::{pick_candidate, randomize};
 use super::{
     Attempt, AttemptContext, Candidate, Correspondence, IterationRecord, Options, Outcome, Quality,
-    Solution, Solver, Stats,
+    Solution, Solver, Stage, StageStep, Stats, MAX_ATTEMPT_STAGES,
 };
 use crate::config::{Params, MAX_CORR, MAX_POSE_CANDIDATES};
 use crate::failure::{FailureCode, FailureLog};
@@ -42,6 +43,8 @@ pub enum StepResult<'o> {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Phase {
     Collect,
+    /// A staged attempt is under way: its next stage is due.
+    Attempt,
     Solve,
     /// A chunked solve is under way.
     Chunks,
@@ -193,17 +196,62 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         self.status()
     }
 
+    /// Do one stage of work at caller time `now` — one [`Stage`] of an
+    /// attempt, or a whole unit of any other kind — and say which stage it
+    /// was (`None` when the run was already done). A caller that reads its
+    /// clock around each call learns where the time goes; the core reads none.
+    ///
+    /// Budgets are checked where a unit starts, as with [`Self::step`]: an
+    /// attempt under way always runs to its end (at most
+    /// [`MAX_ATTEMPT_STAGES`] calls). With the same `now` at the start of
+    /// each unit, the outcome is bit-identical to stepping by whole units.
+    pub fn step_stage(&mut self, now: u64) -> (Option<Stage>, StepResult<'_>) {
+        let stage = if self.done.is_none() {
+            Some(self.work_stage(now))
+        } else {
+            None
+        };
+        (stage, self.status())
+    }
+
+    /// One unit: its first stage, then the rest of an attempt under way.
     fn work_one(&mut self, now: u64) {
+        self.work_stage(now);
+        for _ in 1..MAX_ATTEMPT_STAGES {
+            if self.phase != Phase::Attempt || self.done.is_some() {
+                break;
+            }
+            self.work_stage(now);
+        }
+    }
+
+    fn work_stage(&mut self, now: u64) -> Stage {
+        if self.phase == Phase::Attempt {
+            let step = self.attempt.resume(&mut self.stats.pipeline);
+            return self.attempt_stage_done(step, now);
+        }
         let unit_cap = self.opts.budget.max_work_units.min(self.max_units);
         if self.stats.work_units >= unit_cap || now >= self.opts.budget.deadline_tick {
             self.finish_budget(now);
-        } else {
-            match self.phase {
-                Phase::Collect => self.collect_one(now),
-                Phase::Solve => self.solve(now),
-                Phase::Chunks => self.solve_chunk(now),
-                Phase::Verify => self.verify_start(now),
-                Phase::VerifyChunks => self.verify_chunk(now),
+            return Stage::Stop;
+        }
+        match self.phase {
+            Phase::Collect | Phase::Attempt => self.begin_attempt(now),
+            Phase::Solve => {
+                self.solve(now);
+                Stage::Pose
+            }
+            Phase::Chunks => {
+                self.solve_chunk(now);
+                Stage::Pose
+            }
+            Phase::Verify => {
+                self.verify_start(now);
+                Stage::Verify
+            }
+            Phase::VerifyChunks => {
+                self.verify_chunk(now);
+                Stage::Verify
             }
         }
     }
@@ -296,7 +344,9 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         )
     }
 
-    fn collect_one(&mut self, now: u64) {
+    /// The first stage of a new attempt: its viewpoint and random stream,
+    /// counted as one work unit.
+    fn begin_attempt(&mut self, now: u64) -> Stage {
         let index = self.stats.attempts;
         let mut rng = self.root.fork(STREAM_ATTEMPT).fork(u64::from(index));
         let planar = self.stats.successes == 0;
@@ -315,10 +365,27 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         self.stats.attempts = self.stats.attempts.saturating_add(1);
         self.stats.work_units = self.stats.work_units.saturating_add(1);
         self.round_attempts = self.round_attempts.saturating_add(1);
-        match self
-            .attempt
-            .attempt(&ctx, &mut rng, &mut self.stats.pipeline)
-        {
+        let step = self.attempt.begin(&ctx, &mut rng, &mut self.stats.pipeline);
+        self.attempt_stage_done(step, now)
+    }
+
+    /// After a stage of an attempt: wait for the next stage, or take the
+    /// attempt's result.
+    fn attempt_stage_done(&mut self, step: StageStep, now: u64) -> Stage {
+        match step.ended {
+            None => self.phase = Phase::Attempt,
+            Some(result) => {
+                self.phase = Phase::Collect;
+                self.end_attempt(result, now);
+            }
+        }
+        step.stage
+    }
+
+    fn end_attempt(&mut self, result: Result<Correspondence, FailureCode>, now: u64) {
+        // The attempt was counted when it began.
+        let index = self.stats.attempts.saturating_sub(1);
+        match result {
             Ok(c) => {
                 if self.pairs.push(c).is_ok() {
                     self.stats.correspondences = self.stats.correspondences.saturating_add(1);
@@ -1452,6 +1519,14 @@ mod tests {
         let mut r = Relocalizer::new(attempt, solver, p, &opts(p), &at_x(0.2), seed).unwrap();
         let out = match how {
             0 => r.run_to_completion(0),
+            // One stage at a time: an attempt without a staged form is one stage.
+            u32::MAX => loop {
+                match r.step_stage(0) {
+                    (_, StepResult::Done(o)) => break o.clone(),
+                    (Some(Stage::Attempt | Stage::Pose), StepResult::Running) => {}
+                    (stage, _) => panic!("unexpected stage {stage:?}"),
+                }
+            },
             n => loop {
                 if let StepResult::Done(o) = r.step_n(0, n) {
                     break o.clone();
@@ -1468,7 +1543,7 @@ mod tests {
         p.seeds = 3;
         for seed in [1u64, 2, 99] {
             let (a, ca) = noisy_run(seed, &p, 0);
-            for n in [1u32, 7, 1000] {
+            for n in [1u32, 7, 1000, u32::MAX] {
                 let (b, cb) = noisy_run(seed, &p, n);
                 let bits = |o: &Outcome| {
                     o.pose

@@ -25,6 +25,12 @@
 //! buffers are fixed-size fields sized by `config` capacities. Random draws come
 //! from streams forked per attempt / round index, so the outcome does not
 //! depend on how the work is split across calls.
+//!
+//! Stages: [`Relocalizer::step_stage`] does a smaller piece — one [`Stage`] of
+//! an attempt (at most [`MAX_ATTEMPT_STAGES`] per attempt) or one unit of any
+//! other kind — and says which stage it ran, so a caller that reads a clock
+//! around each call can attribute time to stages; the core itself reads none.
+//! The outcome is the same as with whole units.
 
 mod engine;
 pub mod integrity;
@@ -84,12 +90,84 @@ pub struct AttemptContext {
     pub round: u32,
 }
 
+/// The kind of work one [`Relocalizer::step_stage`] call did: what a caller
+/// that timestamps each call attributes its time to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Stage {
+    /// SamplePoint and Synthesize: vertex draws, the left and right template
+    /// renders, the occlusion check and the template masks.
+    Render,
+    /// Search windows and Match: every NCC search of the attempt, each
+    /// including the filtering and pyramid of its template and window.
+    Match,
+    /// Valid and Stereo: the row check and the triangulation.
+    Stereo,
+    /// A whole correspondence attempt, from an [`Attempt`] without a staged
+    /// form (the default [`Attempt::begin`]).
+    Attempt,
+    /// GetTransform: the start of a solve or one RANSAC chunk; the unit that
+    /// ends a solve also concludes it (Anneal, Distribute, Reuse, and after
+    /// the last iteration the final refinement and the integrity gates).
+    Pose,
+    /// The repeated final solve of [`Verify::repeat_solve`].
+    Verify,
+    /// No work: the budget ran out and the anytime result was formed.
+    Stop,
+}
+
+impl Stage {
+    /// Every stage, in pipeline order.
+    pub const ALL: [Stage; 7] = [
+        Stage::Render,
+        Stage::Match,
+        Stage::Stereo,
+        Stage::Attempt,
+        Stage::Pose,
+        Stage::Verify,
+        Stage::Stop,
+    ];
+
+    /// Short lowercase name for reports.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Stage::Render => "render",
+            Stage::Match => "match",
+            Stage::Stereo => "stereo",
+            Stage::Attempt => "attempt",
+            Stage::Pose => "pose",
+            Stage::Verify => "verify",
+            Stage::Stop => "stop",
+        }
+    }
+}
+
+/// Stages of one attempt at most in the staged form ([`Attempt::begin`]
+/// and [`Attempt::resume`]): Render, Match, Stereo.
+pub const MAX_ATTEMPT_STAGES: usize = 3;
+
+/// What one stage of a staged attempt did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StageStep {
+    /// The stage that ran.
+    pub stage: Stage,
+    /// `Some` when the attempt ended with this stage: its correspondence, or
+    /// the code of the step that rejected it. `None`: call [`Attempt::resume`].
+    pub ended: Option<Result<Correspondence, FailureCode>>,
+}
+
 /// Per-attempt work: SamplePoint → Synthesize → Match → Valid → Stereo.
 ///
 /// # Contract
 /// Must do a bounded amount of work, draw randomness only from `rng`, and
 /// return either one correspondence or the code of the step that rejected the
 /// sample. It may add to `stats` (renders, matches, rejections by cause).
+///
+/// The staged form ([`Attempt::begin`], then [`Attempt::resume`] until the
+/// attempt ends) is how the engine runs every attempt. It must do the same
+/// work as [`Attempt::attempt`] and give the same result, bit for bit, and
+/// end an attempt within [`MAX_ATTEMPT_STAGES`] stages. The default runs the
+/// whole attempt in `begin`.
 pub trait Attempt {
     /// Try to produce one correspondence from `ctx.world_from_viewpoint`.
     ///
@@ -101,6 +179,35 @@ pub trait Attempt {
         rng: &mut Rng,
         stats: &mut PipelineStats,
     ) -> Result<Correspondence, FailureCode>;
+
+    /// Staged form, first stage of a new attempt from `ctx` (any attempt
+    /// under way is abandoned). Every random draw of the attempt is made
+    /// here. The default is the whole [`Attempt::attempt`] as one
+    /// [`Stage::Attempt`].
+    fn begin(
+        &mut self,
+        ctx: &AttemptContext,
+        rng: &mut Rng,
+        stats: &mut PipelineStats,
+    ) -> StageStep {
+        StageStep {
+            stage: Stage::Attempt,
+            ended: Some(self.attempt(ctx, rng, stats)),
+        }
+    }
+
+    /// Staged form, next stage of the attempt under way (the last
+    /// [`StageStep`] had `ended: None`). With no attempt under way (never the
+    /// case for the default [`Attempt::begin`], which always ends it) the
+    /// attempt ends at once with [`FailureCode::RelocSampleOutOfView`]: no
+    /// vertex was sampled.
+    fn resume(&mut self, stats: &mut PipelineStats) -> StageStep {
+        let _ = stats;
+        StageStep {
+            stage: Stage::Attempt,
+            ended: Some(Err(FailureCode::RelocSampleOutOfView)),
+        }
+    }
 
     /// Re-check the inputs the attempts read that can be checked again (the
     /// map product's CRCs), for [`Verify::recheck_map`]. The default has

@@ -10,10 +10,18 @@
 //! Bounds per attempt: at most [`MAX_SAMPLE_TRIES`] vertex draws, two renders of
 //! ℓ×ℓ, at most two template searches per policy variant (≤ [`MATCH_VARIANTS`](super::MATCH_VARIANTS)),
 //! each in a window of at most `params.search_px`² pixels, and one triangulation.
+//!
+//! Staged form ([`Attempt::begin`] / [`Attempt::resume`]): an attempt runs as
+//! [`Stage::Render`] (SamplePoint, Synthesize, search windows), [`Stage::Match`]
+//! and [`Stage::Stereo`], ending early at the stage that rejects it; what one
+//! stage hands to the next is kept in the pipeline (a few dozen bytes).
+//! [`Attempt::attempt`] is the same stages run back to back.
 
 use super::policy::MatchPolicy;
 use super::workspace::Workspace;
-use super::{Attempt, AttemptContext, Correspondence, PipelineStats};
+use super::{
+    Attempt, AttemptContext, Correspondence, PipelineStats, Stage, StageStep, MAX_ATTEMPT_STAGES,
+};
 use crate::config::Params;
 use crate::failure::FailureCode;
 use crate::geom::{Pose, StereoRig, Vec3};
@@ -42,9 +50,23 @@ pub struct Pipeline<'a, 'w> {
     epsilon_px: f32,
     policy: MatchPolicy,
     ws: Workspace<'w>,
+    /// What the next stage of a staged attempt starts from.
+    pending: Pending,
+}
+
+/// Where a staged attempt stands between two of its stages.
+#[derive(Clone, Copy)]
+enum Pending {
+    /// No attempt under way.
+    None,
+    /// Rendered, with its search windows: Match is next.
+    Match(Sample, Templates, Windows),
+    /// Matched in both images: Valid + Stereo is next.
+    Stereo(Sample, ([f32; 2], [f32; 2])),
 }
 
 /// A sampled vertex and its projections.
+#[derive(Clone, Copy)]
 struct Sample {
     world: Vec3,
     cam: Vec3,
@@ -120,6 +142,7 @@ impl<'a, 'w> Pipeline<'a, 'w> {
             epsilon_px: params.epsilon_px,
             policy: *policy,
             ws,
+            pending: Pending::None,
         }
     }
 
@@ -480,19 +503,78 @@ impl Pipeline<'_, '_> {
 }
 
 impl Attempt for Pipeline<'_, '_> {
-    /// SamplePoint → Synthesize → search window → Match → Valid + Stereo.
+    /// SamplePoint → Synthesize → search window → Match → Valid + Stereo:
+    /// the stages of [`Attempt::begin`] and [`Attempt::resume`] back to back.
     fn attempt(
         &mut self,
         ctx: &AttemptContext,
         rng: &mut crate::rng::Rng,
         stats: &mut PipelineStats,
     ) -> Result<Correspondence, FailureCode> {
+        let mut step = self.begin(ctx, rng, stats);
+        for _ in 1..MAX_ATTEMPT_STAGES {
+            if step.ended.is_some() {
+                break;
+            }
+            step = self.resume(stats);
+        }
+        // Stereo, the last stage, always ends the attempt.
+        step.ended.unwrap_or(Err(FailureCode::RelocSampleOutOfView))
+    }
+
+    /// [`Stage::Render`]: SamplePoint, Synthesize and the search windows.
+    fn begin(
+        &mut self,
+        ctx: &AttemptContext,
+        rng: &mut crate::rng::Rng,
+        stats: &mut PipelineStats,
+    ) -> StageStep {
+        self.pending = Pending::None;
         let vp_left = ctx.world_from_viewpoint;
-        let sample = self.sample(&vp_left.inverse(), rng, stats)?;
-        let templates = self.synthesize(&vp_left, &sample, stats)?;
-        let windows = self.search_windows(ctx, &sample);
-        let pixels = self.match_pair(&sample, templates, windows, stats)?;
-        self.stereo(&sample, pixels, stats)
+        let rendered = self
+            .sample(&vp_left.inverse(), rng, stats)
+            .and_then(|sample| Ok((sample, self.synthesize(&vp_left, &sample, stats)?)));
+        let ended = match rendered {
+            Ok((sample, templates)) => {
+                let windows = self.search_windows(ctx, &sample);
+                self.pending = Pending::Match(sample, templates, windows);
+                None
+            }
+            Err(code) => Some(Err(code)),
+        };
+        StageStep {
+            stage: Stage::Render,
+            ended,
+        }
+    }
+
+    /// [`Stage::Match`], then [`Stage::Stereo`].
+    fn resume(&mut self, stats: &mut PipelineStats) -> StageStep {
+        let pending = core::mem::replace(&mut self.pending, Pending::None);
+        match pending {
+            Pending::Match(sample, templates, windows) => {
+                let ended = match self.match_pair(&sample, templates, windows, stats) {
+                    Ok(pixels) => {
+                        self.pending = Pending::Stereo(sample, pixels);
+                        None
+                    }
+                    Err(code) => Some(Err(code)),
+                };
+                StageStep {
+                    stage: Stage::Match,
+                    ended,
+                }
+            }
+            Pending::Stereo(sample, pixels) => StageStep {
+                stage: Stage::Stereo,
+                ended: Some(self.stereo(&sample, pixels, stats)),
+            },
+            // No attempt under way: nothing was sampled.
+            Pending::None => StageStep {
+                stage: Stage::Render,
+                ended: Some(Err(FailureCode::RelocSampleOutOfView)),
+            },
+        }
     }
 
     /// Every check of [`MapView::new_checked`] again, on the same bytes: an
@@ -510,7 +592,7 @@ mod tests {
     use super::super::solver::RansacSolver;
     use super::super::workspace::WorkspaceSizes;
     use super::super::workspace::{Workspace, TEST_WORKSPACE};
-    use super::super::{Outcome, Relocalizer, Setup, StepResult};
+    use super::super::{Outcome, Relocalizer, Setup, Stage, StepResult};
     use super::*;
     use crate::ncc::Run;
     use crate::rng::Rng;
@@ -560,6 +642,31 @@ mod tests {
             now += 1;
             if let StepResult::Done(o) = r.step_n(now, chunk) {
                 return o.clone();
+            }
+        }
+    }
+
+    /// Step by stage until done; the outcome and the stage of every step.
+    fn relocalize_by_stage(
+        map: &MapView,
+        left: &[u8],
+        right: &[u8],
+        prior: &Pose,
+        seed: u64,
+    ) -> (Outcome, Vec<Stage>) {
+        let lv = GrayView::new(left, 640, 480, 640).unwrap();
+        let rv = GrayView::new(right, 640, 480, 640).unwrap();
+        let mut setup = Setup::new(map, lv, rv, &rig(), &test_params(), prior, seed);
+        setup.options.min_inliers = 15;
+        let (mut bytes, mut words, mut runs) = workspace_buffers(&setup.sizes());
+        let ws = Workspace::new(setup.sizes(), &mut bytes, &mut words, &mut runs).unwrap();
+        let mut r = setup.build(ws).unwrap();
+        let mut stages = Vec::new();
+        loop {
+            let (stage, status) = r.step_stage(0);
+            stages.extend(stage);
+            if let StepResult::Done(o) = status {
+                return (o.clone(), stages);
             }
         }
     }
@@ -842,6 +949,50 @@ mod tests {
                 assert_eq!(stepped.quality, out.quality);
             }
         }
+    }
+
+    /// Verifies: VTSM-RELOC-035
+    #[test]
+    fn stepping_by_stage_reports_each_stage_and_changes_nothing() {
+        let (bytes, truth) = scene();
+        let map = MapView::new_checked(&bytes).unwrap();
+        let rig = rig();
+        let left = render_full(&map, &rig.cam, &truth, 0.85, 20.0);
+        let right = render_full(&map, &rig.cam, &rig.world_from_right(&truth), 0.85, 20.0);
+        let prior = perturb(&truth, &mut Rng::new(31), 0.15, 1.2);
+        let whole = relocalize(&map, &left, &right, &prior, 41);
+        let (staged, stages) = relocalize_by_stage(&map, &left, &right, &prior, 41);
+        let bits = |o: &Outcome| {
+            let (t, q) = (o.pose.t(), o.pose.q());
+            (t.map(f32::to_bits), q.map(f32::to_bits))
+        };
+        assert_eq!(bits(&staged), bits(&whole));
+        assert_eq!(staged.stats, whole.stats);
+        assert_eq!(staged.quality, whole.quality);
+        assert_eq!(staged.failure, whole.failure);
+        assert_eq!(
+            staged.log.counters().collect::<Vec<_>>(),
+            whole.log.counters().collect::<Vec<_>>()
+        );
+        // Every attempt begins with Render; Match only after Render, Stereo
+        // only after Match; the pose units are the solves and their chunks.
+        let count = |k: Stage| stages.iter().filter(|&&s| s == k).count() as u32;
+        let s = staged.stats;
+        assert_eq!(count(Stage::Render), s.attempts);
+        assert_eq!(count(Stage::Pose), s.solves + s.ransac_chunks);
+        assert!(count(Stage::Stereo) >= s.pipeline.triangulations);
+        assert!(s.pipeline.triangulations >= s.correspondences && s.correspondences > 0);
+        assert!(count(Stage::Match) >= count(Stage::Stereo));
+        for w in stages.windows(2) {
+            match w[1] {
+                Stage::Match => assert_eq!(w[0], Stage::Render),
+                Stage::Stereo => assert_eq!(w[0], Stage::Match),
+                _ => {}
+            }
+        }
+        let kinds = [Stage::Render, Stage::Match, Stage::Stereo, Stage::Pose];
+        assert!(stages.iter().all(|s| kinds.contains(s)), "{stages:?}");
+        assert_eq!(staged.failure, None);
     }
 
     /// Verifies: VTSM-RELOC-015

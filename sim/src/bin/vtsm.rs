@@ -30,6 +30,8 @@ enum Command {
     Scene(SceneCommand),
     /// Print memory and work budgets, measured.
     Budget(cli::budget::Args),
+    /// Measure where relocalization time goes (per stage) and NCC speed against OpenCV; prints Markdown.
+    Bench(cli::bench::Args),
 }
 
 #[derive(Debug, Subcommand)]
@@ -57,6 +59,7 @@ fn main() -> ExitCode {
         Command::Scene(SceneCommand::Export(a)) => cli::scene_export::run(a),
         Command::Scene(SceneCommand::Sheet(a)) => cli::scene_sheet::run(a),
         Command::Budget(a) => cli::budget::run(a),
+        Command::Bench(a) => cli::bench::run(a),
     };
     match result {
         Ok(code) => ExitCode::from(code),

@@ -5,6 +5,7 @@ use crate::error::{Error, EXIT_BAD_INPUT};
 use vtsm_hal::runner::VerifyChecks;
 
 pub mod batch;
+pub mod bench;
 pub mod budget;
 pub mod demo;
 pub mod eval;
