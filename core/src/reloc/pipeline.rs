@@ -256,7 +256,8 @@ fn epipolar_band(
     }
     // Positions a..=b of a template of side t need b − a + t pixels.
     let extent = |a: i32, b: i32, t: usize| {
-        u32::try_from(i64::from(b) - i64::from(a) + i64::try_from(t).ok()?).ok()
+        let t = i64::try_from(t).ok()?;
+        u32::try_from(i64::from(b).saturating_sub(i64::from(a)).saturating_add(t)).ok()
     };
     let band = Rect::new(x0, y0, extent(x0, x1, tw)?, extent(y0, y1, th)?);
     band.intersect(&within)
