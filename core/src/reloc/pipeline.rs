@@ -453,8 +453,20 @@ impl Pipeline<'_, '_> {
                     last = FailureCode::StereoEpipolarViolation;
                     continue;
                 };
-                // A band under two template sides high has too few rows for a pyramid.
-                if (band.h as usize) < th.saturating_mul(2) {
+                // Score every position of the band when there are no more of
+                // them than the coarse-to-fine search would score at full
+                // resolution alone (its candidates × (2r + 1)²).
+                let cfg = ncc::SearchConfig::for_filter(v.filter);
+                let side = cfg
+                    .final_refine_radius_px
+                    .saturating_mul(2)
+                    .saturating_add(1);
+                let c2f_full_res = cfg.candidates.saturating_mul(side).saturating_mul(side);
+                let positions = (band.w as usize)
+                    .saturating_sub(tw)
+                    .saturating_add(1)
+                    .saturating_mul((band.h as usize).saturating_sub(th).saturating_add(1));
+                if positions <= c2f_full_res {
                     (band, Search::Exhaustive)
                 } else {
                     (band, policy.search)
