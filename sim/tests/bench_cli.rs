@@ -4,25 +4,13 @@
 //! No assertion depends on how fast anything is.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, missing_docs)]
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::PathBuf;
+
+mod common;
+use common::{s, vtsm};
 
 fn dir(name: &str) -> PathBuf {
-    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("bench_cli_{name}"));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn vtsm(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vtsm"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
+    common::dir("bench_cli", name)
 }
 
 /// Seconds in a printed duration (`1.55 s`, `392.3 ms`, `0.6 µs`).

@@ -4,26 +4,14 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, missing_docs)]
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 use vtsm_core::map::MapView;
 use vtsm_sim::io::image::{write_png, Gray8};
 
+mod common;
+use common::{s, vtsm};
+
 fn dir(name: &str) -> PathBuf {
-    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("io_cli_{name}"));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn vtsm(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vtsm"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
+    common::dir("io_cli", name)
 }
 
 /// A 3x3-vertex textured patch and a mask holding two of its eight triangles.

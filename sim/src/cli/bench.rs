@@ -650,8 +650,9 @@ fn commit(write: Option<&Path>) -> String {
     }
 }
 
-/// Now, as `YYYY-MM-DD HH:MM UTC`.
-fn utc_now() -> String {
+/// Now, as `YYYY-MM-DD HH:MM UTC` (civil date from days since 1970-01-01),
+/// for the headers of generated reports.
+pub fn utc_now() -> String {
     let secs = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_secs());

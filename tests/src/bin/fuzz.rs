@@ -23,7 +23,7 @@
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::time::Duration;
 use vtsm_tests::fuzz::{self, corpus, Env, FuzzTarget, Kind, Limits, Stats, TARGETS};
 
 struct Opts {
@@ -137,28 +137,6 @@ fn parse_args(args: &[String]) -> Opts {
         }
     }
     o
-}
-
-/// `YYYY-MM-DD HH:MM UTC` from the system clock (civil-from-days).
-fn utc_now() -> String {
-    let secs = SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs()) as i64;
-    let (days, rem) = (secs.div_euclid(86_400), secs.rem_euclid(86_400));
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = doy - (153 * mp + 2) / 5 + 1;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 };
-    let y = yoe + era * 400 + i64::from(m <= 2);
-    format!(
-        "{y:04}-{m:02}-{d:02} {:02}:{:02} UTC",
-        rem / 3600,
-        rem % 3600 / 60
-    )
 }
 
 fn loadavg() -> String {
@@ -396,7 +374,7 @@ fn main() {
         }
         return;
     }
-    let start = utc_now();
+    let start = vtsm_sim::cli::bench::utc_now();
     let load0 = loadavg();
     let stats = run_all(&o);
     let crashes: usize = stats.iter().map(|s| s.crashes.len()).sum();
