@@ -155,6 +155,7 @@ impl Scene {
             right: &self.right,
             rig: testkit::rig(),
             prior: self.prior,
+            uncertainty: None,
             params: testkit::test_params(),
             seed,
         }

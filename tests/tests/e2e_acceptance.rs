@@ -77,6 +77,7 @@ fn relocalize_with(
         right: &pair.right,
         rig,
         prior,
+        uncertainty: None,
         params,
         seed,
     };

@@ -73,6 +73,7 @@ fn request<'a>(map: &'a [u8], left: &'a [u8], right: &'a [u8], prior: Pose) -> R
         right,
         rig: testkit::rig(),
         prior,
+        uncertainty: None,
         params: testkit::test_params(),
         seed: 42,
     }

@@ -96,6 +96,7 @@ fn run(
         right,
         rig: testkit::rig(),
         prior,
+        uncertainty: None,
         params,
         seed,
     };

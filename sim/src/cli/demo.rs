@@ -4,7 +4,7 @@
 //! paper's Fig. 6b (synthetic templates at the random start, the real image,
 //! synthetic templates at the final pose).
 
-use crate::cli::relocalize::{outcome_from_core, outcome_result};
+use crate::cli::relocalize::{outcome_from_core, outcome_result, Outcome};
 use crate::error::{Error, Result, EXIT_RELOC_FAILED};
 use crate::io::json;
 use crate::locate::{self, Request};
@@ -117,6 +117,7 @@ pub fn run(args: &Args) -> Result<u8> {
         right: &pair.right,
         rig,
         prior,
+        uncertainty: None,
         params: locate::params_for_width(rig.cam().width()),
         seed: args.seed,
     };
@@ -189,7 +190,10 @@ pub fn run(args: &Args) -> Result<u8> {
     std::fs::create_dir_all(&out)
         .map_err(|e| Error::file(&out, format!("cannot create directory: {e}")))?;
     canvas.save_png(&panel_path, args.force)?;
-    let result = outcome_result(&outcome_from_core(o));
+    let result = outcome_result(&Outcome {
+        prior_uncertainty: Some(report.run.prior_uncertainty),
+        ..outcome_from_core(o)
+    });
     json::write_result(&result_path, &result, args.force)?;
     println!(
         "  wrote {} and {}  [total {:.1} s]",

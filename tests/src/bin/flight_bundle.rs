@@ -76,6 +76,7 @@ fn run(scene: &Path, out: &Path) -> Result<(), String> {
         rig,
         params,
         prior,
+        uncertainty: None,
         seed: SEED,
     };
     let full = locate::relocalize(&request(&full_bytes))
