@@ -76,6 +76,12 @@ pub const DEFAULT_N_ITER: u8 = 5;
 pub const DEFAULT_T0_M: f32 = 0.20;
 /// r̃₀: initial rotation search bound, degrees.
 pub const DEFAULT_R0_DEG: f32 = 1.5;
+/// Largest t̃₀ ([`Params::t0_m`], [`PriorUncertainty::t_m`]), metres. Beyond
+/// a couple of metres a single start does not see the templates it renders
+/// near the truth; larger priors need the multi-seed mode.
+pub const MAX_T0_M: f32 = 2.0;
+/// Largest r̃₀ ([`Params::r0_deg`], [`PriorUncertainty::r_deg`]), degrees.
+pub const MAX_R0_DEG: f32 = 20.0;
 /// γ: Anneal decay.
 pub const DEFAULT_GAMMA: f32 = 0.5;
 /// ε: epipolar row tolerance, pixels.
@@ -108,6 +114,8 @@ const _: () = assert!(DEFAULT_N_ITER as usize <= MAX_ITER);
 const _: () = assert!(DEFAULT_RANSAC_ITER as usize <= MAX_RANSAC_ITER);
 const _: () = assert!(DEFAULT_REFINE_ITER as usize <= MAX_REFINE_ITER);
 const _: () = assert!(DEFAULT_TEMPLATE_PX as usize <= MAX_TEMPLATE_PX);
+const _: () = assert!(DEFAULT_T0_M > 0.0 && DEFAULT_T0_M <= MAX_T0_M);
+const _: () = assert!(DEFAULT_R0_DEG > 0.0 && DEFAULT_R0_DEG <= MAX_R0_DEG);
 // 28.4 edge setup runs in i64 on absolute coordinates (< 2^18, so edge terms < 2^41);
 // a window-relative variant would fit i32: see fsw-docs/budgets/numeric.md.
 const _: () = assert!((MAX_RENDER_PX as i64 + 2 * RASTER_GUARD_PX as i64 + 16) * 16 < (1 << 15));
@@ -164,6 +172,47 @@ pub struct Mechanisms {
     pub reuse: bool,
 }
 
+/// The uncertainty of a pose prior: half-widths of the region the true pose
+/// lies in around it (the paper's t̃₀, r̃₀), as a navigation filter or the
+/// operator states it with the prior. The engine takes them as
+/// [`Params::t0_m`] and [`Params::r0_deg`] ([`Params::with_uncertainty`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PriorUncertainty {
+    /// Translation half-width, metres, (0, [`MAX_T0_M`]].
+    pub t_m: f32,
+    /// Rotation half-width, degrees, (0, [`MAX_R0_DEG`]].
+    pub r_deg: f32,
+}
+
+impl PriorUncertainty {
+    /// The paper's prior uncertainty: 0.20 m, 1.5° ([`DEFAULT_T0_M`],
+    /// [`DEFAULT_R0_DEG`]).
+    pub const PAPER: Self = Self {
+        t_m: DEFAULT_T0_M,
+        r_deg: DEFAULT_R0_DEG,
+    };
+
+    /// Check both half-widths: finite, `t_m` in (0, [`MAX_T0_M`]], `r_deg` in
+    /// (0, [`MAX_R0_DEG`]] (the ranges of [`Params::t0_m`], [`Params::r0_deg`]).
+    ///
+    /// # Errors
+    /// [`ParamField::T0`] or [`ParamField::R0`] for the first one out of range.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        if !in_range(self.t_m, 0.0, MAX_T0_M, true) {
+            return Err(ParamError {
+                field: ParamField::T0,
+            });
+        }
+        if !in_range(self.r_deg, 0.0, MAX_R0_DEG, true) {
+            return Err(ParamError {
+                field: ParamField::R0,
+            });
+        }
+        Ok(())
+    }
+}
+
 /// Runtime parameters, validated against the capacities above.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -172,9 +221,12 @@ pub struct Params {
     pub n_corr: u16,
     /// N_iter, 1..=MAX_ITER.
     pub n_iter: u8,
-    /// t̃₀ in metres, (0, 2].
+    /// t̃₀ in metres, (0, [`MAX_T0_M`]]: the prior's translation uncertainty
+    /// (half-width), which sizes the first viewpoint perturbations, the
+    /// search windows and the prior integrity gate. Set from a stated prior
+    /// uncertainty with [`Params::with_uncertainty`].
     pub t0_m: f32,
-    /// r̃₀ in degrees, (0, 20].
+    /// r̃₀ in degrees, (0, [`MAX_R0_DEG`]]: the prior's rotation uncertainty.
     pub r0_deg: f32,
     /// γ, [0, 1].
     pub gamma: f32,
@@ -332,6 +384,26 @@ impl Params {
         }
     }
 
+    /// These parameters with t̃₀, r̃₀ from a prior's stated uncertainty
+    /// (everything else, the number of seeds included, unchanged). Not
+    /// checked here: [`Params::validate`] checks the result.
+    #[must_use]
+    pub const fn with_uncertainty(self, u: PriorUncertainty) -> Self {
+        Self {
+            t0_m: u.t_m,
+            r0_deg: u.r_deg,
+            ..self
+        }
+    }
+
+    /// The prior uncertainty these parameters assume: (t̃₀, r̃₀).
+    pub const fn uncertainty(&self) -> PriorUncertainty {
+        PriorUncertainty {
+            t_m: self.t0_m,
+            r_deg: self.r0_deg,
+        }
+    }
+
     /// Check every field; the first one out of range is reported.
     pub fn validate(&self) -> Result<(), ParamError> {
         let err = |field| Err(ParamError { field });
@@ -341,12 +413,7 @@ impl Params {
         if !(1..=MAX_ITER as u8).contains(&self.n_iter) {
             return err(ParamField::NIter);
         }
-        if !in_range(self.t0_m, 0.0, 2.0, true) {
-            return err(ParamField::T0);
-        }
-        if !in_range(self.r0_deg, 0.0, 20.0, true) {
-            return err(ParamField::R0);
-        }
+        self.uncertainty().validate()?;
         if !in_range(self.gamma, 0.0, 1.0, false) {
             return err(ParamField::Gamma);
         }
@@ -458,6 +525,55 @@ mod tests {
                 FailureCode::from(ParamError { field: *field }),
                 FailureCode::ConfigParamOutOfRange
             );
+        }
+    }
+
+    /// Verifies: VTSM-CFG-006
+    #[test]
+    fn prior_uncertainty_sets_t0_r0_within_their_ranges() {
+        assert_eq!(PriorUncertainty::PAPER.validate(), Ok(()));
+        assert_eq!(Params::paper().uncertainty(), PriorUncertainty::PAPER);
+        let u = PriorUncertainty {
+            t_m: 0.5,
+            r_deg: 1.5,
+        };
+        let p = Params::paper().with_uncertainty(u);
+        assert_eq!((p.t0_m, p.r0_deg, p.seeds), (0.5, 1.5, 0));
+        assert_eq!(p.uncertainty(), u);
+        assert_eq!(
+            p,
+            Params {
+                t0_m: 0.5,
+                ..Params::paper()
+            }
+        );
+        assert_eq!(p.validate(), Ok(()));
+        let top = PriorUncertainty {
+            t_m: MAX_T0_M,
+            r_deg: MAX_R0_DEG,
+        };
+        assert_eq!(top.validate(), Ok(()));
+        let t0 = Err(ParamError {
+            field: ParamField::T0,
+        });
+        let r0 = Err(ParamError {
+            field: ParamField::R0,
+        });
+        for (t_m, r_deg, want) in [
+            (0.0, 1.5, t0),
+            (-0.1, 1.5, t0),
+            (f32::NAN, 1.5, t0),
+            (f32::INFINITY, 1.5, t0),
+            (MAX_T0_M * 1.001, 1.5, t0),
+            (0.5, 0.0, r0),
+            (0.5, -1.0, r0),
+            (0.5, f32::NAN, r0),
+            (0.5, MAX_R0_DEG * 1.001, r0),
+        ] {
+            let u = PriorUncertainty { t_m, r_deg };
+            assert_eq!(u.validate(), want, "{u:?}");
+            // The engine's own check of the params sees the same.
+            assert_eq!(Params::paper().with_uncertainty(u).validate(), want);
         }
     }
 

@@ -230,7 +230,7 @@ failure_codes! {
     HalClockFault = 0x090C, Degraded, Same, "HAL_CLOCK_FAULT",
         "The clock could not be read or went backwards; the step is not timed.";
     HalPriorInvalid = 0x090D, Degraded, NewInput, "HAL_PRIOR_INVALID",
-        "The pose prior has a non-finite pose or a covariance that is not symmetric non-negative; it is rejected.";
+        "The pose prior has a non-finite pose, a covariance that is not symmetric non-negative, or stated half-widths (t̃₀, r̃₀) outside the engine's ranges; it is rejected.";
 }
 
 impl FailureCode {

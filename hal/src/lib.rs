@@ -9,7 +9,7 @@
 //! | [`camera`] | [`StereoCamera`], [`FrameInfo`] |
 //! | [`clock`] | [`Clock`]: monotonic ticks, optional cycle counter |
 //! | [`store`] | [`MapStore`]: ranged reads of the map product |
-//! | [`prior`] | [`PosePrior`], [`PriorEstimate`], [`Covariance`] |
+//! | [`prior`] | [`PosePrior`], [`PriorEstimate`], [`Covariance`], [`PriorUncertainty`] |
 //! | [`telemetry`] | [`Telemetry`], the frame format, [`FramedTelemetry`] over `embedded_io::Write` |
 //! | [`runner`] | bounded capture / map read with retries, the step driver |
 //!
@@ -35,6 +35,6 @@ pub mod telemetry;
 pub use camera::{FrameInfo, StereoCamera};
 pub use clock::Clock;
 pub use error::{failure_code, Device, Error, ErrorKind, ErrorType};
-pub use prior::{Covariance, PosePrior, PriorEstimate};
+pub use prior::{Covariance, PosePrior, PriorEstimate, PriorUncertainty};
 pub use store::MapStore;
 pub use telemetry::{FramedTelemetry, Telemetry};

@@ -1,11 +1,15 @@
 //! Pose prior: the visual-inertial odometry estimate the relocalization starts from.
 //!
 //! Output: [`PriorEstimate`] = `world_from_left` pose, its covariance (full 6×6
-//! or diagonal), and the time it refers to. [`PriorEstimate::check`] rejects
-//! non-finite poses and covariances that are not symmetric with a non-negative
-//! diagonal. Fixed-size, no loops beyond 6×6.
+//! or diagonal), optionally the half-widths of the region the true pose lies
+//! in ([`PriorUncertainty`], the paper's t̃₀, r̃₀, which the runner hands to the
+//! engine), and the time it refers to. [`PriorEstimate::check`] rejects
+//! non-finite poses, covariances that are not symmetric with a non-negative
+//! diagonal, and half-widths outside the engine's ranges. Fixed-size, no loops
+//! beyond 6×6.
 
 use crate::error::ErrorType;
+pub use vtsm_core::config::PriorUncertainty;
 use vtsm_core::geom::Pose;
 use vtsm_core::FailureCode;
 
@@ -60,15 +64,22 @@ pub struct PriorEstimate {
     pub world_from_left: Pose,
     /// Uncertainty of that pose.
     pub covariance: Covariance,
+    /// Half-widths of the region the true pose lies in around
+    /// `world_from_left`, when the source states them: the runner builds the
+    /// engine with them as t̃₀, r̃₀ ([`vtsm_core::config::Params::with_uncertainty`]).
+    /// `None`: the caller's parameters keep their own t̃₀, r̃₀.
+    pub uncertainty: Option<PriorUncertainty>,
     /// Time the estimate refers to, in ticks of the system [`crate::Clock`].
     pub timestamp_ticks: u64,
 }
 
 impl PriorEstimate {
-    /// Reject a non-finite pose or an invalid covariance with
+    /// Reject a non-finite pose, an invalid covariance or stated half-widths
+    /// outside the engine's ranges ([`PriorUncertainty::validate`]) with
     /// [`FailureCode::HalPriorInvalid`].
     pub fn check(&self) -> Result<(), FailureCode> {
-        if self.world_from_left.is_finite() && self.covariance.is_valid() {
+        let bounds_ok = self.uncertainty.is_none_or(|u| u.validate().is_ok());
+        if self.world_from_left.is_finite() && self.covariance.is_valid() && bounds_ok {
             Ok(())
         } else {
             Err(FailureCode::HalPriorInvalid)
@@ -112,6 +123,7 @@ mod tests {
         let good = PriorEstimate {
             world_from_left: pose,
             covariance: Covariance::Full(full),
+            uncertainty: None,
             timestamp_ticks: 5,
         };
         assert_eq!(good.check(), Ok(()));
@@ -139,5 +151,39 @@ mod tests {
             assert_eq!(p.check(), Err(FailureCode::HalPriorInvalid), "{c:?}");
         }
         assert!(Covariance::Diagonal([0.0; 6]).is_valid());
+    }
+
+    /// Verifies: VTSM-HAL-026
+    #[test]
+    fn prior_check_rejects_half_widths_outside_the_engine_ranges() {
+        let good = PriorEstimate {
+            world_from_left: Pose::identity(),
+            covariance: Covariance::Diagonal([0.25, 0.25, 0.25, 1e-3, 1e-3, 1e-3]),
+            uncertainty: Some(PriorUncertainty {
+                t_m: 0.5,
+                r_deg: 1.5,
+            }),
+            timestamp_ticks: 0,
+        };
+        assert_eq!(good.check(), Ok(()));
+        for (t_m, r_deg) in [
+            (0.0, 1.5),
+            (-0.5, 1.5),
+            (f32::NAN, 1.5),
+            (vtsm_core::config::MAX_T0_M + 0.01, 1.5),
+            (0.5, 0.0),
+            (0.5, f32::INFINITY),
+            (0.5, vtsm_core::config::MAX_R0_DEG + 0.01),
+        ] {
+            let p = PriorEstimate {
+                uncertainty: Some(PriorUncertainty { t_m, r_deg }),
+                ..good
+            };
+            assert_eq!(
+                p.check(),
+                Err(FailureCode::HalPriorInvalid),
+                "{t_m} {r_deg}"
+            );
+        }
     }
 }

@@ -27,7 +27,7 @@
 use crate::camera::{FrameInfo, StereoCamera};
 use crate::clock::Clock;
 use crate::error::{failure_code, Device, Error, ErrorKind};
-use crate::prior::{PosePrior, PriorEstimate};
+use crate::prior::{PosePrior, PriorEstimate, PriorUncertainty};
 use crate::store::MapStore;
 use crate::telemetry::{
     failure_counters_payload, failure_event_payload, FrameKind, Telemetry, MAX_PAYLOAD,
@@ -390,7 +390,7 @@ pub enum StageEvent {
 }
 
 /// What one [`Runner::relocalize`] did besides the engine's outcome.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RelocReport {
     /// Frame metadata of the pair used.
@@ -401,6 +401,10 @@ pub struct RelocReport {
     pub map_read: ReadReport,
     /// Engine driving.
     pub drive: DriveReport,
+    /// The prior uncertainty (t̃₀, r̃₀) the engine ran with: the prior's
+    /// stated one ([`PriorEstimate::uncertainty`]) or, without it, the
+    /// caller's parameters'.
+    pub prior_uncertainty: PriorUncertainty,
 }
 
 /// The devices and the failure log of one relocalization run.
@@ -567,11 +571,12 @@ where
 
     /// One relocalization on the flight path: [`Runner::acquire`] the map,
     /// prior and stereo pair into `bufs`, build the engine with [`Setup`]
-    /// (`params`, `rig`, `seed`, the prior's pose, the upset checks of
-    /// [`RunnerConfig::verify`]) over `ws`, and drive it with the clock under
-    /// `limits`; if the budget ends first, the engine's anytime result
-    /// ([`FailureCode::RelocBudgetExhausted`]) is returned. The outcome and the
-    /// failure log are sent as telemetry.
+    /// (`params` — with t̃₀, r̃₀ replaced by the prior's stated uncertainty
+    /// when it has one, [`Params::with_uncertainty`] —, `rig`, `seed`, the
+    /// prior's pose, the upset checks of [`RunnerConfig::verify`]) over `ws`,
+    /// and drive it with the clock under `limits`; if the budget ends first,
+    /// the engine's anytime result ([`FailureCode::RelocBudgetExhausted`]) is
+    /// returned. The outcome and the failure log are sent as telemetry.
     ///
     /// # Errors
     /// The failure code of acquisition (device faults after their retries, a
@@ -697,7 +702,14 @@ where
         let map =
             MapView::new_checked(inputs.map).inspect_err(|&c| self.log.record(c, start, 0))?;
         let prior = inputs.prior.world_from_left;
-        let mut setup = Setup::new(&map, inputs.left, inputs.right, rig, params, &prior, seed);
+        // The prior's stated half-widths size the search (one start, as the
+        // caller's `seeds` says); `Setup::build` validates them again with the
+        // rest of the parameters.
+        let params = match inputs.prior.uncertainty {
+            Some(u) => params.with_uncertainty(u),
+            None => *params,
+        };
+        let mut setup = Setup::new(&map, inputs.left, inputs.right, rig, &params, &prior, seed);
         setup.options.verify.repeat_solve = self.cfg.verify.repeat_solve;
         setup.options.verify.recheck_map = self.cfg.verify.recheck_map;
         let mut engine = setup
@@ -736,6 +748,7 @@ where
                 capture: inputs.capture,
                 map_read: inputs.map_read,
                 drive,
+                prior_uncertainty: params.uncertainty(),
             },
         ))
     }

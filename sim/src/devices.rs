@@ -626,6 +626,7 @@ mod tests {
         PriorEstimate {
             world_from_left: Pose::from_t_q([1.0, 0.0, 0.3], [1.0, 0.0, 0.0, 0.0]).unwrap(),
             covariance: Covariance::Diagonal([0.01; 6]),
+            uncertainty: None,
             timestamp_ticks: 0,
         }
     }

@@ -12,7 +12,7 @@ use crate::devices::{
 };
 use crate::error::{Error, Result};
 use std::time::{Duration, Instant};
-use vtsm_core::config::Params;
+use vtsm_core::config::{Params, PriorUncertainty};
 use vtsm_core::failure::FailureLog;
 use vtsm_core::geom::Camera;
 use vtsm_core::geom::{Pose, StereoRig};
@@ -46,6 +46,10 @@ pub struct Request<'a> {
     pub rig: StereoRig,
     /// Prior `world_from_left`.
     pub prior: Pose,
+    /// The prior's stated uncertainty (`prior.json`'s `uncertainty`): served
+    /// with the prior, so the runner builds the engine with it as t̃₀, r̃₀.
+    /// `None`: `params.t0_m`, `params.r0_deg` are the prior's uncertainty.
+    pub uncertainty: Option<PriorUncertainty>,
     /// Relocalization parameters (validated by the core).
     pub params: Params,
     /// Seed of the relocalization's random streams.
@@ -251,12 +255,14 @@ where
         .with_faults(FaultInjector::new(faults.camera, faults.seed)?);
     let store = MemMapStore::new(req.map.to_vec())
         .with_faults(FaultInjector::new(faults.store, faults.seed ^ 0x5107e)?);
-    let t0 = req.params.t0_m * req.params.t0_m;
-    let r0 = req.params.r0_deg.to_radians() * req.params.r0_deg.to_radians();
+    let u = req.uncertainty.unwrap_or(req.params.uncertainty());
+    let t0 = u.t_m * u.t_m;
+    let r0 = u.r_deg.to_radians() * u.r_deg.to_radians();
     let prior = FixedPrior {
         estimate: Some(PriorEstimate {
             world_from_left: req.prior,
             covariance: Covariance::Diagonal([t0, t0, t0, r0, r0, r0]),
+            uncertainty: req.uncertainty,
             timestamp_ticks: 0,
         }),
     };
@@ -363,6 +369,7 @@ mod tests {
             params: params_for_width(rig.cam().width()),
             seed: 3,
             verify: VerifyChecks::OFF,
+            uncertainty: None,
         };
         let whole = relocalize(&req).unwrap();
         let mut events = Vec::new();

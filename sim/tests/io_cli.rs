@@ -254,7 +254,7 @@ fn map_build_refuses_flat_meshes_stray_mask_triangles_and_tiny_tiles() {
     assert_eq!(o.status.code(), Some(0));
 }
 
-/// Verifies: VTSM-CLI-009, VTSM-CLI-013, VTSM-CLI-024
+/// Verifies: VTSM-CLI-009, VTSM-CLI-013, VTSM-CLI-024, VTSM-CLI-041
 #[test]
 fn relocalize_rejects_bad_inputs_before_writing_anything() {
     let d = dir("reloc");
@@ -284,6 +284,18 @@ fn relocalize_rejects_bad_inputs_before_writing_anything() {
     std::fs::write(
         &tilted,
         r#"{"world_from_left":{"t":[1,1,2],"q":[1,0.1,0,0]}}"#,
+    )
+    .unwrap();
+    let wide = d.join("wide.json");
+    std::fs::write(
+        &wide,
+        r#"{"world_from_left":{"t":[1,1,2],"q":[1,0,0,0]},"uncertainty":{"t_m":0.5,"r_deg":45}}"#,
+    )
+    .unwrap();
+    let extra_key = d.join("extra_key.json");
+    std::fs::write(
+        &extra_key,
+        r#"{"world_from_left":{"t":[1,1,2],"q":[1,0,0,0]},"uncertainty":{"t_m":0.5,"r_deg":1.5,"sigma":1}}"#,
     )
     .unwrap();
     let huge_fx = d.join("huge_fx.json");
@@ -346,6 +358,16 @@ fn relocalize_rejects_bad_inputs_before_writing_anything() {
             "MAP_UV_OUT_OF_RANGE",
         ),
         (base(&left, &right, &tilted, &map), "tilted.json", "norm"),
+        (
+            base(&left, &right, &wide, &map),
+            "wide.json:1",
+            "`uncertainty.r_deg`: 45 deg is outside the accepted range (0, 20] deg",
+        ),
+        (
+            base(&left, &right, &extra_key, &map),
+            "extra_key.json:1",
+            "unknown field `sigma`, expected `t_m` or `r_deg`",
+        ),
         (
             base(&left, &right, &prior, &bad_map),
             "bad.vmap",

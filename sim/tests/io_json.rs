@@ -179,6 +179,10 @@ fn result_file_has_the_design_fields() {
             repeat_solve: true,
             recheck_map: false,
         },
+        prior_uncertainty: Some(json::UncertaintyJson {
+            t_m: 0.5,
+            r_deg: 1.5,
+        }),
     };
     let text = json::result_text(&r);
     let v: serde_json::Value = serde_json::from_str(&text).unwrap();
@@ -199,6 +203,10 @@ fn result_file_has_the_design_fields() {
     assert_eq!(v["covariance"][7], 1e-6);
     assert_eq!(v["verified"]["repeat_solve"], true);
     assert_eq!(v["verified"]["recheck_map"], false);
+    assert_eq!(
+        v["prior_uncertainty"],
+        serde_json::json!({"t_m": 0.5, "r_deg": 1.5})
+    );
     assert_eq!(json::parse_result(text.as_bytes(), p()).unwrap(), r);
     // A result written before `verified` existed reads as "no check ran".
     let old = text.replace(
@@ -208,4 +216,150 @@ fn result_file_has_the_design_fields() {
     assert!(!old.contains("verified"), "{old}");
     let back = json::parse_result(old.as_bytes(), p()).unwrap();
     assert_eq!(back.verified, json::Verified::default());
+}
+
+/// A prior with `uncertainty` on its own lines: `t_m` on line 5, `r_deg` on 6.
+fn prior_with(t_m: &str, r_deg: &str) -> String {
+    format!(
+        "{{\"world_from_left\": {{\n  \"t\": [1.0, 2.0, 0.5],\n  \"q\": [1.0, 0.0, 0.0, 0.0]}},\n \"uncertainty\": {{\n  \"t_m\": {t_m},\n  \"r_deg\": {r_deg}}}}}"
+    )
+}
+
+fn prior_path() -> &'static Path {
+    Path::new("prior.json")
+}
+
+/// Verifies: VTSM-CLI-041
+#[test]
+fn prior_uncertainty_reads_as_written_and_absent_means_none() {
+    let f = json::parse_prior(prior_with("0.5", "1.5").as_bytes(), prior_path()).unwrap();
+    assert_eq!(
+        f.uncertainty,
+        Some(json::UncertaintyJson {
+            t_m: 0.5,
+            r_deg: 1.5
+        })
+    );
+    assert_eq!(f.world_from_left.t, [1.0, 2.0, 0.5]);
+    let u = f.uncertainty.unwrap().core();
+    assert_eq!((u.t_m, u.r_deg), (0.5, 1.5));
+    // The echo of the core's f32 is the number as written.
+    for (t, r) in [(0.35, 2.25), (0.2, 1.5), (2.0, 20.0), (0.001, 0.01)] {
+        let u = json::UncertaintyJson { t_m: t, r_deg: r };
+        assert_eq!(json::UncertaintyJson::from_core(&u.core()), u);
+    }
+    // The largest accepted values are the core's caps.
+    let top = json::parse_prior(prior_with("2", "20").as_bytes(), prior_path()).unwrap();
+    assert_eq!(top.uncertainty.unwrap().core().validate(), Ok(()));
+    // Absent (or null): no stated uncertainty; the pose reads the same.
+    let plain = pose_text([1.0, 2.0, 0.5], [1.0, 0.0, 0.0, 0.0]);
+    let f = json::parse_prior(plain.as_bytes(), prior_path()).unwrap();
+    assert_eq!(f.uncertainty, None);
+    let null = r#"{"world_from_left": {"t": [1, 2, 0.5], "q": [1, 0, 0, 0]}, "uncertainty": null}"#;
+    assert_eq!(
+        json::parse_prior(null.as_bytes(), prior_path())
+            .unwrap()
+            .uncertainty,
+        None
+    );
+    // The pose-only readers accept a prior with an uncertainty.
+    let pose = json::parse_pose(prior_with("0.5", "1.5").as_bytes(), prior_path()).unwrap();
+    assert_eq!(pose.t(), [1.0, 2.0, 0.5]);
+    // The writer leaves it out when there is none.
+    assert!(!json::pose_file_text(&pose).contains("uncertainty"));
+}
+
+/// Every bad `uncertainty` is refused with one line naming the file, the line
+/// and the field; out-of-range values carry `HAL_PRIOR_INVALID`.
+///
+/// Verifies: VTSM-CLI-041, VTSM-CLI-008
+#[test]
+fn bad_prior_uncertainty_is_refused_with_the_exact_error() {
+    let out_of_range = |line: usize, key: &str, shown: &str| {
+        let (unit, max) = if key == "t_m" {
+            ("m", "2")
+        } else {
+            ("deg", "20")
+        };
+        format!(
+            "prior.json:{line}: `uncertainty.{key}`: {shown} {unit} is outside the accepted range (0, {max}] {unit}"
+        )
+    };
+    let cases: Vec<(String, String, Option<vtsm_core::FailureCode>)> = vec![
+        // Zero, negative, huge, too small for f32, just above the cap.
+        (prior_with("0", "1.5"), out_of_range(5, "t_m", "0"), Some(HPI)),
+        (prior_with("-0.4", "1.5"), out_of_range(5, "t_m", "-0.4"), Some(HPI)),
+        (prior_with("1e300", "1.5"), out_of_range(5, "t_m", "1e300"), Some(HPI)),
+        (prior_with("1e-60", "1.5"), out_of_range(5, "t_m", "1e-60"), Some(HPI)),
+        (prior_with("2.5", "1.5"), out_of_range(5, "t_m", "2.5"), Some(HPI)),
+        (prior_with("0.5", "0"), out_of_range(6, "r_deg", "0"), Some(HPI)),
+        (prior_with("0.5", "-1.5"), out_of_range(6, "r_deg", "-1.5"), Some(HPI)),
+        (prior_with("0.5", "30"), out_of_range(6, "r_deg", "30"), Some(HPI)),
+        // Not numbers JSON can hold.
+        (
+            prior_with("NaN", "1.5"),
+            "prior.json:5: invalid JSON: expected value".into(),
+            None,
+        ),
+        (
+            prior_with("0.5", "1e999"),
+            "prior.json:6: invalid JSON: number out of range".into(),
+            None,
+        ),
+        // Wrong types.
+        (
+            prior_with("\"0.5\"", "1.5"),
+            "prior.json:5: invalid JSON: invalid type: string \"0.5\", expected f64".into(),
+            None,
+        ),
+        (
+            prior_with("[0.5]", "1.5"),
+            "prior.json:5: invalid JSON: invalid type: sequence, expected f64".into(),
+            None,
+        ),
+        (
+            r#"{"world_from_left": {"t": [1, 2, 0.5], "q": [1, 0, 0, 0]}, "uncertainty": 0.5}"#
+                .into(),
+            "prior.json:1: invalid JSON: invalid type: floating point `0.5`, expected struct UncertaintyJson".into(),
+            None,
+        ),
+        // Unknown and missing keys.
+        (
+            prior_with("0.5", "1.5, \"z_m\": 0.1"),
+            "prior.json:6: invalid JSON: unknown field `z_m`, expected `t_m` or `r_deg`".into(),
+            None,
+        ),
+        (
+            r#"{"world_from_left": {"t": [1, 2, 0.5], "q": [1, 0, 0, 0]}, "uncertainty": {"t_m": 0.5}}"#
+                .into(),
+            "prior.json:1: invalid JSON: missing field `r_deg`".into(),
+            None,
+        ),
+        (
+            r#"{"world_from_left": {"t": [1, 2, 0.5], "q": [1, 0, 0, 0]}, "uncertainty_m": 0.5}"#
+                .into(),
+            "prior.json:1: invalid JSON: unknown field `uncertainty_m`, expected `world_from_left` or `uncertainty`".into(),
+            None,
+        ),
+    ];
+    for (text, want, code) in cases {
+        let e = json::parse_prior(text.as_bytes(), prior_path()).unwrap_err();
+        assert_eq!(e.to_string(), want, "{text}");
+        assert_eq!(e.code, code, "{text}");
+        // The pose-only reader (truth.json) refuses the same file the same way.
+        let e2 = json::parse_pose_json(text.as_bytes(), prior_path()).unwrap_err();
+        assert_eq!(e2, e);
+    }
+}
+
+const HPI: vtsm_core::FailureCode = vtsm_core::FailureCode::HalPriorInvalid;
+
+/// A `result.json` written before `prior_uncertainty` existed still reads.
+///
+/// Verifies: VTSM-CLI-007
+#[test]
+fn result_without_prior_uncertainty_reads_as_none() {
+    let text = r#"{"status":"failed","failure":"RELOC_NO_EVIDENCE","world_from_left":null,"inliers":0,"iterations":0,"stats":{}}"#;
+    let r = json::parse_result(text.as_bytes(), p()).unwrap();
+    assert_eq!((r.prior_uncertainty, r.covariance), (None, None));
 }

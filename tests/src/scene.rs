@@ -99,5 +99,6 @@ pub fn request<'a>(map: &'a [u8], left: &'a [u8], right: &'a [u8], prior: Pose) 
         params: testkit::test_params(),
         seed: RELOC_SEED,
         verify: VerifyChecks::OFF,
+        uncertainty: None,
     }
 }

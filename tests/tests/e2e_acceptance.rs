@@ -78,6 +78,7 @@ fn relocalize_with(
         right: &pair.right,
         rig,
         prior,
+        uncertainty: None,
         params,
         seed,
         verify: VerifyChecks::OFF,

@@ -73,6 +73,7 @@ fn budget_measured_rows_are_a_real_run() {
         right: &pair.right,
         rig,
         prior,
+        uncertainty: None,
         params: locate::params_for_width(rig.cam().width()),
         seed,
         verify: VerifyChecks::OFF,

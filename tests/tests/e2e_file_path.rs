@@ -150,12 +150,21 @@ fn file_path_equals_in_memory_path_bit_for_bit() {
         right: &e.right,
         rig: e.rig,
         prior: e.prior,
+        uncertainty: None,
         params: locate::params_for_width(e.rig.cam().width()),
         seed: SEED,
         verify: VerifyChecks::OFF,
     };
     let report = locate::relocalize(&req).unwrap();
-    let in_memory = outcome_from_core(&report.outcome, VerifyChecks::OFF);
+    let in_memory = relocalize::Outcome {
+        prior_uncertainty: Some(report.run.prior_uncertainty),
+        ..outcome_from_core(&report.outcome, VerifyChecks::OFF)
+    };
+    // Without a stated uncertainty the prior gets the paper's (t̃₀, r̃₀).
+    assert_eq!(
+        from_files.prior_uncertainty,
+        Some(vtsm_core::config::PriorUncertainty::PAPER)
+    );
     assert_eq!(
         bits(from_files.pose.as_ref().unwrap()),
         bits(in_memory.pose.as_ref().unwrap())

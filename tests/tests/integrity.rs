@@ -97,6 +97,7 @@ fn run(
         right,
         rig: testkit::rig(),
         prior,
+        uncertainty: None,
         params,
         seed,
         verify: VerifyChecks::OFF,

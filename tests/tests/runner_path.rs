@@ -208,6 +208,50 @@ fn a_spent_step_budget_returns_the_anytime_result() {
 }
 
 /// A relocalization of `left`/`right` from `prior` through the runner.
+/// The prior's stated uncertainty reaches the engine through the runner: the
+/// first iteration's viewpoints are drawn within it, the report says what the
+/// engine ran with, and a stated value out of range stops the run at the
+/// prior check with `HAL_PRIOR_INVALID`.
+///
+/// Verifies: VTSM-HAL-026
+#[test]
+fn runner_builds_the_engine_with_the_priors_stated_uncertainty() {
+    use vtsm_core::config::PriorUncertainty;
+    let s = scene();
+    let base = request(&s.map);
+    let stated = PriorUncertainty {
+        t_m: 0.3,
+        r_deg: 2.0,
+    };
+    for (uncertainty, used) in [(None, base.params.uncertainty()), (Some(stated), stated)] {
+        let req = Request {
+            uncertainty,
+            ..base
+        };
+        let r = run_on_devices(&req, &DeviceFaults::default(), &DriveLimits::UNLIMITED).unwrap();
+        let (o, rep) = r.result.as_ref().unwrap();
+        assert_eq!(o.failure, None, "{uncertainty:?}");
+        assert_eq!(rep.prior_uncertainty, used);
+        let first = o.quality.history.first().unwrap();
+        assert_eq!(
+            (first.t_m, first.r_rad),
+            (used.t_m, used.r_deg.to_radians()),
+            "{uncertainty:?}"
+        );
+        assert_eq!(o.stats.seeds_tried, 0);
+    }
+    let bad = Request {
+        uncertainty: Some(PriorUncertainty {
+            t_m: vtsm_core::config::MAX_T0_M * 2.0,
+            r_deg: 1.5,
+        }),
+        ..base
+    };
+    let r = run_on_devices(&bad, &DeviceFaults::default(), &DriveLimits::UNLIMITED).unwrap();
+    assert_eq!(r.result.err(), Some(FailureCode::HalPriorInvalid));
+    assert_eq!(r.log.count(FailureCode::HalPriorInvalid), 1);
+}
+
 fn run_frames(left: &[u8], right: &[u8], prior: Pose) -> DeviceRun {
     let s = scene();
     let req = Request {

@@ -478,8 +478,10 @@ impl Options {
 /// Default [`Gates::prior_factor`]: the truth lies within the prior's
 /// uncertainty by the prior's contract, and the estimate within a few
 /// centimetres of the truth; 3× leaves room for a prior that understates its
-/// uncertainty up to 3 times (the `uncertainty50` priors, 0.25–0.50 m against
-/// t̃₀ = 0.20 m, still pass) while a pose metres away does not.
+/// uncertainty up to 3 times (a 0.25–0.50 m prior that states none, against
+/// t̃₀ = 0.20 m, still passes) while a pose metres away does not. A prior that
+/// states its uncertainty ([`crate::config::PriorUncertainty`]) widens the
+/// gate with it.
 pub const DEFAULT_PRIOR_FACTOR: f32 = 3.0;
 /// Number of template variants counted in [`PipelineStats::matches`]:
 /// size (ℓ, ℓ/2) × filter (gray, Sobel, Laplacian), index `size * 3 + filter`.

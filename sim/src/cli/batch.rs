@@ -28,7 +28,8 @@ use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// One pair of a batch, as written in `pairs.jsonl`.
+/// One pair of a batch, as written in `pairs.jsonl`. Its prior file may
+/// state the prior's own uncertainty (`prior.json` form).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PairSpec {
@@ -77,6 +78,10 @@ pub struct PairResult {
     pub inliers: u32,
     /// Successful iterations.
     pub iterations: u32,
+    /// The prior uncertainty (t̃₀, r̃₀) the engine ran with (the prior's
+    /// stated `uncertainty`, else the default); `null` for a bad pair.
+    #[serde(default)]
+    pub prior_uncertainty: Option<json::UncertaintyJson>,
     /// Translation error to `truth`, mm (when given).
     pub error_t_mm: Option<f64>,
     /// Rotation error to `truth`, degrees (when given).
@@ -205,6 +210,7 @@ fn failed_line(index: usize, e: &Entry, id: Option<String>, err: &Error) -> Pair
         world_from_left: None,
         inliers: 0,
         iterations: 0,
+        prior_uncertainty: None,
         error_t_mm: None,
         error_r_deg: None,
         time_s: 0.0,
@@ -265,6 +271,7 @@ fn run_pair(args: &Args, map: &[u8], index: usize, e: &Entry) -> PairResult {
             world_from_left: result.world_from_left,
             inliers: result.inliers,
             iterations: result.iterations,
+            prior_uncertainty: result.prior_uncertainty,
             error_t_mm: err.map(|(t, _)| t * 1e3),
             error_r_deg: err.map(|(_, r)| r.to_degrees()),
             time_s: 0.0,

@@ -282,6 +282,7 @@ pub fn relocalize_profile(profile: Profile, seed: u64) -> Result<RelocRun> {
         params: locate::params_for_width(rig.cam().width()),
         seed,
         verify: vtsm_hal::runner::VerifyChecks::OFF,
+        uncertainty: None,
     };
     let mut clock = StageClock::default();
     let cpu0 = ncc_cases::thread_cpu_ns();

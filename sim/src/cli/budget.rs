@@ -341,6 +341,7 @@ pub fn measured_rows(seed: u64) -> crate::Result<Vec<Row>> {
         right: &pair.right,
         rig,
         prior,
+        uncertainty: None,
         params: locate::params_for_width(rig.cam().width()),
         seed,
         verify: VerifyChecks::OFF,

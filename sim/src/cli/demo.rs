@@ -4,7 +4,7 @@
 //! paper's Fig. 6b (synthetic templates at the random start, the real image,
 //! synthetic templates at the final pose).
 
-use crate::cli::relocalize::{outcome_from_core, outcome_result};
+use crate::cli::relocalize::{outcome_from_core, outcome_result, Outcome};
 use crate::error::{Error, Result, EXIT_RELOC_FAILED};
 use crate::io::json;
 use crate::locate::{self, Request};
@@ -120,6 +120,7 @@ pub fn run(args: &Args) -> Result<u8> {
         right: &pair.right,
         rig,
         prior,
+        uncertainty: None,
         params: locate::params_for_width(rig.cam().width()),
         seed: args.seed,
         verify: args.verify.checks(),
@@ -172,7 +173,10 @@ pub fn run(args: &Args) -> Result<u8> {
             if o.stats.refine.accepted { "yes" } else { "no" }
         );
     }
-    let result = outcome_result(&outcome_from_core(o, req.verify));
+    let result = outcome_result(&Outcome {
+        prior_uncertainty: Some(report.run.prior_uncertainty),
+        ..outcome_from_core(o, req.verify)
+    });
     if req.verify.any() {
         let v = result.verified;
         let ran = |asked: bool, ran: bool| match (asked, ran) {

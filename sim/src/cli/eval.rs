@@ -13,8 +13,11 @@
 //! - `paper`: flagstone, cfa6, cfa2 × time difference 0/3/6 h (map at 9.5 h),
 //!   0.40 m baseline, priors 10–20 cm / ≤ 1.5°.
 //! - `baseline`: the same with the 0.20 m baseline.
-//! - `uncertainty50`: priors 25–50 cm / ≤ 1.5°, without and with the
-//!   multi-seed mode (`Params.seeds = K`).
+//! - `uncertainty50`: priors 25–50 cm / ≤ 1.5°, from a single start that is
+//!   told the priors' real uncertainty ([`UNCERTAINTY_50`], served with the
+//!   prior as a `prior.json` `uncertainty` is, so the engine runs with it as
+//!   t̃₀, r̃₀), and with the multi-seed mode (`Params.seeds = K` seeds spread
+//!   over the same 0.50 m, t̃₀ 0.20 m).
 //! - `stepsize`: maps restricted to what sub-sampled wave and forward mapping
 //!   paths see (see [`restrict_to_views`]); reports range to the nearest view.
 //! - `wrongplace`: inputs that must not give a confident answer, per terrain:
@@ -58,6 +61,7 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use vtsm_core::config::PriorUncertainty;
 use vtsm_core::geom::{Camera, Pose, Vec3};
 use vtsm_core::rng::Rng;
 use vtsm_hal::runner::VerifyChecks;
@@ -70,6 +74,12 @@ pub const SHORT_BASELINE_M: f32 = 0.20;
 pub const PRIOR_M: (f32, f32) = (0.10, 0.20);
 /// Prior translation range of `uncertainty50`, metres.
 pub const PRIOR_50_M: (f32, f32) = (0.25, 0.50);
+/// The uncertainty the `uncertainty50` priors state in the single-start
+/// group: the half-widths they are drawn within (0.50 m, 1.5°).
+pub const UNCERTAINTY_50: PriorUncertainty = PriorUncertainty {
+    t_m: PRIOR_50_M.1,
+    r_deg: PRIOR_MAX_DEG,
+};
 /// A success whose true translation error exceeds this is confident wrong, mm:
 /// the smallest displacement of the evaluation priors, so such an answer is
 /// no better than the prior it started from.
@@ -173,7 +183,7 @@ pub enum Suite {
     Paper,
     /// Terrains × time differences, 0.20 m baseline.
     Baseline,
-    /// Priors 25–50 cm, without and with the multi-seed mode.
+    /// Priors 25–50 cm stating their uncertainty, single start and multi-seed.
     Uncertainty50,
     /// Maps restricted to sub-sampled mapping paths.
     Stepsize,
@@ -287,6 +297,8 @@ struct Group {
     baseline_m: f32,
     prior_m: (f32, f32),
     seeds: u16,
+    /// The uncertainty the priors state (`None`: the engine's t̃₀, r̃₀).
+    uncertainty: Option<PriorUncertainty>,
     method: Method,
     extra: Vec<(&'static str, f64)>,
     /// What the relocalizer is given as frames.
@@ -648,6 +660,7 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
                                 baseline_m: MAIN_BASELINE_M,
                                 prior_m: PRIOR_M,
                                 seeds: 0,
+                                uncertainty: None,
                                 method: Method::Vtsm,
                                 extra: vec![
                                     ("hours", f64::from(h)),
@@ -664,36 +677,60 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
                         }
                         continue;
                     }
-                    let mut push = |label: String, baseline_m, prior_m, seeds: u16| {
-                        groups.push(Group {
-                            label,
-                            terrain: t,
-                            map: t,
-                            light: light_of(t, hi),
-                            baseline_m,
-                            prior_m,
-                            seeds,
-                            method: Method::Vtsm,
-                            extra: vec![("hours", f64::from(h)), ("seeds_k", f64::from(seeds))],
-                            frames: Frames::Truth,
-                            small: false,
-                        });
-                    };
+                    let default_u =
+                        locate::params_for_width(scenes[t].camera().width()).uncertainty();
+                    let mut push =
+                        |label: String,
+                         baseline_m,
+                         prior_m,
+                         seeds: u16,
+                         uncertainty: Option<PriorUncertainty>| {
+                            // t̃₀, r̃₀ the engine runs with (the stated uncertainty
+                            // or the profile's), for the trials table.
+                            let u = uncertainty.unwrap_or(default_u);
+                            groups.push(Group {
+                                label,
+                                terrain: t,
+                                map: t,
+                                light: light_of(t, hi),
+                                baseline_m,
+                                prior_m,
+                                seeds,
+                                uncertainty,
+                                method: Method::Vtsm,
+                                extra: vec![
+                                    ("hours", f64::from(h)),
+                                    ("seeds_k", f64::from(seeds)),
+                                    ("t0_m", f64::from(u.t_m)),
+                                    ("r0_deg", f64::from(u.r_deg)),
+                                ],
+                                frames: Frames::Truth,
+                                small: false,
+                            });
+                        };
                     match cfg.suite {
-                        Suite::Paper => push(base, MAIN_BASELINE_M, PRIOR_M, 0),
+                        Suite::Paper => push(base, MAIN_BASELINE_M, PRIOR_M, 0, None),
                         Suite::Baseline => push(
                             format!("{base} b={SHORT_BASELINE_M:.2}m"),
                             SHORT_BASELINE_M,
                             PRIOR_M,
                             0,
+                            None,
                         ),
                         _ => {
-                            push(format!("{base} K=0"), MAIN_BASELINE_M, PRIOR_50_M, 0);
+                            push(
+                                format!("{base} K=0 t0={:.2}m", UNCERTAINTY_50.t_m),
+                                MAIN_BASELINE_M,
+                                PRIOR_50_M,
+                                0,
+                                Some(UNCERTAINTY_50),
+                            );
                             push(
                                 format!("{base} K={}", cfg.seeds_k),
                                 MAIN_BASELINE_M,
                                 PRIOR_50_M,
                                 cfg.seeds_k,
+                                None,
                             );
                         }
                     }
@@ -742,6 +779,7 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
                     baseline_m: MAIN_BASELINE_M,
                     prior_m: PRIOR_M,
                     seeds: 0,
+                    uncertainty: None,
                     method: Method::Vtsm,
                     extra: vec![
                         ("hours", f64::from(live_hours[0])),
@@ -795,6 +833,15 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
             "map_hours": MAP_HOURS,
             "steps": if cfg.suite == Suite::Stepsize { cfg.steps.clone() } else { Vec::new() },
             "seeds_k": cfg.seeds_k,
+            "stated_uncertainty": if cfg.suite == Suite::Uncertainty50 {
+                serde_json::json!({
+                    "groups": "K=0",
+                    "t_m": UNCERTAINTY_50.t_m,
+                    "r_deg": UNCERTAINTY_50.r_deg,
+                })
+            } else {
+                serde_json::Value::Null
+            },
             "prior_m": if cfg.suite == Suite::Uncertainty50 { PRIOR_50_M } else { PRIOR_M },
             "prior_max_deg": PRIOR_MAX_DEG,
             "map_view_range_m": MAP_VIEW_RANGE_M,
@@ -957,6 +1004,7 @@ fn run_trial(
         right: &pair.right,
         rig,
         prior,
+        uncertainty: g.uncertainty,
         params,
         seed,
         verify: cfg.verify,
@@ -1781,13 +1829,19 @@ mod tests {
 
     /// Verifies: VTSM-CLI-019, VTSM-CLI-021
     #[test]
-    fn uncertainty_suite_pairs_k0_and_k_seeds_with_wide_priors() {
+    fn uncertainty_suite_pairs_k0_stating_the_uncertainty_and_k_seeds() {
         let run = run_suite(&small(Suite::Uncertainty50), "test").unwrap();
         check_run(&run, 2, 1, (250.0, 500.0), &["final_vs_initial.svg"]);
         // Paired: same capture and prior in both groups, only K differs.
         let (a, b) = (&run.outcomes[0], &run.outcomes[1]);
         assert_eq!((a.seed, a.init_t_mm), (b.seed, b.init_t_mm));
         assert_eq!((a.extra["seeds_k"], b.extra["seeds_k"]), (0.0, 4.0));
+        // The single start is told the priors' real uncertainty; the
+        // multi-seed group keeps the default t̃₀ and spreads its seeds instead.
+        assert_eq!((a.extra["t0_m"], a.extra["r0_deg"]), (0.5, 1.5));
+        assert!((b.extra["t0_m"] - 0.2).abs() < 1e-6, "{:?}", b.extra);
+        assert!(a.group.contains("K=0 t0=0.50m"), "{}", a.group);
+        assert_eq!(run.meta.params["stated_uncertainty"]["t_m"], 0.5);
     }
 
     /// Verifies: VTSM-CLI-019, VTSM-CLI-020

@@ -9,7 +9,9 @@
 //!
 //! Poses in and out (prior, result) are f64 in the mesh's own frame; the map's
 //! origin ([`MapView::origin`]) is subtracted on the way into the core and added
-//! on the way out ([`crate::frame`]).
+//! on the way out ([`crate::frame`]). A prior's stated `uncertainty` travels
+//! with it to the runner, which builds the engine with it as (t̃₀, r̃₀); the
+//! result echoes the pair used as `prior_uncertainty`.
 
 use crate::error::{Error, Result, EXIT_RELOC_FAILED};
 use crate::io::calib_opencv::{self, CalibFile};
@@ -19,6 +21,7 @@ use crate::io::{self, mesh};
 use crate::rectify::Rectifier;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
+use vtsm_core::config::PriorUncertainty;
 use vtsm_core::geom::{Pose, StereoRig};
 use vtsm_core::map::MapView;
 use vtsm_core::FailureCode;
@@ -53,7 +56,8 @@ pub struct Args {
     /// Right image, same size as the left one and as the calibration.
     #[arg(long, value_name = "R.png", required_unless_present = "pairs")]
     pub right: Option<PathBuf>,
-    /// Prior pose JSON file: `world_from_left` with translation `t` (x, y, z) and quaternion `q` (w, x, y, z).
+    /// Prior pose JSON file: `world_from_left` with translation `t` (x, y, z) and quaternion `q` (w, x, y, z),
+    /// optionally `uncertainty` {"t_m", "r_deg"} (half-widths the truth lies within; default 0.20 m, 1.5°).
     #[arg(long, value_name = "prior.json", required_unless_present = "pairs")]
     pub prior: Option<PathBuf>,
     /// Batch: a JSON-lines file (or a directory of `*.json` pair files) naming
@@ -104,6 +108,8 @@ pub struct Inputs {
     /// `origin`) of the camera the core sees (for a physical pair: the
     /// rectified left camera).
     pub prior: Pose,
+    /// The prior's stated uncertainty (`None`: the engine's default t̃₀, r̃₀).
+    pub uncertainty: Option<PriorUncertainty>,
     /// Seed.
     pub seed: u64,
     /// Upset checks asked for (`--verify`).
@@ -182,8 +188,9 @@ pub fn load_inputs_with_map(args: &Args, map: Vec<u8>) -> Result<Inputs> {
         Error::file(&args.calib, format!("rejected: {}", c.description())).with_code(c)
     })?;
     let origin = MapView::new_checked(&map).map_err(Error::from)?.origin();
-    let prior = json::parse_pose_json(&io::read_file(prior_path)?, prior_path)?;
-    let prior = crate::frame::json_to_local(&prior, origin).map_err(|c| {
+    let prior_file = json::read_prior(prior_path)?;
+    let uncertainty = prior_file.uncertainty.map(|u| u.core());
+    let prior = crate::frame::json_to_local(&prior_file.world_from_left, origin).map_err(|c| {
         Error::file(
             prior_path,
             format!("pose rejected in the map's local frame: {}", c.name()),
@@ -212,6 +219,7 @@ pub fn load_inputs_with_map(args: &Args, map: Vec<u8>) -> Result<Inputs> {
         left,
         right,
         prior,
+        uncertainty,
         seed: args.seed,
         verify: args.verify.checks(),
         physical,
@@ -285,12 +293,15 @@ pub struct Outcome {
     pub covariance: Option<vtsm_core::pose::Covariance>,
     /// The upset checks that ran.
     pub verified: Verified,
+    /// The prior uncertainty (t̃₀, r̃₀) the engine ran with, when known.
+    pub prior_uncertainty: Option<PriorUncertainty>,
 }
 
 /// The relocalization engine call: the same [`crate::locate::relocalize`] as
 /// `vtsm demo` and `vtsm eval`, with the paper's parameters and ℓ scaled to the
-/// image width. For a physical pair the outcome's pose is converted back from
-/// the rectified left camera to the physical one.
+/// image width, and the prior's stated uncertainty served with the prior (one
+/// start: it replaces t̃₀, r̃₀). For a physical pair the outcome's pose is
+/// converted back from the rectified left camera to the physical one.
 ///
 /// # Errors
 /// Inputs the core rejects (map, image sizes, parameters), with their codes.
@@ -301,6 +312,7 @@ pub fn run_engine(inputs: &Inputs) -> Result<Outcome> {
         right: &inputs.right.pixels,
         rig: inputs.rig,
         prior: inputs.prior,
+        uncertainty: inputs.uncertainty,
         params: crate::locate::params_for_width(inputs.rig.cam().width()),
         seed: inputs.seed,
         verify: inputs.verify,
@@ -308,6 +320,7 @@ pub fn run_engine(inputs: &Inputs) -> Result<Outcome> {
     let report = crate::locate::relocalize(&req)?;
     let mut outcome = Outcome {
         origin: inputs.origin,
+        prior_uncertainty: Some(report.run.prior_uncertainty),
         ..outcome_from_core(&report.outcome, inputs.verify)
     };
     // The core solved for the rectified left camera; report the physical one.
@@ -373,6 +386,7 @@ pub fn outcome_from_core(o: &vtsm_core::reloc::Outcome, asked: VerifyChecks) -> 
         stats,
         covariance: o.quality.covariance,
         verified: verified(o, asked),
+        prior_uncertainty: None,
     }
 }
 
@@ -392,6 +406,10 @@ pub fn outcome_result(o: &Outcome) -> ResultFile {
             .covariance
             .map(|c| c.m.iter().map(|&v| f64::from(v)).collect()),
         verified: o.verified,
+        prior_uncertainty: o
+            .prior_uncertainty
+            .as_ref()
+            .map(json::UncertaintyJson::from_core),
     }
 }
 

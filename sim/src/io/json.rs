@@ -1,15 +1,17 @@
 //! The JSON files of design §5: `calib.json` ([`Calib`]), `prior.json` /
-//! `truth.json` ([`PoseFile`]) and `result.json` ([`ResultFile`]).
+//! `truth.json` ([`PoseFile`], with the prior's optional stated uncertainty
+//! [`UncertaintyJson`]) and `result.json` ([`ResultFile`]).
 //!
 //! Readers reject unknown fields (a misspelt key is an error, not a default),
-//! non-finite or out-of-range numbers, non-positive sizes, focal lengths and
-//! baselines, and quaternions further than [`QUAT_NORM_TOL`] from unit norm.
-//! Errors name the file and, where known, the line.
+//! non-finite or out-of-range numbers, non-positive sizes, focal lengths,
+//! baselines and uncertainties, and quaternions further than
+//! [`QUAT_NORM_TOL`] from unit norm. Errors name the file and, where known,
+//! the line.
 
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
-use vtsm_core::config::MAX_IMAGE_DIM;
+use vtsm_core::config::{PriorUncertainty, MAX_IMAGE_DIM, MAX_R0_DEG, MAX_T0_M};
 use vtsm_core::geom::{self, Camera, Pose, StereoRig};
 use vtsm_core::FailureCode;
 
@@ -184,12 +186,72 @@ impl PoseJson {
     }
 }
 
+/// The stated uncertainty of a prior, `"uncertainty": {"t_m": T, "r_deg": R}`:
+/// half-widths of the region the true pose lies in around the prior (the
+/// paper's t̃₀, r̃₀). Also echoed in `result.json` as `prior_uncertainty`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct UncertaintyJson {
+    /// Translation half-width, metres, in (0, [`MAX_T0_M`]].
+    pub t_m: f64,
+    /// Rotation half-width, degrees, in (0, [`MAX_R0_DEG`]].
+    pub r_deg: f64,
+}
+
+impl UncertaintyJson {
+    /// Check both values against the ranges of the core's
+    /// [`PriorUncertainty::validate`] (finite, `t_m` in (0, [`MAX_T0_M`]] m,
+    /// `r_deg` in (0, [`MAX_R0_DEG`]]°), judged as the f32 the core will see;
+    /// returns the name of the bad field (`t_m` or `r_deg`) and why.
+    pub fn validate(&self) -> std::result::Result<(), (&'static str, String)> {
+        let one = |name: &'static str, v: f64, max: f32, unit: &str| {
+            let f = v as f32;
+            if v.is_finite() && f.is_finite() && f > 0.0 && f <= max {
+                Ok(())
+            } else {
+                Err((
+                    name,
+                    format!(
+                        "{} {unit} is outside the accepted range (0, {}] {unit}",
+                        short_number(v),
+                        short_number(f64::from(max))
+                    ),
+                ))
+            }
+        };
+        one("t_m", self.t_m, MAX_T0_M, "m")?;
+        one("r_deg", self.r_deg, MAX_R0_DEG, "deg")
+    }
+
+    /// The core's form (f32; checked by [`UncertaintyJson::validate`]).
+    pub fn core(&self) -> PriorUncertainty {
+        PriorUncertainty {
+            t_m: self.t_m as f32,
+            r_deg: self.r_deg as f32,
+        }
+    }
+
+    /// From the core's form, each f32 as the shortest decimal that reads
+    /// back to it (so 0.2 is echoed as 0.2, not 0.20000000298023224).
+    pub fn from_core(u: &PriorUncertainty) -> Self {
+        let short = |v: f32| v.to_string().parse::<f64>().unwrap_or(f64::from(v));
+        Self {
+            t_m: short(u.t_m),
+            r_deg: short(u.r_deg),
+        }
+    }
+}
+
 /// `prior.json` / `truth.json`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PoseFile {
     /// Pose of the left camera in the world.
     pub world_from_left: PoseJson,
+    /// The prior's stated uncertainty; absent: the engine's t̃₀, r̃₀ (the
+    /// paper's 0.20 m, 1.5°). Read but not used in `truth.json`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub uncertainty: Option<UncertaintyJson>,
 }
 
 /// `result.json`, written by `vtsm relocalize` and `vtsm demo`.
@@ -217,6 +279,11 @@ pub struct ResultFile {
     /// absent (files written before the field).
     #[serde(default)]
     pub verified: Verified,
+    /// The prior uncertainty (t̃₀, r̃₀) the engine ran with: the prior's
+    /// stated `uncertainty`, else the default; `null` (or absent) when not
+    /// known (results written before the field existed).
+    #[serde(default)]
+    pub prior_uncertainty: Option<UncertaintyJson>,
 }
 
 /// The upset checks that ran on a relocalization (`result.json` `verified`).
@@ -299,18 +366,49 @@ pub fn parse_pose(bytes: &[u8], path: &Path) -> Result<Pose> {
 /// numbers as written (user frame; see [`crate::frame`]).
 ///
 /// # Errors
-/// As [`parse_pose`].
+/// As [`parse_prior`].
 pub fn parse_pose_json(bytes: &[u8], path: &Path) -> Result<PoseJson> {
+    Ok(parse_prior(bytes, path)?.world_from_left)
+}
+
+/// Parse and validate `prior.json` bytes: the pose (f64, user frame) and the
+/// stated uncertainty, if any.
+///
+/// # Errors
+/// Malformed JSON, a missing or unknown field (also inside `uncertainty`),
+/// non-finite numbers, a quaternion not within [`QUAT_NORM_TOL`] of unit
+/// norm, or an uncertainty out of range ([`UncertaintyJson::validate`]; that
+/// error carries [`FailureCode::HalPriorInvalid`], the code the flight path
+/// gives the same prior).
+pub fn parse_prior(bytes: &[u8], path: &Path) -> Result<PoseFile> {
     let f: PoseFile = parse_json(bytes, path)?;
+    let text = || String::from_utf8_lossy(bytes);
     f.world_from_left.validate().map_err(|why| {
         let key = if why.contains("`t`") { "t" } else { "q" };
-        let text = String::from_utf8_lossy(bytes);
-        match key_line(&text, key) {
+        match key_line(&text(), key) {
             Some(l) => Error::at(path, l, why),
             None => Error::file(path, why),
         }
     })?;
-    Ok(f.world_from_left)
+    if let Some(u) = &f.uncertainty {
+        u.validate().map_err(|(key, why)| {
+            let msg = format!("`uncertainty.{key}`: {why}");
+            match key_line(&text(), key) {
+                Some(l) => Error::at(path, l, msg),
+                None => Error::file(path, msg),
+            }
+            .with_code(FailureCode::HalPriorInvalid)
+        })?;
+    }
+    Ok(f)
+}
+
+/// Read and validate `prior.json` (see [`parse_prior`]).
+///
+/// # Errors
+/// As [`parse_prior`], plus I/O errors.
+pub fn read_prior(path: &Path) -> Result<PoseFile> {
+    parse_prior(&super::read_file(path)?, path)
 }
 
 /// Read and validate `prior.json` / `truth.json` as a user-frame (f64) pose.
@@ -333,6 +431,7 @@ pub fn read_pose(path: &Path) -> Result<Pose> {
 pub fn pose_file_text(pose: &Pose) -> String {
     let f = PoseFile {
         world_from_left: PoseJson::from_pose(pose),
+        uncertainty: None,
     };
     serde_json::to_string_pretty(&f).unwrap_or_default() + "\n"
 }

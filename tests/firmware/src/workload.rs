@@ -436,7 +436,7 @@ pub mod devices {
     impl PosePrior for FixedPrior {
         fn latest(&mut self) -> Result<PriorEstimate, Infallible> {
             let (t, r) = (0.2f32 * 0.2, 1.5f32.to_radians() * 1.5f32.to_radians());
-            Ok(PriorEstimate { world_from_left: self.0, covariance: Covariance::Diagonal([t, t, t, r, r, r]), timestamp_ticks: 0 })
+            Ok(PriorEstimate { world_from_left: self.0, covariance: Covariance::Diagonal([t, t, t, r, r, r]), uncertainty: None, timestamp_ticks: 0 })
         }
     }
 

@@ -77,6 +77,7 @@ fn run(scene: &Path, out: &Path) -> Result<(), String> {
         rig,
         params,
         prior,
+        uncertainty: None,
         seed: SEED,
         verify: VerifyChecks::OFF,
     };

@@ -1,0 +1,184 @@
+//! End to end: a prior that states its uncertainty (`prior.json`'s
+//! `"uncertainty": {"t_m", "r_deg"}`) through `vtsm relocalize`'s file path.
+//! A test-profile scene is relocalized from a prior 0.40 m and about 1° off
+//! that says so (0.50 m, 1.5°), as a single pair and in a `--pairs` batch whose
+//! other line keeps the default; `result.json` and the batch lines echo the
+//! uncertainty the engine ran with.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::path::{Path, PathBuf};
+use vtsm_core::config::PriorUncertainty;
+use vtsm_core::geom::{Pose, Vec3};
+use vtsm_sim::cli::batch;
+use vtsm_sim::cli::map_build::DEFAULT_TILE_SIZE_M;
+use vtsm_sim::cli::relocalize::{self, Args};
+use vtsm_sim::io::json::{self, UncertaintyJson};
+use vtsm_sim::scene::export::{write_scene, SceneFiles};
+use vtsm_sim::scene::{perturbed_prior, Capture, Profile, Scene};
+use vtsm_sim::terrain::TerrainKind;
+
+const SEED: u64 = 3;
+const STOP: u32 = 3;
+const MAP_HOURS: f32 = 9.5;
+/// What the far prior states: the half-widths its error lies within.
+const STATED: UncertaintyJson = UncertaintyJson {
+    t_m: 0.5,
+    r_deg: 1.5,
+};
+
+struct Scenario {
+    dir: PathBuf,
+    truth: Pose,
+}
+
+/// A flagstone scene exported with a 10–20 cm `prior.json` (no uncertainty),
+/// plus `prior_far.json`: the truth moved 0.40 m sideways and 0.05 m up and
+/// turned 1° about a tilted axis, stating 0.50 m and 1.5°.
+fn scenario() -> &'static Scenario {
+    static S: std::sync::OnceLock<Scenario> = std::sync::OnceLock::new();
+    S.get_or_init(|| {
+        let scene = Scene::new(TerrainKind::Flagstone, SEED, Profile::Test);
+        let light = scene.lighting(MAP_HOURS);
+        let map = scene.map(&light);
+        let (rig, truth, pair) = scene.capture(&light, &Capture::from_index(STOP, 0, 0.40));
+        let near = perturbed_prior(&truth, SEED);
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!(
+            "e2e-uncertainty-{}-{}",
+            std::process::id(),
+            SEED
+        ));
+        let _ = std::fs::remove_dir_all(&dir);
+        let files = SceneFiles {
+            map: &map,
+            rig: &rig,
+            left: &pair.left,
+            right: &pair.right,
+            prior: &near,
+            truth: &truth,
+            meta: serde_json::json!({"test": "e2e_uncertainty"}),
+        };
+        write_scene(&dir, &files, false).unwrap();
+        let shift = Vec3::new(0.4 * 0.6, -0.4 * 0.8, 0.05);
+        let turn = nalgebra::UnitQuaternion::from_scaled_axis(
+            Vec3::new(0.3, 1.0, 0.2).normalize() * 1.0f32.to_radians(),
+        );
+        let far = Pose::new(turn * truth.rotation(), truth.translation() + shift);
+        let (dt, dr) = far.error_to(&truth);
+        assert!(
+            (0.38..0.42).contains(&dt) && dr.to_degrees() < 1.5,
+            "{dt} m {dr} rad"
+        );
+        let text = serde_json::json!({
+            "world_from_left": {"t": far.t(), "q": far.q()},
+            "uncertainty": STATED,
+        })
+        .to_string();
+        std::fs::write(dir.join("prior_far.json"), text).unwrap();
+        Scenario { dir, truth }
+    })
+}
+
+fn args(dir: &Path, prior: Option<&str>, out: Option<PathBuf>) -> Args {
+    Args {
+        mesh: Some(dir.join("map.obj")),
+        mask: Some(dir.join("mask.obj")),
+        map: None,
+        calib: dir.join("calib.json"),
+        left: prior.map(|_| dir.join("left.png")),
+        right: prior.map(|_| dir.join("right.png")),
+        prior: prior.map(|p| dir.join(p)),
+        pairs: None,
+        seed: SEED,
+        out,
+        force: false,
+        tile_size_m: DEFAULT_TILE_SIZE_M,
+        origin: None,
+        verify: Default::default(),
+    }
+}
+
+fn error_mm(r: &json::ResultFile, truth: &Pose) -> f64 {
+    let t = r.world_from_left.unwrap().t;
+    let tt = truth.t();
+    (0..3)
+        .map(|k| (t[k] - f64::from(tt[k])).powi(2))
+        .sum::<f64>()
+        .sqrt()
+        * 1e3
+}
+
+/// A prior 0.40 m off that states 0.50 m / 1.5° relocalizes from a single
+/// start to within 5 cm of the truth, and `result.json` says what it ran with.
+///
+/// Verifies: VTSM-CLI-041, VTSM-HAL-026
+#[test]
+fn far_prior_stating_its_uncertainty_relocalizes_within_5_cm() {
+    let s = scenario();
+    let out = s.dir.join("result_far.json");
+    let code = relocalize::run(&args(&s.dir, Some("prior_far.json"), Some(out.clone()))).unwrap();
+    let r = json::parse_result(&std::fs::read(&out).unwrap(), &out).unwrap();
+    assert_eq!((code, r.status.as_str()), (0, "ok"), "{r:?}");
+    let e = error_mm(&r, &s.truth);
+    eprintln!("final error {e:.1} mm from a 0.40 m prior");
+    assert!(e < 50.0, "final error {e} mm");
+    assert_eq!(r.prior_uncertainty, Some(STATED));
+    // One start: the multi-seed mode stays off.
+    assert_eq!(r.stats["seeds_tried"], 0);
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(
+        text.contains("\"prior_uncertainty\": {\n    \"t_m\": 0.5,\n    \"r_deg\": 1.5\n  }"),
+        "{text}"
+    );
+}
+
+/// In a batch each pair's prior brings its own uncertainty: the far prior's
+/// line gives the single-pair result and echoes 0.50 m / 1.5°, the other line
+/// (no `uncertainty`) the default 0.20 m / 1.5°.
+///
+/// Verifies: VTSM-CLI-041, VTSM-CLI-038
+#[test]
+fn batch_pairs_use_their_own_prior_uncertainty() {
+    let s = scenario();
+    let pairs = s.dir.join("pairs.jsonl");
+    std::fs::write(
+        &pairs,
+        [
+            r#"{"id":"far","left":"left.png","right":"right.png","prior":"prior_far.json","truth":"truth.json","out":"batch_far.json"}"#,
+            r#"{"id":"near","left":"left.png","right":"right.png","prior":"prior.json","truth":"truth.json"}"#,
+        ]
+        .join("\n")
+            + "\n",
+    )
+    .unwrap();
+    let b = batch::run_batch(&args(&s.dir, None, None), &pairs, false).unwrap();
+    let status: Vec<&str> = b.results.iter().map(|r| r.status.as_str()).collect();
+    assert_eq!(status, ["ok", "ok"], "{:?}", b.results);
+    assert_eq!(b.results[0].prior_uncertainty, Some(STATED));
+    assert_eq!(
+        b.results[1].prior_uncertainty,
+        Some(UncertaintyJson::from_core(&PriorUncertainty::PAPER))
+    );
+    assert_eq!(
+        b.results[1].prior_uncertainty,
+        Some(UncertaintyJson {
+            t_m: 0.2,
+            r_deg: 1.5
+        })
+    );
+    for r in &b.results {
+        assert!(r.error_t_mm.is_some_and(|e| e < 50.0), "{r:?}");
+    }
+    // The far line is the single-pair relocalization (same inputs and seed).
+    let single = relocalize::run_engine(
+        &relocalize::load_inputs(&args(&s.dir, Some("prior_far.json"), None)).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(
+        b.results[0].world_from_left,
+        relocalize::outcome_result(&single).world_from_left
+    );
+    let far = s.dir.join("batch_far.json");
+    let r = json::parse_result(&std::fs::read(&far).unwrap(), &far).unwrap();
+    assert_eq!(r.prior_uncertainty, Some(STATED));
+    assert_eq!(r.world_from_left, b.results[0].world_from_left);
+}
