@@ -188,13 +188,19 @@ fn adversarial_inputs_never_end_in_a_confident_wrong_pose() {
         cases.len(),
         wrong.iter().map(|c| &c.name).collect::<Vec<_>>()
     );
-    // The shifted pairs are refused by a gate, not by luck.
+    // The shifted pairs are refused by construction, not by luck: with the
+    // right search along the epipolar band (ℓ = 64 here, VTSM-RELOC-034) a
+    // 3–6 px disparity lies outside every band the depth allows, so no pair
+    // is accepted and the engine ends at its reseed cap with no pose; with
+    // the whole right window they are matched and the prior gate refuses them.
     for c in cases.iter().filter(|c| c.name.starts_with("shifted")) {
-        assert_eq!(
-            c.outcome.failure,
-            Some(FailureCode::RelocPoseOutsidePrior),
-            "{}",
-            c.name
+        let by_band = c.outcome.failure == Some(FailureCode::RelocReseedCapReached)
+            && c.outcome.quality.inliers == 0;
+        assert!(
+            c.outcome.failure == Some(FailureCode::RelocPoseOutsidePrior) || by_band,
+            "{}: {:?}",
+            c.name,
+            c.outcome.failure
         );
     }
     // The correct pair with the same small parameters still succeeds, close
