@@ -611,13 +611,15 @@ fn cpu_extra_features(enabled: &[&str]) -> Vec<&'static str> {
     }
 }
 
-fn loadavg() -> String {
+/// The 1, 5 and 15 minute load averages (`/proc/loadavg`), or "unknown".
+pub fn loadavg() -> String {
     std::fs::read_to_string("/proc/loadavg")
         .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
         .unwrap_or_else(|_| "unknown".to_string())
 }
 
-fn cpu_model() -> String {
+/// The CPU model (`/proc/cpuinfo`), or "unknown".
+pub fn cpu_model() -> String {
     std::fs::read_to_string("/proc/cpuinfo")
         .ok()
         .and_then(|s| {

@@ -139,24 +139,6 @@ fn parse_args(args: &[String]) -> Opts {
     o
 }
 
-fn loadavg() -> String {
-    std::fs::read_to_string("/proc/loadavg")
-        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
-        .unwrap_or_else(|_| "unknown".to_string())
-}
-
-fn cpu_model() -> String {
-    std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split(':').nth(1))
-                .map(|m| m.trim().to_string())
-        })
-        .unwrap_or_else(|| "unknown".to_string())
-}
-
 fn command_out(cmd: &str, args: &[&str]) -> String {
     std::process::Command::new(cmd)
         .args(args)
@@ -274,10 +256,10 @@ fn markdown(o: &Opts, args: &[String], stats: &[Stats], start: &str, load0: &str
     s.push_str(&format!(
         "| run | |\n|---|---|\n| date | {start} |\n| commit | `{}` |\n| machine | {} ({} hardware threads), load {} at start, {} at end |\n| compiler | {} |\n| seed | {} |\n| jobs | {} |\n\n",
         command_out("git", &["rev-parse", "--short=12", "HEAD"]),
-        cpu_model(),
+        vtsm_sim::cli::bench::cpu_model(),
         std::thread::available_parallelism().map_or(0, |n| n.get()),
         load0,
-        loadavg(),
+        vtsm_sim::cli::bench::loadavg(),
         command_out("rustc", &["--version"]),
         o.seed,
         o.jobs
@@ -375,7 +357,7 @@ fn main() {
         return;
     }
     let start = vtsm_sim::cli::bench::utc_now();
-    let load0 = loadavg();
+    let load0 = vtsm_sim::cli::bench::loadavg();
     let stats = run_all(&o);
     let crashes: usize = stats.iter().map(|s| s.crashes.len()).sum();
     let total: u64 = stats.iter().map(|s| s.execs).sum();
