@@ -678,8 +678,8 @@ pub fn utc_now() -> String {
     )
 }
 
-/// `n` with thin spaces between groups of three digits.
-fn count(n: u64) -> String {
+/// `n` with thin spaces between groups of three digits (the reports' number style).
+pub fn count(n: u64) -> String {
     let s = n.to_string();
     let mut out = String::new();
     for (i, c) in s.chars().enumerate() {

@@ -149,18 +149,6 @@ fn command_out(cmd: &str, args: &[&str]) -> String {
         .unwrap_or_else(|| "unknown".to_string())
 }
 
-fn fmt_count(n: u64) -> String {
-    let s = n.to_string();
-    let mut out = String::new();
-    for (i, c) in s.chars().enumerate() {
-        if i > 0 && (s.len() - i) % 3 == 0 {
-            out.push('\u{2009}');
-        }
-        out.push(c);
-    }
-    out
-}
-
 fn limits_for(o: &Opts, t: &FuzzTarget) -> Limits {
     let by_name = o.iters_for.iter().rev().find(|(n, _)| n == t.name);
     Limits {
@@ -274,11 +262,11 @@ fn markdown(o: &Opts, args: &[String], stats: &[Stats], start: &str, load0: &str
                 Kind::Parser => "parser",
                 Kind::Stage => "stage",
             },
-            fmt_count(st.execs),
+            vtsm_sim::cli::bench::count(st.execs),
             st.elapsed.as_secs_f64(),
             st.rate(),
-            fmt_count(st.accepted),
-            fmt_count(st.rejected),
+            vtsm_sim::cli::bench::count(st.accepted),
+            vtsm_sim::cli::bench::count(st.rejected),
             st.distinct_errors(),
             st.crashes.len()
         ));
@@ -287,7 +275,7 @@ fn markdown(o: &Opts, args: &[String], stats: &[Stats], start: &str, load0: &str
     let crashes: usize = stats.iter().map(|s| s.crashes.len()).sum();
     s.push_str(&format!(
         "\nTotal: {} executions, {} crashes.\n\n",
-        fmt_count(total),
+        vtsm_sim::cli::bench::count(total),
         crashes
     ));
     s.push_str("## Targets\n\n| target | drives |\n|---|---|\n");
@@ -313,13 +301,17 @@ fn markdown(o: &Opts, args: &[String], stats: &[Stats], start: &str, load0: &str
         ));
         for (label, n) in v.iter().take(12) {
             let l = label.replace('|', "\\|").replace('`', "'");
-            s.push_str(&format!("| {} | {} |\n", fmt_count(**n), l));
+            s.push_str(&format!(
+                "| {} | {} |\n",
+                vtsm_sim::cli::bench::count(**n),
+                l
+            ));
         }
         if v.len() > 12 {
             let rest: u64 = v.iter().skip(12).map(|(_, n)| **n).sum();
             s.push_str(&format!(
                 "| {} | ({} other labels) |\n",
-                fmt_count(rest),
+                vtsm_sim::cli::bench::count(rest),
                 v.len() - 12
             ));
         }
