@@ -9,8 +9,12 @@
 //! Rotations are the same in both frames (the axes are parallel).
 //!
 //! [`default_origin`] is the origin `vtsm map build` chooses when none is
-//! given: the centre of the mesh's bounding box rounded to whole metres, so a
-//! mesh near 0 keeps origin 0 and its product is the same as before origins.
+//! given: the exact centre of the mesh's bounding box. It is a property of the
+//! mesh, not of the frame it is written in: the same mesh written in local
+//! coordinates or shifted to UTM gets the same local vertices (to ~10⁻⁹ m, the
+//! f64 rounding of the shifted coordinates), so the core sees the same map and
+//! gives the same answer. A rounded origin would leave the fraction of the
+//! shift in the local frame and change the f32 rounding of every vertex.
 
 use crate::error::{Error, Result};
 use crate::io::json::PoseJson;
@@ -96,9 +100,10 @@ pub fn error_to(est: &UserPose, truth: &UserPose) -> (f64, f64) {
 }
 
 /// The default origin of a mesh's map: the centre of the bounding box of
-/// `vertices` (user frame), rounded to whole metres (`[0, 0, 0]` when empty).
-/// `-0` is normalised to `0`, so subtracting the origin never flips the sign
-/// of a zero coordinate.
+/// `vertices` (user frame), not rounded (`[0, 0, 0]` when empty): see the
+/// module doc. The local vertices are then centred, which also gives them the
+/// finest f32 steps the mesh allows. `-0` is normalised to `0`, so
+/// subtracting the origin never flips the sign of a zero coordinate.
 pub fn default_origin(vertices: &[[f64; 3]]) -> [f64; 3] {
     let Some(first) = vertices.first() else {
         return [0.0; 3];
@@ -110,7 +115,7 @@ pub fn default_origin(vertices: &[[f64; 3]]) -> [f64; 3] {
             hi[k] = hi[k].max(v[k]);
         }
     }
-    [0, 1, 2].map(|k| (0.5 * lo[k] + 0.5 * hi[k]).round() + 0.0)
+    [0, 1, 2].map(|k| (0.5 * lo[k] + 0.5 * hi[k]) + 0.0)
 }
 
 /// Local f32 vertices of user-frame `vertices` about `origin`: each coordinate
@@ -204,17 +209,17 @@ mod tests {
         assert!(t > 1e-3, "{t}");
     }
 
-    /// The default origin is the box centre rounded to whole metres, never -0.
+    /// The default origin is the box centre, never -0.
     ///
     /// Verifies: VTSM-CLI-035
     #[test]
-    fn default_origin_rounds_the_box_centre() {
+    fn default_origin_is_the_box_centre() {
         let v = [
-            [391_230.2, 3_784_300.0, 300.0],
-            [391_240.0, 3_784_341.9, 325.0],
+            [391_230.5, 3_784_300.0, 300.0],
+            [391_240.0, 3_784_341.5, 325.0],
         ];
-        assert_eq!(default_origin(&v), [391_235.0, 3_784_321.0, 313.0]);
-        let o = default_origin(&[[-0.3, -4.0, -0.1], [0.2, 4.0, 0.4]]);
+        assert_eq!(default_origin(&v), [391_235.25, 3_784_320.75, 312.5]);
+        let o = default_origin(&[[-0.5, -4.0, -0.25], [0.5, 4.0, 0.25]]);
         assert_eq!(o.map(f64::to_bits), [0.0f64; 3].map(f64::to_bits));
         assert!(parse_origin("1,2").is_err());
         assert!(parse_origin("1,2,nan").is_err());

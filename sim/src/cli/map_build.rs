@@ -35,7 +35,7 @@ pub struct Args {
     #[arg(long, value_name = "S", default_value_t = DEFAULT_TILE_SIZE_M)]
     pub tile_size_m: f32,
     /// Origin X,Y,Z of the map's local frame, metres in the mesh's frame
-    /// (default: the bounding-box centre rounded to whole metres).
+    /// (default: the exact bounding-box centre).
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
     pub origin: Option<String>,
 }

@@ -81,7 +81,7 @@ pub struct Args {
     #[arg(long, value_name = "S", default_value_t = super::map_build::DEFAULT_TILE_SIZE_M)]
     pub tile_size_m: f32,
     /// Origin X,Y,Z (metres, mesh frame) of the map built from --mesh
-    /// (default: the mesh's bounding-box centre rounded to whole metres).
+    /// (default: the exact centre of the mesh's bounding box).
     #[arg(
         long,
         value_name = "X,Y,Z",
