@@ -204,6 +204,8 @@ failure_codes! {
         "The repeated final solve (Options::verify.repeat_solve) found no solution or one farther from the final estimate than its tolerance: one computation was upset; the pose is not trusted, run again.";
     RelocMapChanged = 0x0811, Fatal, NewInput, "RELOC_MAP_CHANGED",
         "The map product failed its re-check before the result was returned (Options::verify.recheck_map) although it passed at load: it changed in memory; the pose is not trusted, reload the map.";
+    RelocNoConsensus = 0x0812, Fatal, NewInput, "RELOC_NO_CONSENSUS",
+        "The first Options::first_fix_rounds rounds from the prior all ended without a consensus of Options::min_inliers (no pose update yet); the frames do not show the map as seen from near the prior, and the run stops early.";
     // 0x09xx hardware
     HalCameraTimeout = 0x0901, Degraded, Same, "HAL_CAMERA_TIMEOUT",
         "The stereo camera did not deliver a frame within its timeout; capture again.";

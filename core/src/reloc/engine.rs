@@ -80,6 +80,9 @@ pub struct Relocalizer<A, S> {
     round_chunks: u32,
     consecutive_stall: u8,
     consecutive_reseed: u8,
+    /// Rounds ended without a consensus before the first pose update (after
+    /// the multi-seed mode, if any).
+    rounds_without_fix: u8,
     /// Next seed to evaluate while `seeding`.
     seed_index: u16,
     seeding: bool,
@@ -153,6 +156,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             round_chunks: 0,
             consecutive_stall: 0,
             consecutive_reseed: 0,
+            rounds_without_fix: 0,
             seed_index: 0,
             seeding: params.seeds > 0,
             best_seed: None,
@@ -592,6 +596,14 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             self.next_seed(now);
             return;
         }
+        if self.stats.successes == 0 {
+            self.rounds_without_fix = self.rounds_without_fix.saturating_add(1);
+            let cap = self.opts.first_fix_rounds;
+            if cap > 0 && self.rounds_without_fix >= cap {
+                self.finish(Some(FailureCode::RelocNoConsensus), now);
+                return;
+            }
+        }
         let m = self.params.mechanisms;
         if m.stall && self.stats.successes > 0 && self.consecutive_stall < self.params.max_stall {
             self.consecutive_stall += 1;
@@ -922,6 +934,7 @@ mod tests {
         Options {
             min_inliers: 5,
             gates: super::super::Gates::OFF,
+            first_fix_rounds: 0,
             ..Options::for_params(p)
         }
     }
@@ -1407,6 +1420,63 @@ mod tests {
         let out = r.run_to_completion(0);
         assert_eq!(out.failure, Some(FailureCode::RelocReseedCapReached));
         assert!(out.stats.attempts > 10);
+    }
+
+    /// Verifies: VTSM-RELOC-036
+    #[test]
+    fn no_consensus_before_the_first_fix_stops_early_with_its_own_code() {
+        let p = small_params();
+        // Every solve finds 10 inliers of 20 against a minimum of 11.
+        let no_consensus =
+            || FakeSolver::new(|_, pairs, mask| Ok(even_inliers(at_x(0.3), pairs, mask)));
+        for k in [1u8, 2, 3] {
+            let o = Options {
+                min_inliers: 11,
+                first_fix_rounds: k,
+                ..opts(&p)
+            };
+            let mut r =
+                Relocalizer::new(FakeAttempt::ok(), no_consensus(), &p, &o, &at_x(0.0), 1).unwrap();
+            let out = r.run_to_completion(0);
+            assert_eq!(out.failure, Some(FailureCode::RelocNoConsensus), "k {k}");
+            assert_eq!(out.stats.solves, u32::from(k));
+            assert_eq!(out.stats.attempts, u32::from(k) * u32::from(p.n_corr));
+            assert_eq!(out.stats.reseeds, u16::from(k) - 1);
+            assert_eq!(out.log.count(FailureCode::RelocNoConsensus), 1);
+            assert_eq!(out.pose, at_x(0.0));
+        }
+        // 0: only the Reseed cap ends the run.
+        let o = Options {
+            min_inliers: 11,
+            first_fix_rounds: 0,
+            ..opts(&p)
+        };
+        let out = Relocalizer::new(FakeAttempt::ok(), no_consensus(), &p, &o, &at_x(0.0), 1)
+            .unwrap()
+            .run_to_completion(0);
+        assert_eq!(out.failure, Some(FailureCode::RelocReseedCapReached));
+        assert_eq!(out.stats.solves, u32::from(p.max_reseed) + 1);
+        // After a pose update, failed rounds are Stall and Reseed rounds, not
+        // a missing first fix.
+        let solver = FakeSolver::new(|call, pairs, mask| {
+            let mut s = even_inliers(at_x(0.3), pairs, mask);
+            if call > 0 {
+                s.inliers = 3;
+            }
+            Ok(s)
+        });
+        let o = Options {
+            min_inliers: 10,
+            first_fix_rounds: 1,
+            ..opts(&p)
+        };
+        let out = Relocalizer::new(FakeAttempt::ok(), solver, &p, &o, &at_x(0.0), 1)
+            .unwrap()
+            .run_to_completion(0);
+        assert_eq!(out.stats.successes, 1);
+        assert_eq!(out.failure, Some(FailureCode::RelocReseedCapReached));
+        assert_eq!(out.log.count(FailureCode::RelocNoConsensus), 0);
+        assert_eq!(out.stats.stalls, u16::from(p.max_stall));
     }
 
     /// Verifies: VTSM-RELOC-012

@@ -329,6 +329,12 @@ pub struct Options {
     /// since the start have produced no correspondence at all (0 = never): the
     /// fast "no fix" for a frame that does not show the map from the prior.
     pub no_evidence_attempts: u32,
+    /// Stop with [`FailureCode::RelocNoConsensus`] when this many rounds
+    /// have ended without a consensus before the first pose update (0 =
+    /// only the Reseed cap ends such a run): the fast "no fix" for a frame
+    /// whose matches trickle in but never agree on a pose. Rounds of the
+    /// multi-seed mode are not counted (each seed is its own guess).
+    pub first_fix_rounds: u8,
     /// Integrity gates applied to the final estimate before it is reported
     /// as a success.
     pub gates: Gates,
@@ -448,6 +454,7 @@ impl Options {
             seed_r_deg: params.r0_deg,
             budget: Budget::UNLIMITED,
             no_evidence_attempts: (4 * u32::from(params.n_corr)).max(200),
+            first_fix_rounds: DEFAULT_FIRST_FIX_ROUNDS,
             gates: Gates {
                 prior_factor: DEFAULT_PRIOR_FACTOR,
                 min_spread_m: params.inlier_m,
@@ -487,6 +494,13 @@ impl Options {
 /// states its uncertainty ([`crate::config::PriorUncertainty`]) widens the
 /// gate with it.
 pub const DEFAULT_PRIOR_FACTOR: f32 = 3.0;
+/// Default [`Options::first_fix_rounds`]: the first round from a prior within
+/// its uncertainty reaches the consensus on every simulator suite measured,
+/// while frames of another place or depot start with failing rounds
+/// (`fsw-docs/eval/integrity.md`). One round is the whole budget before the
+/// first fix: Reseed still acts after a pose update, and a prior that is
+/// not trusted within t̃₀ states its uncertainty or asks for seeds.
+pub const DEFAULT_FIRST_FIX_ROUNDS: u8 = 1;
 /// Number of template variants counted in [`PipelineStats::matches`]:
 /// size (ℓ, ℓ/2) × filter (gray, Sobel, Laplacian), index `size * 3 + filter`.
 pub const MATCH_VARIANTS: usize = 6;
