@@ -1477,6 +1477,14 @@ mod tests {
         assert_eq!(out.failure, Some(FailureCode::RelocReseedCapReached));
         assert_eq!(out.log.count(FailureCode::RelocNoConsensus), 0);
         assert_eq!(out.stats.stalls, u16::from(p.max_stall));
+        // The default: one round from a prior of the default uncertainty, the
+        // Reseed search from a more uncertain one.
+        assert_eq!(Options::for_params(&Params::paper()).first_fix_rounds, 1);
+        let wide = Params::paper().with_uncertainty(crate::config::PriorUncertainty {
+            t_m: 0.5,
+            r_deg: 1.5,
+        });
+        assert_eq!(Options::for_params(&wide).first_fix_rounds, 0);
     }
 
     /// Verifies: VTSM-RELOC-012
