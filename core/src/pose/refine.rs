@@ -402,7 +402,8 @@ fn covariance(e: &Eval, n: u16) -> Option<(Covariance, [f32; 2])> {
         libm::sqrt(kr),
     );
     let inv = e.jtj.cholesky()?.inverse() * s2;
-    let scaled = M6::from_fn(|i, j| inv[(i, j)] * d[i] * d[j]);
+    let dm = M6::from_diagonal(&d);
+    let scaled = dm * inv * dm;
     let mut m = [0.0f32; 36];
     // nalgebra iterates column-major: the transpose's order is the row-major order.
     for (v, x) in m.iter_mut().zip(scaled.transpose().iter()) {
