@@ -50,7 +50,10 @@ pub use ransac::{
     ransac, required_iterations, Ransac, RansacConfig, RansacStats, DEFAULT_CONFIDENCE,
     REFIT_ROUNDS, SIGMA_GATE,
 };
-pub use refine::{refine, Covariance, RefineConfig, RefineStats, Refined, DEFAULT_MAX_STEP_RAD};
+pub use refine::{
+    refine, Covariance, RefineConfig, RefineStats, Refined, DEFAULT_MAX_STEP_RAD, SHARED_R,
+    SHARED_T,
+};
 
 use crate::config::MAX_POSE_CANDIDATES;
 use crate::geom::{Pose, Vec3};
