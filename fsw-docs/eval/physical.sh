@@ -1,52 +1,58 @@
 #!/usr/bin/env bash
-# Physical (distorted, unrectified, OpenCV-calibrated) vs ideal rectified pairs of the
-# same captures: `vtsm scene export [--physical]` then `vtsm relocalize`, errors of the
-# reported world_from_left against truth.json (paper §V-A metric). Writes the table to
-# stdout. Usage: bash fsw-docs/eval/physical.sh [VTSM] [WORKDIR] [PROFILE]
+# The paper suite on ideal rectified pairs and on physical pairs (distorted, rotated,
+# OpenCV-calibrated, rectified on the host: `vtsm eval --physical`), same trials, side by
+# side per group. Runs `vtsm eval` into OUT/rect and OUT/phys unless their summary.json
+# is already there (then it must be of the same profile and trials), and prints the table.
+# Usage: bash fsw-docs/eval/physical.sh [VTSM] [OUT] [PROFILE] [TRIALS]
 set -euo pipefail
 VTSM=${1:-target/release/vtsm}
-WORK=${2:-/tmp/vtsm-physical-eval}
+OUT=${2:-/tmp/phys}
 PROFILE=${3:-demo}
-TERRAIN=flagstone
-SEED=1
-mkdir -p "$WORK"
-err() { # result.json truth.json -> "t_mm r_deg status inliers"
-  python3 - "$1" "$2" <<'PY'
-import json, math, sys
-r = json.load(open(sys.argv[1])); t = json.load(open(sys.argv[2]))["world_from_left"]
-def rot(q):
-    w, x, y, z = q
-    return [[1-2*(y*y+z*z), 2*(x*y-w*z), 2*(x*z+w*y)],
-            [2*(x*y+w*z), 1-2*(x*x+z*z), 2*(y*z-w*x)],
-            [2*(x*z-w*y), 2*(y*z+w*x), 1-2*(x*x+y*y)]]
-e = r["world_from_left"]
-if e is None:
-    print("- - %s %d" % (r["status"], r["inliers"])); sys.exit()
-rt, re = rot(t["q"]), rot(e["q"])
-d = [e["t"][i] - t["t"][i] for i in range(3)]
-# (T_true)^-1 T_est: translation R_true^T d, rotation R_true^T R_est
-dt = math.sqrt(sum(sum(rt[k][i] * d[k] for k in range(3)) ** 2 for i in range(3)))
-tr = sum(sum(rt[k][i] * re[k][i] for k in range(3)) for i in range(3))
-ang = math.degrees(math.acos(max(-1.0, min(1.0, (tr - 1) / 2))))
-print("%.1f %.3f %s %d" % (dt * 1e3, ang, r["status"], r["inliers"]))
-PY
-}
-echo "| stop | look at | rectified: error mm | deg | inliers | physical: error mm | deg | inliers |"
-echo "|---|---|---|---|---|---|---|---|"
-for view in "0 0" "8 1" "15 1" "23 0"; do
-  set -- $view
-  row="| $1 | $2 |"
-  for form in rectified physical; do
-    d="$WORK/$PROFILE-$1-$2-$form"
-    flag=""; [ "$form" = physical ] && flag="--physical"
-    "$VTSM" scene export --terrain $TERRAIN --hours am --profile "$PROFILE" --stop "$1" \
-      --look-at "$2" --seed $SEED --out "$d" --force $flag > /dev/null
-    "$VTSM" relocalize --mesh "$d/map.obj" --mask "$d/mask.obj" --calib "$d/calib.json" \
-      --left "$d/left.png" --right "$d/right.png" --prior "$d/prior.json" --seed $SEED \
-      --out "$d/result.json" --force || true
-    read -r t r s n < <(err "$d/result.json" "$d/truth.json")
-    [ "$s" = ok ] || t="$t ($s)"
-    row="$row $t | $r | $n |"
-  done
-  echo "$row"
+TRIALS=${4:-6}
+for form in rect phys; do
+  flag=""; [ "$form" = phys ] && flag="--physical"
+  if [ ! -e "$OUT/$form/summary.json" ]; then
+    "$VTSM" eval --suite paper --profile "$PROFILE" --trials "$TRIALS" --quiet $flag \
+      --out "$OUT/$form" > /dev/null
+  fi
 done
+python3 - "$OUT/rect/summary.json" "$OUT/phys/summary.json" "$PROFILE" "$TRIALS" <<'PY'
+import json, sys
+rect, phys = (json.load(open(p)) for p in sys.argv[1:3])
+profile, trials = sys.argv[3], int(sys.argv[4])
+for run, physical in ((rect, False), (phys, True)):
+    m = run["meta"]
+    if (m["suite"], m["profile"], m["trials"], m.get("physical")) != ("paper", profile, trials, physical):
+        sys.exit("%s: suite %s, profile %s, %s trials, physical %s: not this comparison"
+                 % (m["command"], m["suite"], m["profile"], m["trials"], m.get("physical")))
+def quantile(v, q):  # as vtsm_sim::eval::quantile (linear)
+    if not v:
+        return float("nan")
+    v = sorted(v); pos = q * (len(v) - 1); lo = int(pos); hi = min(lo + 1, len(v) - 1)
+    return v[lo] + (v[hi] - v[lo]) * (pos - lo)
+def cols(rows):
+    ok = [r for r in rows if r["success"]]
+    t = [r["final_t_mm"] for r in ok]; d = [r["final_r_deg"] for r in ok]
+    return ["%d/%d" % (len(ok), len(rows))] + ["%.1f" % quantile(t, q) for q in (0.5, 0.95, 1.0)] \
+        + ["%.3f" % quantile(d, 0.5)]
+def paired(a, b):
+    # Trials both forms solved: median of (physical - rectified) error, and how often physical is lower.
+    both = [(x["final_t_mm"], y["final_t_mm"]) for x, y in zip(a, b) if x["success"] and y["success"]]
+    if not both:
+        return ["—", "—"]
+    return ["%+.1f" % quantile([y - x for x, y in both], 0.5),
+            "%d/%d" % (sum(y < x for x, y in both), len(both))]
+groups = [g["group"] for g in rect["groups"]]
+print("| group | success rect. | phys. | t median (mm) rect. | phys. | t p95 rect. | phys. "
+      "| t max rect. | phys. | r median (°) rect. | phys. | paired Δt median (mm) | phys. lower |")
+print("|---|" + "---:|" * 12)
+key = lambda r: (r["group"], r["trial"])
+for g in groups + ["all"]:
+    a = sorted((r for r in rect["trials"] if g in ("all", r["group"])), key=key)
+    b = sorted((r for r in phys["trials"] if g in ("all", r["group"])), key=key)
+    assert [key(r) for r in a] == [key(r) for r in b] and all(
+        (x["seed"], x["init_t_mm"]) == (y["seed"], y["init_t_mm"]) for x, y in zip(a, b)), g
+    ca, cb = cols(a), cols(b)
+    row = [v for pair in zip(ca, cb) for v in pair] + paired(a, b)
+    print("| %s | %s |" % ("**all**" if g == "all" else g, " | ".join(row)))
+PY

@@ -107,6 +107,9 @@ pub struct RunMeta {
     pub seed: u64,
     /// Trials per group.
     pub trials: usize,
+    /// Whether the live pairs were physical (distorted, rotated cameras with
+    /// an OpenCV calibration), rectified on the host before relocalization.
+    pub physical: bool,
     /// Relocalization parameters and suite settings.
     pub params: serde_json::Value,
     /// The command line that produced the run.
@@ -253,8 +256,17 @@ pub fn markdown_table(meta: &RunMeta, rows: &[GroupSummary]) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "suite `{}` · rev `{}` · profile `{}` · seed {} · {} trials per group",
-        meta.suite, meta.git_revision, meta.profile, meta.seed, meta.trials
+        "suite `{}` · rev `{}` · profile `{}` · seed {} · {} trials per group · {} pairs",
+        meta.suite,
+        meta.git_revision,
+        meta.profile,
+        meta.seed,
+        meta.trials,
+        if meta.physical {
+            "physical (rectified on the host)"
+        } else {
+            "rectified"
+        }
     );
     s.push('\n');
     s.push_str("| group | trials | success | initial error (mm, mean) | final error (mm, median) | final error (mm, mean) | final rotation (°, median) | time (s, mean) |\n");
@@ -645,12 +657,19 @@ mod tests {
                 profile: "test".into(),
                 seed: 1,
                 trials: 3,
+                physical: true,
                 params: serde_json::Value::Null,
                 command: "x".into(),
             },
             &s,
         );
         assert!(md.contains("| b | 3 | 67 % |"), "{md}");
+        assert!(
+            md.lines()
+                .next()
+                .is_some_and(|l| l.ends_with("· physical (rectified on the host) pairs")),
+            "{md}"
+        );
         let c = csv(&o);
         assert_eq!(c.lines().count(), 5);
         assert!(c.lines().next().unwrap().ends_with(",range_m"));

@@ -500,6 +500,20 @@ impl Rectifier {
         )
     }
 
+    /// What the core is given for a physical pair: both images rectified and
+    /// the prior `world_from_left` of the physical left camera turned to the
+    /// rectified one ([`Self::rectify_pair`], [`Self::to_rectified`]). The
+    /// core's estimate comes back through [`Self::to_physical`].
+    pub fn rectify_input(
+        &self,
+        left: &Gray8,
+        right: &Gray8,
+        world_from_phys: &Pose,
+    ) -> (Gray8, Gray8, Pose) {
+        let (l, r) = self.rectify_pair(left, right);
+        (l, r, self.to_rectified(world_from_phys))
+    }
+
     /// `world_from_left` of the rectified left camera, from the physical one's.
     pub fn to_rectified(&self, world_from_phys: &Pose) -> Pose {
         world_from_phys.compose(&self.phys_from_rect)

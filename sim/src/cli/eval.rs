@@ -40,6 +40,13 @@
 //! simulator's (`f64(v) + X − X = v` wherever the sum is exact), so the results
 //! do not depend on the offset.
 //!
+//! `--physical` renders every live pair (and the `wrongplace` frames) in the
+//! physical form of `vtsm scene export --physical`
+//! ([`crate::scene::physical::capture_physical`]: same truth and sensor-noise
+//! seeds), rectifies it with [`Rectifier::rectify_input`] as `vtsm relocalize`
+//! does for an OpenCV calibration, and turns the estimate back to the physical
+//! left camera ([`Rectifier::to_physical`]) before measuring its error.
+//!
 //! "Mapping views" for the distance/angle columns of `paper`, `baseline` and
 //! `uncertainty50` are the 60 viewpoints of the wave mapping path
 //! ([`mapping_trajectory`] with step 1); for `stepsize` they are the
@@ -48,11 +55,16 @@
 use crate::cli::demo::MAP_HOURS;
 use crate::error::{Error, Result};
 use crate::eval::{self, GroupSummary, RunMeta, Series, TrialOutcome};
+use crate::io::calib_opencv::OpenCvCalib;
+use crate::io::image::Gray8;
 use crate::io::mesh::MeshData;
 use crate::locate::{self, Request};
+use crate::rectify::Rectifier;
 use crate::render::Lighting;
+use crate::scene::physical::capture_physical;
 use crate::scene::{
-    mapping_trajectory, perturbed_prior, Capture, Profile, Scene, Trajectory, STOPS_PER_CIRCLE,
+    mapping_trajectory, perturbed_prior, Capture, Profile, Scene, StereoPair, Trajectory,
+    STOPS_PER_CIRCLE,
 };
 use crate::terrain::TerrainKind;
 use nalgebra::UnitQuaternion;
@@ -62,7 +74,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use vtsm_core::config::PriorUncertainty;
-use vtsm_core::geom::{Camera, Pose, Vec3};
+use vtsm_core::geom::{Camera, Pose, StereoRig, Vec3};
 use vtsm_core::rng::Rng;
 use vtsm_hal::runner::VerifyChecks;
 
@@ -147,6 +159,12 @@ pub struct Args {
     /// `--verify [repeat,map]`: the engine's upset checks.
     #[command(flatten)]
     pub verify: super::VerifyArg,
+    /// Live pairs in the physical form of `vtsm scene export --physical`
+    /// (distorted, slightly rotated cameras, OpenCV calibration), rectified on
+    /// the host as `vtsm relocalize` does; errors are those of the physical
+    /// left camera.
+    #[arg(long)]
+    pub physical: bool,
 }
 
 /// A relocalizer evaluated on the suite's trials.
@@ -243,6 +261,8 @@ pub struct SuiteConfig {
     pub origin: Option<[f64; 3]>,
     /// Upset checks of every VTSM trial (`--verify`).
     pub verify: VerifyChecks,
+    /// Live pairs in the physical form, rectified on the host (`--physical`).
+    pub physical: bool,
 }
 
 impl SuiteConfig {
@@ -266,6 +286,7 @@ impl SuiteConfig {
             progress: false,
             origin: None,
             verify: VerifyChecks::OFF,
+            physical: false,
         }
     }
 }
@@ -567,6 +588,7 @@ pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
         .map(crate::frame::parse_origin)
         .transpose()?;
     cfg.verify = args.verify.checks();
+    cfg.physical = args.physical;
     Ok(cfg)
 }
 
@@ -826,6 +848,7 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
         profile: cfg.profile.name().to_string(),
         seed: cfg.seed,
         trials: cfg.trials,
+        physical: cfg.physical,
         params: serde_json::json!({
             "relocalization": format!("{params:?}"),
             "terrains": cfg.terrains.iter().map(|k| k.name()).collect::<Vec<_>>(),
@@ -889,7 +912,7 @@ fn run_trial(
     let seed = trial_seed(cfg.seed, s.k);
     let capture = capture_for_trial(s.k, cfg.trials, g.baseline_m);
     let (scene, light, map) = (&scenes[g.terrain], &lights[g.light], &maps[g.map]);
-    let (rig, here, mut pair) = scene.capture(light, &capture);
+    let (rig, here, mut pair, calib) = shoot(cfg.physical, scene, light, &capture);
     let mut prior = prior_in_range(&here, seed, g.prior_m);
     // `truth`: where the frames were taken (the errors are measured to it).
     let truth = match g.frames {
@@ -907,13 +930,18 @@ fn run_trial(
                 stop: ((k + stops / 2) % stops) % STOPS_PER_CIRCLE,
                 ..capture
             };
-            let (_, there, p) = scene.capture(light, &other);
+            let (_, there, p, _) = shoot(cfg.physical, scene, light, &other);
             pair = p;
             there
         }
         Frames::OtherDepot(o) => {
             let hours = live_hour_index(g.light, scenes.len(), lights.len());
-            let (_, there, p) = scenes[o].capture(&lights[o * hours.1 + hours.0], &capture);
+            let (_, there, p, _) = shoot(
+                cfg.physical,
+                &scenes[o],
+                &lights[o * hours.1 + hours.0],
+                &capture,
+            );
             pair = p;
             there
         }
@@ -991,6 +1019,29 @@ fn run_trial(
         o.failure = Some(format!("prior in the map's frame: {}", c.name()));
         return o;
     }
+    // A physical pair goes through `vtsm relocalize`'s path for an OpenCV
+    // calibration: rectified on the host, the prior turned to the rectified
+    // left camera, the estimate turned back to the physical one.
+    let rectifier = match calib.as_ref().map(Rectifier::new).transpose() {
+        Ok(r) => r,
+        Err(e) => {
+            o.failure = Some(format!("rectification: {e}"));
+            return o;
+        }
+    };
+    let (rig, left, right, prior) = match &rectifier {
+        Some(r) => {
+            let gray = |pixels| Gray8 {
+                width: pair.width,
+                height: pair.height,
+                pixels,
+            };
+            let (l, rr, p) = r.rectify_input(&gray(pair.left), &gray(pair.right), &prior);
+            (r.rig, l.pixels, rr.pixels, p)
+        }
+        None => (rig, pair.left, pair.right, prior),
+    };
+    let as_physical = |est: &Pose| rectifier.as_ref().map_or(*est, |r| r.to_physical(est));
     let mut params = locate::params_for_width(rig.cam().width());
     params.seeds = g.seeds;
     if g.small {
@@ -1000,8 +1051,8 @@ fn run_trial(
     }
     let req = Request {
         map: bytes,
-        left: &pair.left,
-        right: &pair.right,
+        left: &left,
+        right: &right,
         rig,
         prior,
         uncertainty: g.uncertainty,
@@ -1013,7 +1064,7 @@ fn run_trial(
         let fp = crate::features::FeatureParams::for_width(rig.cam().width());
         match crate::features::relocalize_features(&req, &fp) {
             Ok(r) => {
-                let (t1, r1) = error(&r.pose);
+                let (t1, r1) = error(&as_physical(&r.pose));
                 o.success = r.failure.is_none();
                 o.failure = r.failure;
                 o.final_t_mm = t1 * 1e3;
@@ -1037,7 +1088,8 @@ fn run_trial(
     match locate::relocalize(&req) {
         Ok(r) => {
             let out = &r.outcome;
-            let (t1, r1) = error(&out.pose);
+            let est = as_physical(&out.pose);
+            let (t1, r1) = error(&est);
             o.success = out.failure.is_none();
             o.failure = out.failure.map(|c| c.name().to_string());
             o.final_t_mm = t1 * 1e3;
@@ -1055,7 +1107,7 @@ fn run_trial(
             ] {
                 o.extra.insert(k.into(), f64::from(v));
             }
-            // What the integrity gates saw, to show their margins.
+            // What the integrity gates saw (the core's camera), to show their margins.
             let (dt, dr) = vtsm_core::reloc::integrity::distance_to(&prior, &out.pose);
             for (k, v) in [
                 ("spread_m", out.quality.spread_m),
@@ -1066,7 +1118,9 @@ fn run_trial(
                 o.extra.insert(k.into(), f64::from(v));
             }
             if let Some(c) = &out.quality.covariance {
-                for (k, v) in covariance_check(&out.pose, &truth, c) {
+                // Its world-frame blocks hold for the physical camera too: the
+                // same centre, a rotation differing by a fixed right factor.
+                for (k, v) in covariance_check(&est, &truth, c) {
                     o.extra.insert(k.into(), v);
                 }
             }
@@ -1084,6 +1138,26 @@ fn run_trial(
         Err(e) => o.failure = Some(format!("error: {e}")),
     }
     o
+}
+
+/// One capture as the rig delivers it: the core's rig, the truth
+/// `world_from_left`, the pair and, in the physical form
+/// ([`capture_physical`], as `vtsm scene export --physical` writes it; same
+/// truth and sensor-noise seeds as [`Scene::capture`]), the rig's OpenCV
+/// calibration (the images are then distorted and unrectified).
+fn shoot(
+    physical: bool,
+    scene: &Scene,
+    light: &Lighting,
+    c: &Capture,
+) -> (StereoRig, Pose, StereoPair, Option<OpenCvCalib>) {
+    if physical {
+        let (calib, truth, pair) = capture_physical(scene, light, c);
+        (scene.rig(c.baseline_m), truth, pair, Some(calib))
+    } else {
+        let (rig, truth, pair) = scene.capture(light, c);
+        (rig, truth, pair, None)
+    }
 }
 
 /// How the reported covariance covers the true error: squared Mahalanobis
@@ -1743,6 +1817,7 @@ mod tests {
             quiet: true,
             origin: None,
             verify: crate::cli::VerifyArg::default(),
+            physical: false,
         };
         assert!(config_from_args(&args).is_err());
         args.suite = "baseline".into();

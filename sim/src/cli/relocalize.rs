@@ -206,10 +206,7 @@ pub fn load_inputs_with_map(args: &Args, map: Vec<u8>) -> Result<Inputs> {
     // A physical pair: the core sees the rectified left camera (a rotation
     // of the physical one about its centre, so the origin shift commutes).
     let (left, right, prior) = match &physical {
-        Some(r) => {
-            let (l, rr) = r.rectify_pair(&left, &right);
-            (l, rr, r.to_rectified(&prior))
-        }
+        Some(r) => r.rectify_input(&left, &right, &prior),
         None => (left, right, prior),
     };
     Ok(Inputs {
