@@ -5,8 +5,15 @@ use super::pyramid::{Tpl, Win};
 
 /// Template bytes per step of the correlation kernel (one 128-bit vector).
 pub(super) const KERNEL_CHUNK: usize = 16;
-/// Neighbouring x positions the correlation kernel scores per pass over the
+/// Neighbouring x positions the portable kernel scores per pass over the
 /// template rows.
+#[cfg_attr(
+    any(target_arch = "x86_64", target_arch = "aarch64"),
+    allow(
+        dead_code,
+        reason = "the column kernel serves these targets; tests run both"
+    )
+)]
 pub(super) const KERNEL_BLOCK: usize = 4;
 
 /// Σ t·f of one `C`-byte chunk, written as one reduction: LLVM's SLP vectorizer
@@ -23,66 +30,170 @@ fn chunk_dot<const C: usize>(t: &[u8; C], f: &[u8; C]) -> u32 {
     })
 }
 
-/// Σ t·f of the template at the `B` neighbouring positions `(px + b, py)` of the
-/// window, `b < B`, on x86-64 and AArch64: explicit 256-bit integer vectors
-/// ([`wide`], safe, `no_std`, no allocation). Every template chunk of 16 bytes is
-/// widened to i16 once and feeds `B` widening multiply-adds (`pmaddwd` on SSE2,
-/// `vpmaddwd` with AVX2, `smull`/`addp` on NEON) into `B` vector accumulators
-/// that stay in registers across all rows; each position is reduced to a scalar
-/// once, at the end. Exact: u8 values widened to i16 multiply into pair sums
-/// below 2¹⁸, and the accumulators wrap modulo 2³² like the portable kernel's
-/// (each true sum < 2³², numeric.md), so both kernels return the same bits
-/// (`blocked_kernel_equals_scalar_reference`). Same contract as
-/// [`dot_block_portable`].
+/// Vertically neighbouring positions the vector kernel scores per pass over
+/// the window rows ([`dot_col`]).
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+pub(super) const COL_BLOCK: usize = 4;
+
+/// Σ t·f of the template at the `B` vertically neighbouring positions
+/// `(px, py + j)` of the window, `j < B`, on x86-64 and AArch64: explicit
+/// integer vectors ([`wide`], safe, `no_std`, no allocation).
 ///
-/// The auto-vectorized portable kernel reduces every 16-byte chunk to a scalar
-/// (the shape LLVM vectorizes reliably under fat LTO), which on rows of 16–64
-/// bytes costs as much as the multiply-adds; here the reduction happens once
-/// per position (`fsw-docs/budgets/ncc.md`).
+/// The template level is stored as i16 ([`Tpl::px`], widened once per search),
+/// so only the window is widened here: each 16-pixel chunk of window row
+/// `py + yy` is widened once (`punpck{l,h}bw` on SSE2, `vpmovzxbw` with AVX2,
+/// `ushll` on NEON) and feeds one widening multiply-add (`pmaddwd`,
+/// `vpmaddwd`, `smull`/`addp`) for each of the `B` positions whose template row
+/// `yy − j` lies on it, into `B` vector accumulators that stay in registers;
+/// each position is reduced to a scalar once, at the end. Exact: u8 values in
+/// i16 lanes multiply into pair sums below 2¹⁸, and the accumulators wrap modulo
+/// 2³² like the portable kernel's (each true sum < 2³², numeric.md), so both
+/// kernels return the same bits (`column_kernel_equals_scalar_reference`).
+/// Every position must be a valid top-left position (`px + t.w ≤ win.w`,
+/// `py + B − 1 + t.h ≤ win.h`); rows outside the window read nothing.
 #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
 #[allow(
     clippy::arithmetic_side_effects,
     reason = "vector lane addition wraps (wide's documented semantics); exact modulo 2^32 as above"
 )]
-pub(super) fn dot_block<const B: usize>(t: &Tpl, win: &Win, px: usize, py: usize) -> [u32; B] {
-    use wide::{i16x16, i32x8, u8x16};
+#[inline]
+pub(super) fn dot_col<const B: usize>(t: &Tpl, win: &Win, px: usize, py: usize) -> [u32; B] {
     const C: usize = KERNEL_CHUNK;
+    if t.w % C == 0 {
+        match t.w / C {
+            1 => return dot_col_fixed::<B, 1>(t, win, px, py),
+            2 => return dot_col_fixed::<B, 2>(t, win, px, py),
+            3 => return dot_col_fixed::<B, 3>(t, win, px, py),
+            4 => return dot_col_fixed::<B, 4>(t, win, px, py),
+            _ => {}
+        }
+    }
+    dot_col_rows::<B>(t, win, px, py)
+}
+
+/// [`dot_col`] for templates of exactly `NC` 16-pixel chunks per row: every
+/// row is a fixed-size array, so the loops over chunks and positions carry no
+/// bounds checks, and the `B` template rows of a window row in the body of the
+/// pass are one fixed-size block (rows `yy − B + 1 ..= yy`, position `j` on
+/// block row `B − 1 − j`).
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+#[allow(
+    clippy::arithmetic_side_effects,
+    reason = "vector lane addition wraps (wide's documented semantics); exact modulo 2^32 as above"
+)]
+#[inline]
+fn dot_col_fixed<const B: usize, const NC: usize>(
+    t: &Tpl,
+    win: &Win,
+    px: usize,
+    py: usize,
+) -> [u32; B] {
+    use wide::{bytemuck::cast, i16x16, i32x8, u8x16};
+    const C: usize = KERNEL_CHUNK;
+    let th = t.h;
+    let rows = t.px.as_chunks::<{ 2 * C }>().0.as_chunks::<NC>().0;
+    let (Some(rows), Some(mut fstart)) = (
+        rows.get(..th),
+        py.checked_mul(win.w).and_then(|o| o.checked_add(px)),
+    ) else {
+        return [0; B];
+    };
     let mut acc = [i32x8::ZERO; B];
-    let mut s = [0u32; B];
-    let widen = |c: &[u8; C]| i16x16::from(u8x16::from(*c));
-    let span = t.w.saturating_add(B.saturating_sub(1));
-    for (r, trow) in t.px.chunks_exact(t.w.max(1)).take(t.h).enumerate() {
-        let Some(frow) = py.checked_add(r).and_then(|y| win.span(px, y, span)) else {
+    for yy in 0..th.saturating_add(B).saturating_sub(1) {
+        let frow = win
+            .px
+            .get(fstart..)
+            .and_then(|f| f.as_chunks::<C>().0.first_chunk::<NC>());
+        fstart = fstart.wrapping_add(win.w);
+        let Some(frow) = frow else {
             continue;
         };
-        let (tc, rem) = trow.as_chunks::<C>();
-        let mut o = 0usize;
-        for tt in tc {
-            let tv = widen(tt);
-            let Some(fw) = frow
-                .get(o..)
-                .and_then(|f| f.get(..C.saturating_add(B).saturating_sub(1)))
-            else {
-                break;
-            };
-            for (b, ab) in acc.iter_mut().enumerate() {
-                if let Some(ff) = fw.get(b..).and_then(|f| f.first_chunk::<C>()) {
-                    *ab += tv.dot(widen(ff));
+        let blk = yy
+            .checked_sub(B - 1)
+            .and_then(|lo| rows.get(lo..))
+            .and_then(|r| r.first_chunk::<B>());
+        if let Some(blk) = blk {
+            for (c, f) in frow.iter().enumerate() {
+                let fv = i16x16::from(u8x16::from(*f));
+                for (a, row) in acc.iter_mut().zip(blk.iter().rev()) {
+                    if let Some(tt) = row.get(c) {
+                        *a += cast::<[u8; 32], i16x16>(*tt).dot(fv);
+                    }
                 }
             }
-            o = o.saturating_add(C);
-        }
-        for (j, &p) in rem.iter().enumerate() {
-            let Some(fw) = frow.get(o.saturating_add(j)..).and_then(|f| f.get(..B)) else {
-                break;
-            };
-            for (sb, &q) in s.iter_mut().zip(fw) {
-                *sb = sb.wrapping_add(u32::from(p).wrapping_mul(u32::from(q)));
+        } else {
+            // First and last B − 1 window rows: positions `skip..` have
+            // template rows `lo..hi` here, in reverse.
+            let lo = (yy + 1).saturating_sub(B);
+            let hi = (yy + 1).min(th);
+            let skip = (yy + 1).saturating_sub(th);
+            let part = rows.get(lo..hi).unwrap_or(&[]);
+            for (c, f) in frow.iter().enumerate() {
+                let fv = i16x16::from(u8x16::from(*f));
+                for (a, row) in acc.iter_mut().skip(skip).zip(part.iter().rev()) {
+                    if let Some(tt) = row.get(c) {
+                        *a += cast::<[u8; 32], i16x16>(*tt).dot(fv);
+                    }
+                }
             }
         }
     }
-    for (sb, ab) in s.iter_mut().zip(acc) {
-        *sb = sb.wrapping_add(ab.reduce_add().cast_unsigned());
+    acc.map(|a| a.reduce_add().cast_unsigned())
+}
+
+/// [`dot_col`] for any template width: row by row, with a scalar tail.
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+#[allow(
+    clippy::arithmetic_side_effects,
+    reason = "vector lane addition wraps (wide's documented semantics); exact modulo 2^32 as above"
+)]
+fn dot_col_rows<const B: usize>(t: &Tpl, win: &Win, px: usize, py: usize) -> [u32; B] {
+    use wide::{bytemuck::cast, i16x16, i32x8, u8x16};
+    const C: usize = KERNEL_CHUNK;
+    let tw = t.w;
+    let row_bytes = tw.saturating_mul(2);
+    let mut acc = [i32x8::ZERO; B];
+    let mut s = [0u32; B];
+    let rows = t.h.saturating_add(B).saturating_sub(1);
+    for yy in 0..rows {
+        let Some(frow) = py.checked_add(yy).and_then(|y| win.span(px, y, tw)) else {
+            continue;
+        };
+        let (fc, frem) = frow.as_chunks::<C>();
+        // Template row `yy − j` for position j, empty where there is none.
+        let mut tr: [&[u8]; B] = [&[]; B];
+        for (j, slot) in tr.iter_mut().enumerate() {
+            if let Some(row) = yy
+                .checked_sub(j)
+                .filter(|&r| r < t.h)
+                .and_then(|r| r.checked_mul(row_bytes))
+                .and_then(|o| t.px.get(o..))
+                .and_then(|r| r.get(..row_bytes))
+            {
+                *slot = row;
+            }
+        }
+        let tc = tr.map(|r| r.as_chunks::<{ 2 * C }>().0);
+        for (c, f) in fc.iter().enumerate() {
+            let fv = i16x16::from(u8x16::from(*f));
+            for (a, tj) in acc.iter_mut().zip(&tc) {
+                if let Some(tt) = tj.get(c) {
+                    *a += cast::<[u8; 32], i16x16>(*tt).dot(fv);
+                }
+            }
+        }
+        if !frem.is_empty() {
+            let o = fc.len().saturating_mul(2 * C);
+            for (sj, trow) in s.iter_mut().zip(&tr) {
+                let tail = trow.get(o..).unwrap_or(&[]).as_chunks::<2>().0;
+                for (p, &q) in tail.iter().zip(frem) {
+                    *sj = sj.wrapping_add(u32::from(u16::from_le_bytes(*p)) * u32::from(q));
+                }
+            }
+        }
+    }
+    for (sj, aj) in s.iter_mut().zip(acc) {
+        *sj = sj.wrapping_add(aj.reduce_add().cast_unsigned());
     }
     s
 }
@@ -158,21 +269,31 @@ mod tests {
     use std::vec;
     use std::vec::Vec;
 
-    /// The blocked kernel equals the scalar reference at every position of every
-    /// block, for widths that are and are not multiples of the chunk and block,
-    /// with masked (zeroed) template pixels and at the largest template.
+    /// The template level as the vector kernel reads it (little-endian i16).
+    fn widened(px: &[u8]) -> Vec<u8> {
+        px.iter().flat_map(|&v| [v, 0]).collect()
+    }
+
+    /// The kernels equal the scalar reference at every position of every block,
+    /// for widths that are and are not multiples of the chunk (with the fixed
+    /// 16-, 32-, 48- and 64-pixel paths drawn often), templates shorter than a
+    /// column block, masked (zeroed) template pixels and the largest template:
+    /// the portable row kernel for blocks of 1 and `KERNEL_BLOCK` positions, and
+    /// on the vector targets the column kernel for blocks of 1 to `COL_BLOCK`.
     #[test]
-    fn blocked_kernel_equals_scalar_reference() {
+    fn kernels_equal_scalar_reference() {
         let mut rng = Rng::new(31);
-        for case in 0..400 {
-            let (tw, th) = if case == 0 {
-                (MAX_TEMPLATE_PX, MAX_TEMPLATE_PX)
-            } else {
-                (1 + rng.below(70) as usize, 1 + rng.below(40) as usize)
+        for case in 0..600 {
+            let (tw, th) = match case {
+                0 => (MAX_TEMPLATE_PX, MAX_TEMPLATE_PX),
+                _ if case % 2 == 0 => {
+                    (16 * (1 + rng.below(4) as usize), 1 + rng.below(40) as usize)
+                }
+                _ => (1 + rng.below(70) as usize, 1 + rng.below(40) as usize),
             };
             let (ww, wh) = (
                 tw + KERNEL_BLOCK - 1 + rng.below(20) as usize,
-                th + rng.below(10) as usize,
+                th + 4 + rng.below(10) as usize,
             );
             let win: Vec<u8> = if case % 7 == 0 {
                 vec![255; ww * wh]
@@ -191,8 +312,8 @@ mod tests {
                     }
                 }
             }
-            let t = Tpl {
-                px: &px,
+            let tpl = |px| Tpl {
+                px,
                 runs: None,
                 w: tw,
                 h: th,
@@ -200,6 +321,8 @@ mod tests {
                 st: 0,
                 var_t: 1,
             };
+            let t8 = tpl(&px);
+            let px16 = widened(&px);
             let w = Win {
                 px: &win,
                 w: ww,
@@ -207,29 +330,43 @@ mod tests {
             };
             for _ in 0..4 {
                 let x = rng.below((ww + 2 - tw - KERNEL_BLOCK) as u32) as usize;
-                let y = rng.below((wh - th + 1) as u32) as usize;
-                let got = dot_block::<KERNEL_BLOCK>(&t, &w, x, y);
+                let y = rng.below((wh - th - 3) as u32) as usize;
+                let want = |dx: usize, dy: usize| {
+                    let v = ref_dot(&px, tw, th, &win, ww, x + dx, y + dy);
+                    assert!(v < 1 << 32, "case {case}: reference {v} exceeds u32");
+                    v
+                };
+                let got = dot_block_portable::<KERNEL_BLOCK>(&t8, &w, x, y);
                 for (b, &g) in got.iter().enumerate() {
-                    let want = ref_dot(&px, tw, th, &win, ww, x + b, y);
-                    assert!(want < 1 << 32, "case {case}: reference {want} exceeds u32");
                     assert_eq!(
                         u64::from(g),
-                        want,
+                        want(b, 0),
                         "case {case}: {tw}x{th} at ({}, {y})",
                         x + b
                     );
                 }
-                assert_eq!(
-                    got,
-                    dot_block_portable::<KERNEL_BLOCK>(&t, &w, x, y),
-                    "case {case}: vector and portable kernels differ"
-                );
-                let [one] = dot_block::<1>(&t, &w, x, y);
-                assert_eq!(
-                    u64::from(one),
-                    ref_dot(&px, tw, th, &win, ww, x, y),
-                    "case {case}"
-                );
+                let [one] = dot_block_portable::<1>(&t8, &w, x, y);
+                assert_eq!(u64::from(one), want(0, 0), "case {case}");
+                #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+                {
+                    let t16 = tpl(&px16);
+                    let col = |got: &[u32]| {
+                        for (j, &g) in got.iter().enumerate() {
+                            assert_eq!(
+                                u64::from(g),
+                                want(0, j),
+                                "case {case}: {tw}x{th} at ({x}, {})",
+                                y + j
+                            );
+                        }
+                    };
+                    col(&dot_col::<1>(&t16, &w, x, y));
+                    col(&dot_col::<2>(&t16, &w, x, y));
+                    col(&dot_col::<3>(&t16, &w, x, y));
+                    col(&dot_col::<COL_BLOCK>(&t16, &w, x, y));
+                }
+                #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+                let _ = &px16;
             }
         }
     }

@@ -69,7 +69,7 @@ pub use pyramid::{peak_radius_px, pyramid_levels, pyramid_levels_min, search_lev
 
 use integral::Tables;
 use pyramid::{Tpl, Win};
-use search::TopK;
+use search::{Strip, TopK};
 
 /// Image domain in which template and window are correlated (paper §III-D).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -539,6 +539,7 @@ pub fn match_template_with(
     };
     let radius0 = peak_radius_px(tw, th);
     let mut tables = Tables::new(integral);
+    let mut strip = Strip::new();
     let top = search::coarse_to_fine(
         &tpls,
         &wins,
@@ -546,6 +547,7 @@ pub fn match_template_with(
         (tw, th, ww, wh),
         &cfg,
         &mut tables,
+        &mut strip,
         &mut stats,
     )?;
 
@@ -559,7 +561,7 @@ pub fn match_template_with(
         .skip(1)
         .find(|c| !probe.near(c, &win))
         .map_or(-1.0, |c| c.s.to_f32());
-    let (dx, dy) = subpixel::offsets(&tpls, &wins, &win, &mut tables, &mut stats)?;
+    let (dx, dy) = subpixel::offsets(&tpls, &wins, &win, &mut tables, &mut strip, &mut stats)?;
 
     // The winner lies inside the window rectangle, itself inside the image
     // (≤ MAX_IMAGE_DIM), so these sums fit; wrapping keeps them total.

@@ -4,16 +4,58 @@ use crate::fmt::present;
 use core::cmp::Ordering;
 
 use super::integral::Tables;
+#[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
 use super::kernel::{dot_block, KERNEL_BLOCK};
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+use super::kernel::{dot_col, COL_BLOCK};
 use super::pyramid::{refine_plan, whole_level_tables, Tpl, Win};
 use super::{
     cmp_scores, peak_radius_px, FailureCode, MatchStats, Score, SearchConfig, MAX_CANDIDATES,
     MAX_CLIMB_STEPS, MAX_LEVELS,
 };
 
+/// Positions per row a [`Strip`] holds: a region wider than this is scored one
+/// row at a time (exhaustive searches of wide windows).
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+pub(super) const STRIP_W: usize = 128;
+
+/// One column of a strip: the window sums and Σ t·f of its positions.
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+#[derive(Clone, Copy, Default)]
+struct StripCol {
+    sums: [(u32, u32); COL_BLOCK],
+    dots: [u32; COL_BLOCK],
+}
+
+/// Working memory of [`eval_positions`] on the vector targets: the results of
+/// a strip of up to [`COL_BLOCK`] rows of positions, scored column by column
+/// ([`dot_col`]) and handed on row by row, in raster order. One per search.
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+pub(super) struct Strip {
+    cols: [StripCol; STRIP_W],
+}
+
+/// Working memory of [`eval_positions`]: none with the portable kernel.
+#[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+pub(super) struct Strip;
+
+impl Strip {
+    #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+    pub(super) fn new() -> Self {
+        Self {
+            cols: [StripCol::default(); STRIP_W],
+        }
+    }
+
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+    pub(super) fn new() -> Self {
+        Self
+    }
+}
+
 /// Score every position `(x, y)` with `x0 ≤ x ≤ x1`, `y0 ≤ y ≤ y1` (all valid
-/// top-left positions) and hand each non-flat one to `sink`.
-#[allow(clippy::too_many_arguments)]
+/// top-left positions) and hand each non-flat one to `sink`, in raster order.
+#[allow(clippy::too_many_arguments, clippy::too_many_lines)]
 #[allow(
     clippy::arithmetic_side_effects,
     reason = "x1 ≥ x0 and y1 ≥ y0 are checked at entry"
@@ -23,6 +65,7 @@ pub(super) fn eval_positions<F: FnMut(usize, usize, Score)>(
     (k, win): (usize, &Win),
     (x0, y0, x1, y1): (usize, usize, usize, usize),
     tables: &mut Tables,
+    strip: &mut Strip,
     stats: &mut MatchStats,
     mut sink: F,
 ) -> Result<(), FailureCode> {
@@ -31,14 +74,14 @@ pub(super) fn eval_positions<F: FnMut(usize, usize, Score)>(
     }
     // Wrapping index arithmetic below: positions lie in `[x0, x1] × [y0, y1]`
     // of a window that holds the template there (the contract), so nothing
-    // wraps; `Integral::rect` and `dot_block` read through `get` in any case.
+    // wraps; `Integral::rect` and the kernels read through `get` in any case.
     let rw = (x1 - x0).saturating_add(t.w);
     let rh = (y1 - y0).saturating_add(t.h);
     let integ = tables.region(k, win, (x0, y0, rw, rh))?;
-    // (Σf, var_f) of the window at window-level coordinates (x, y).
-    let window_terms = |x: usize, y: usize| -> (i64, i64) {
+    // (Σf, Σf²) of the window at window-level coordinates (x, y).
+    let window_sums = |x: usize, y: usize| -> (u32, u32) {
         let (rx, ry) = (x.wrapping_sub(integ.x0), y.wrapping_sub(integ.y0));
-        let (sf, sff) = match t.runs {
+        match t.runs {
             None => integ.rect(rx, ry, t.w, t.h),
             Some(runs) => runs.iter().fold((0u32, 0u32), |(s, q), run| {
                 let (a, b) = integ.rect(
@@ -49,62 +92,173 @@ pub(super) fn eval_positions<F: FnMut(usize, usize, Score)>(
                 );
                 (s.wrapping_add(a), q.wrapping_add(b))
             }),
-        };
+        }
+    };
+    // (Σf, var_f) from the sums: N·Σf² − (Σf)² < 2⁴⁸ (numeric.md), no wrap
+    // for templates within the caps.
+    let var_f = |(sf, sff): (u32, u32)| -> (i64, i64) {
         let (sf, sff) = (i64::from(sf), i64::from(sff));
-        // N·Σf² − (Σf)² < 2⁴⁸ (numeric.md): no wrap for templates within the caps.
         (sf, t.n.wrapping_mul(sff).wrapping_sub(sf.wrapping_mul(sf)))
     };
+    let (mut scored, mut flat) = (0u64, 0u64);
+    let mut emit = |x: usize, y: usize, sums: (u32, u32), dot: u32| {
+        let (sf, var_f) = var_f(sums);
+        if var_f <= 0 {
+            flat = flat.wrapping_add(1);
+            return;
+        }
+        scored = scored.wrapping_add(1);
+        sink(
+            x,
+            y,
+            Score {
+                // N·Σft − Σf·Σt < 2⁴⁸ (numeric.md).
+                num: t
+                    .n
+                    .wrapping_mul(i64::from(dot))
+                    .wrapping_sub(sf.wrapping_mul(t.st)),
+                var_f,
+                var_t: t.var_t,
+            },
+        );
+    };
+    scan(
+        t,
+        win,
+        (x0, y0, x1, y1),
+        strip,
+        &window_sums,
+        &var_f,
+        &mut emit,
+    );
+    stats.positions_scored = stats.positions_scored.saturating_add(scored);
+    stats.flat_positions = stats.flat_positions.saturating_add(flat);
+    let per = t.w.saturating_mul(t.h) as u64;
+    stats.macs = stats.macs.saturating_add(scored.saturating_mul(per));
+    Ok(())
+}
+
+/// The vector targets' scan: strips of up to [`COL_BLOCK`] rows, each scored
+/// column by column with [`dot_col`] (one pass over the window rows per column
+/// of positions), then handed to `emit` row by row. A column whose positions
+/// are all flat skips the kernel. Regions wider than [`STRIP_W`] go one row at
+/// a time.
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+#[allow(
+    clippy::arithmetic_side_effects,
+    reason = "x1 ≥ x0 and y1 ≥ y0 (checked by the caller); strip indices < COL_BLOCK"
+)]
+fn scan(
+    t: &Tpl,
+    win: &Win,
+    (x0, y0, x1, y1): (usize, usize, usize, usize),
+    strip: &mut Strip,
+    window_sums: &impl Fn(usize, usize) -> (u32, u32),
+    var_f: &impl Fn((u32, u32)) -> (i64, i64),
+    emit: &mut impl FnMut(usize, usize, (u32, u32), u32),
+) {
+    let width = x1 - x0 + 1;
+    let Some(cols) = strip.cols.get_mut(..width) else {
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let sums = window_sums(x, y);
+                let dot = if var_f(sums).1 > 0 {
+                    let [d] = dot_col::<1>(t, win, x, y);
+                    d
+                } else {
+                    0
+                };
+                emit(x, y, sums, dot);
+            }
+        }
+        return;
+    };
+    let mut ys = y0;
+    loop {
+        let hs = (y1 - ys + 1).min(COL_BLOCK);
+        for (x, col) in (x0..).zip(cols.iter_mut()) {
+            let mut any = false;
+            for (j, s) in (0..hs).zip(col.sums.iter_mut()) {
+                *s = window_sums(x, ys + j);
+                any |= var_f(*s).1 > 0;
+            }
+            if !any {
+                continue;
+            }
+            let d = &mut col.dots;
+            let put = |d: &mut [u32; COL_BLOCK], v: &[u32]| {
+                for (a, &b) in d.iter_mut().zip(v) {
+                    *a = b;
+                }
+            };
+            match hs {
+                1 => put(d, &dot_col::<1>(t, win, x, ys)),
+                2 => put(d, &dot_col::<2>(t, win, x, ys)),
+                3 => put(d, &dot_col::<3>(t, win, x, ys)),
+                _ => *d = dot_col::<COL_BLOCK>(t, win, x, ys),
+            }
+        }
+        for j in 0..hs {
+            for (x, col) in (x0..).zip(cols.iter()) {
+                let (Some(&sums), Some(&dot)) = (col.sums.get(j), col.dots.get(j)) else {
+                    continue;
+                };
+                emit(x, ys + j, sums, dot);
+            }
+        }
+        ys += hs;
+        if ys > y1 {
+            break;
+        }
+    }
+}
+
+/// The portable scan: row by row, runs of [`KERNEL_BLOCK`] consecutive x
+/// sharing one pass over the template rows ([`dot_block`]); a run whose
+/// positions are all flat skips the kernel.
+#[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+fn scan(
+    t: &Tpl,
+    win: &Win,
+    (x0, y0, x1, y1): (usize, usize, usize, usize),
+    _strip: &mut Strip,
+    window_sums: &impl Fn(usize, usize) -> (u32, u32),
+    var_f: &impl Fn((u32, u32)) -> (i64, i64),
+    emit: &mut impl FnMut(usize, usize, (u32, u32), u32),
+) {
     for y in y0..=y1 {
-        // Runs of KERNEL_BLOCK consecutive x share one pass over the template; the
-        // positions are still handed to `sink` (and counted) one by one in raster
-        // order, exactly as a position-by-position scan does.
         // `x0, x0 + KERNEL_BLOCK, … ≤ x1` without `step_by` over an inclusive
         // range, whose `nth` has an overflow panic path.
         let mut next_xb = Some(x0);
         while let Some(xb) = next_xb {
             next_xb = xb.checked_add(KERNEL_BLOCK).filter(|&n| n <= x1);
             let n = x1.wrapping_sub(xb).saturating_add(1).min(KERNEL_BLOCK);
-            let mut terms = [(0i64, 0i64); KERNEL_BLOCK];
+            let mut sums = [(0u32, 0u32); KERNEL_BLOCK];
+            let mut live = [false; KERNEL_BLOCK];
             // `(0..n).zip(…)` rather than `enumerate().take(n)`: the same
             // pairs without the enumerate counter's overflow check.
-            for (i, v) in (0..n).zip(terms.iter_mut()) {
-                *v = window_terms(xb.wrapping_add(i), y);
+            for ((i, s), l) in (0..n).zip(sums.iter_mut()).zip(live.iter_mut()) {
+                *s = window_sums(xb.wrapping_add(i), y);
+                *l = var_f(*s).1 > 0;
             }
             let mut dots = [0u32; KERNEL_BLOCK];
             if n == KERNEL_BLOCK {
-                if terms.iter().any(|&(_, var_f)| var_f > 0) {
+                if live.iter().any(|&l| l) {
                     dots = dot_block::<KERNEL_BLOCK>(t, win, xb, y);
                 }
             } else {
-                for (i, (d, &(_, var_f))) in (0..n).zip(dots.iter_mut().zip(&terms)) {
-                    if var_f > 0 {
+                for ((i, d), &l) in (0..n).zip(dots.iter_mut()).zip(&live) {
+                    if l {
                         let [v] = dot_block::<1>(t, win, xb.wrapping_add(i), y);
                         *d = v;
                     }
                 }
             }
-            for (i, (&(sf, var_f), &dot)) in (0..n).zip(terms.iter().zip(&dots)) {
-                if var_f <= 0 {
-                    stats.flat_positions = stats.flat_positions.saturating_add(1);
-                    continue;
-                }
-                let sft = i64::from(dot);
-                stats.positions_scored = stats.positions_scored.saturating_add(1);
-                stats.macs = stats.macs.saturating_add(t.w.saturating_mul(t.h) as u64);
-                sink(
-                    xb.wrapping_add(i),
-                    y,
-                    Score {
-                        // N·Σft − Σf·Σt < 2⁴⁸ (numeric.md).
-                        num: t.n.wrapping_mul(sft).wrapping_sub(sf.wrapping_mul(t.st)),
-                        var_f,
-                        var_t: t.var_t,
-                    },
-                );
+            for ((i, &s), &d) in (0..n).zip(&sums).zip(&dots) {
+                emit(xb.wrapping_add(i), y, s, d);
             }
         }
     }
-    Ok(())
 }
 
 #[derive(Clone, Copy, Debug, Default)]
@@ -225,6 +379,7 @@ pub(super) fn coarse_to_fine(
     (tw, th, ww, wh): (usize, usize, usize, usize),
     cfg: &SearchConfig,
     tables: &mut Tables,
+    strip: &mut Strip,
     stats: &mut MatchStats,
 ) -> Result<TopK, FailureCode> {
     let radius0 = peak_radius_px(tw, th);
@@ -242,9 +397,17 @@ pub(super) fn coarse_to_fine(
     } else {
         TopK::new(cfg.candidates, cfg.nms_radius_px)
     };
-    eval_positions(&tc, (lc, &wc), (0, 0, lx, ly), tables, stats, |x, y, s| {
-        top.offer(Cand { x, y, s });
-    })?;
+    eval_positions(
+        &tc,
+        (lc, &wc),
+        (0, 0, lx, ly),
+        tables,
+        strip,
+        stats,
+        |x, y, s| {
+            top.offer(Cand { x, y, s });
+        },
+    )?;
     stats.candidates = top.len as u8;
 
     for k in (0..lc).rev() {
@@ -285,7 +448,7 @@ pub(super) fn coarse_to_fine(
                     cx.saturating_add(r).min(lx),
                     cy.saturating_add(r).min(ly),
                 );
-                eval_positions(&t, (k, &w), bounds, tables, stats, |x, y, s| {
+                eval_positions(&t, (k, &w), bounds, tables, strip, stats, |x, y, s| {
                     let better = best
                         .as_ref()
                         .is_none_or(|b| cmp_scores(&s, &b.s) == Ordering::Greater);

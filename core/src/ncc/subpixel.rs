@@ -3,7 +3,7 @@
 
 use super::integral::Tables;
 use super::pyramid::{Tpl, Win};
-use super::search::{eval_positions, Cand};
+use super::search::{eval_positions, Cand, Strip};
 use super::{FailureCode, MatchStats, MAX_LEVELS};
 
 /// Vertex offset of a parabola through `(−1, m)`, `(0, c)`, `(1, p)`, in [−0.5, 0.5];
@@ -23,6 +23,7 @@ pub(super) fn offsets(
     wins: &[Option<Win>; MAX_LEVELS],
     win: &Cand,
     tables: &mut Tables,
+    strip: &mut Strip,
     stats: &mut MatchStats,
 ) -> Result<(f64, f64), FailureCode> {
     // Sub-pixel: exact scores of the four neighbours at full resolution.
@@ -41,19 +42,27 @@ pub(super) fn offsets(
         win.y.saturating_add(1).min(ly),
     );
     let mut sub_stats = MatchStats::default();
-    eval_positions(&t0, (0, &w0), bounds, tables, &mut sub_stats, |x, y, s| {
-        let d = |p: usize, q: usize| (p as isize).wrapping_sub(q as isize);
-        let slot = match (d(x, win.x), d(y, win.y)) {
-            (-1, 0) => nb.get_mut(0),
-            (1, 0) => nb.get_mut(1),
-            (0, -1) => nb.get_mut(2),
-            (0, 1) => nb.get_mut(3),
-            _ => None,
-        };
-        if let Some(v) = slot {
-            *v = Some(s.to_f64());
-        }
-    })?;
+    eval_positions(
+        &t0,
+        (0, &w0),
+        bounds,
+        tables,
+        strip,
+        &mut sub_stats,
+        |x, y, s| {
+            let d = |p: usize, q: usize| (p as isize).wrapping_sub(q as isize);
+            let slot = match (d(x, win.x), d(y, win.y)) {
+                (-1, 0) => nb.get_mut(0),
+                (1, 0) => nb.get_mut(1),
+                (0, -1) => nb.get_mut(2),
+                (0, 1) => nb.get_mut(3),
+                _ => None,
+            };
+            if let Some(v) = slot {
+                *v = Some(s.to_f64());
+            }
+        },
+    )?;
     stats.positions_scored = stats
         .positions_scored
         .saturating_add(sub_stats.positions_scored);
