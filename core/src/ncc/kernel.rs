@@ -122,16 +122,15 @@ fn dot_col_fixed<const B: usize, const NC: usize>(
                 }
             }
         } else {
-            // First and last B − 1 window rows: positions `skip..` have
-            // template rows `lo..hi` here, in reverse.
-            let lo = (yy + 1).saturating_sub(B);
-            let hi = (yy + 1).min(th);
-            let skip = (yy + 1).saturating_sub(th);
-            let part = rows.get(lo..hi).unwrap_or(&[]);
+            // First and last B − 1 window rows: position j has template row
+            // yy − j when that exists. Indexed by the (unrolled) j only, so the
+            // accumulators stay in registers.
+            let tr: [Option<&[[u8; 32]; NC]>; B] =
+                core::array::from_fn(|j| yy.checked_sub(j).and_then(|r| rows.get(r)));
             for (c, f) in frow.iter().enumerate() {
                 let fv = i16x16::from(u8x16::from(*f));
-                for (a, row) in acc.iter_mut().skip(skip).zip(part.iter().rev()) {
-                    if let Some(tt) = row.get(c) {
+                for (a, row) in acc.iter_mut().zip(&tr) {
+                    if let Some(tt) = row.and_then(|r| r.get(c)) {
                         *a += cast::<[u8; 32], i16x16>(*tt).dot(fv);
                     }
                 }
