@@ -247,27 +247,32 @@ fn mul_wide(a: u128, b: u64) -> (u128, u64) {
     (p1 + (p0 >> 64), p0 as u64)
 }
 
-/// `num_a²·var_f_b` against `num_b²·var_f_a` in f64 where the two differ by far
-/// more than the rounding error, `None` where they are too close to tell (the
-/// caller then compares exactly). Every operand is an integer below 2⁵³ and so
-/// exact in f64; each product is rounded twice (relative error < 2.3·10⁻¹⁶), so a
-/// relative gap above 10⁻¹² decides the exact comparison: the result is the
-/// exact order whenever it is `Some`. Only where f64 is hardware (the 64-bit
-/// host and application targets); elsewhere every comparison is the integer one.
+/// `sign(num_a)·num_a²·var_f_b` against `sign(num_b)·num_b²·var_f_a` in f64
+/// where the two differ by far more than the rounding error, `None` where they
+/// are too close to tell (the caller then compares exactly). Every operand is an
+/// integer below 2⁵³ and so exact in f64 (signed conversions, one instruction
+/// each on x86-64); each product is rounded twice (relative error < 2.3·10⁻¹⁶),
+/// so a difference above 10⁻¹² of the products' magnitudes decides the exact
+/// comparison, signs included: the result is the exact order whenever it is
+/// `Some` (two zero numerators are left to the integers, which call them equal).
+/// Only where f64 is hardware (the 64-bit host and application targets);
+/// elsewhere every comparison is the integer one.
 #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
 #[inline]
 #[allow(
     clippy::cast_precision_loss,
-    reason = "|num|, var_f < 2^48 are exact in f64; the rounding of the products is bounded above"
+    clippy::arithmetic_side_effects,
+    reason = "|num|, var_f < 2^48 are exact in f64; the rounding of the products is bounded above (f64 arithmetic)"
 )]
 fn cmp_keys_f64(a: &Score, b: &Score) -> Option<Ordering> {
-    let (na, nb) = (a.num.unsigned_abs() as f64, b.num.unsigned_abs() as f64);
-    let la = na * na * b.var_f.unsigned_abs() as f64;
-    let lb = nb * nb * a.var_f.unsigned_abs() as f64;
+    let (na, nb) = (a.num as f64, b.num as f64);
+    let la = na * na.abs() * (b.var_f as f64).abs();
+    let lb = nb * nb.abs() * (a.var_f as f64).abs();
     const GAP: f64 = 1e-12;
-    if la > lb + lb * GAP {
+    let g = GAP * (la.abs() + lb.abs());
+    if la - lb > g {
         Some(Ordering::Greater)
-    } else if lb > la + la * GAP {
+    } else if lb - la > g {
         Some(Ordering::Less)
     } else {
         None
@@ -283,21 +288,10 @@ fn cmp_keys_f64(_: &Score, _: &Score) -> Option<Ordering> {
 
 /// Exact order of two scores of the same template (same `var_t`), by
 /// `sign(num)·num²/var_f`, with no division and no square root.
-#[allow(
-    clippy::arithmetic_side_effects,
-    reason = "|num| < 2^48, so num² < 2^96 fits u128; the 192-bit product is mul_wide's"
-)]
 #[inline]
 pub fn cmp_scores(a: &Score, b: &Score) -> Ordering {
-    let (sa, sb) = (a.num.signum(), b.num.signum());
-    if sa != sb {
-        return sa.cmp(&sb);
-    }
-    if sa == 0 {
-        return Ordering::Equal;
-    }
     if let Some(o) = cmp_keys_f64(a, b) {
-        return if sa > 0 { o } else { o.reverse() };
+        return o;
     }
     cmp_scores_exact(a, b)
 }
