@@ -277,6 +277,18 @@ pub(super) struct TopK {
     pub(super) len: usize,
     pub(super) cap: usize,
     pub(super) radius: usize,
+    /// Index of the entry that rejected the last offer for being near and at
+    /// least as good, or of the last entry inserted: neighbouring offers in
+    /// raster order are usually rejected by the same entry, so [`TopK::offer`]
+    /// tries it before scanning the list. Any index is correct (the scan
+    /// decides whenever the hint does not reject).
+    hint: usize,
+}
+
+/// `a` strictly better than `b` (scores of one template).
+#[inline]
+fn beats(a: &Score, b: &Score) -> bool {
+    cmp_scores(a, b) == Ordering::Greater
 }
 
 impl TopK {
@@ -286,6 +298,7 @@ impl TopK {
             len: 0,
             cap: cap.clamp(1, MAX_CANDIDATES),
             radius,
+            hint: 0,
         }
     }
 
@@ -297,70 +310,88 @@ impl TopK {
         a.x.abs_diff(b.x) <= self.radius && a.y.abs_diff(b.y) <= self.radius
     }
 
+    /// Offer `c`: rejected when the list is full and `c` is not better than its
+    /// last entry, or when an entry near `c` is at least as good; otherwise the
+    /// entries near `c` (all worse) leave, `c` goes in after every entry at
+    /// least as good as it, and the list is cut to `cap`.
+    ///
+    /// The two cheap rejections (the last entry, the hinted entry) are tried
+    /// here; whatever they let through goes to [`TopK::offer_scan`].
+    #[inline]
     pub(super) fn offer(&mut self, c: Cand) {
         let cur = self.as_slice();
         if self.len == self.cap {
-            if let Some(worst) = cur.last() {
-                if cmp_scores(&c.s, &worst.s) != Ordering::Greater {
+            if let Some(last) = cur.last() {
+                if !beats(&c.s, &last.s) {
                     return;
                 }
             }
         }
-        let mut any_near = false;
-        for e in cur {
+        if let Some(h) = cur.get(self.hint) {
+            if self.near(h, &c) && !beats(&c.s, &h.s) {
+                return;
+            }
+        }
+        self.offer_scan(c);
+    }
+
+    /// [`TopK::offer`] past its cheap rejections: one pass over the list finds
+    /// the near entries (any at least as good rejects `c`); then `c` goes in
+    /// before the first entry it beats (all near ones lie after it: `c` beats
+    /// them), and the entries after it move one place right, the near ones
+    /// dropping out, all in place over the `len` used entries.
+    #[inline(never)]
+    fn offer_scan(&mut self, c: Cand) {
+        let len = self.len.min(self.cap).min(MAX_CANDIDATES);
+        let cur = present(self.items.get(..len));
+        let mut near = 0u64;
+        for (i, e) in (0u32..).zip(cur) {
             if self.near(e, &c) {
-                if cmp_scores(&c.s, &e.s) != Ordering::Greater {
+                if !beats(&c.s, &e.s) {
+                    self.hint = i as usize;
                     return;
                 }
-                any_near = true;
+                near |= 1u64.wrapping_shl(i);
             }
         }
-        // Drop the entries near `c` (all worse than it), keeping the order, then
-        // insert `c` before the first remaining entry it beats; in place, over
-        // the `len` used entries only.
-        let (radius, len) = (self.radius, self.len.min(MAX_CANDIDATES));
-        let near = |e: &Cand| e.x.abs_diff(c.x) <= radius && e.y.abs_diff(c.y) <= radius;
-        let mut n = if any_near { 0 } else { len };
-        for i in (0..len).take(if any_near { len } else { 0 }) {
-            let Some(e) = self.items.get(i).copied() else {
-                break;
-            };
-            if near(&e) {
-                continue;
-            }
-            if n != i {
-                if let Some(o) = self.items.get_mut(n) {
-                    *o = e;
+        // Sorted best first: "c beats e" is false up to some index and true
+        // from there on.
+        let pos = cur.partition_point(|e| !beats(&c.s, &e.s));
+        // The kept entries of `pos..len`, compacted towards `pos`.
+        let mut n = len;
+        if near != 0 {
+            n = pos;
+            for i in pos..len {
+                if near & 1u64.wrapping_shl(i as u32) != 0 {
+                    continue;
                 }
+                if let Some(e) = self.items.get(i).copied() {
+                    if let Some(d) = self.items.get_mut(n) {
+                        *d = e;
+                    }
+                }
+                // n ≤ i < len ≤ MAX_CANDIDATES.
+                n = n.wrapping_add(1);
             }
-            // n ≤ i < len ≤ MAX_CANDIDATES.
-            n = n.wrapping_add(1);
         }
-        let kept = present(self.items.get(..n));
-        // The list is sorted best first, so "c beats e" is false up to some index
-        // and true from there on: a binary search finds the first entry c beats.
-        let pos = kept.partition_point(|e| cmp_scores(&c.s, &e.s) != Ordering::Greater);
-        if pos >= self.cap {
-            self.len = n.min(self.cap);
-            return;
-        }
-        // Shift `pos..` one to the right, losing the last entry when full.
-        // n ≤ MAX_CANDIDATES and pos < n + 1: none of these wrap.
+        // pos < cap (a full list's last entry is beaten) and n ≤ len ≤ cap:
+        // shift `pos..end − 1` one to the right (the last kept entry falls off
+        // when full) and put `c` at `pos`.
         let end = n.wrapping_add(1).min(self.cap);
-        for i in (pos.wrapping_add(1)..end).rev() {
-            if let (Some(prev), Some(_)) = (
-                self.items.get(i.wrapping_sub(1)).copied(),
-                self.items.get(i),
-            ) {
+        let mut i = end;
+        while i > pos.wrapping_add(1) {
+            i = i.wrapping_sub(1);
+            if let Some(e) = self.items.get(i.wrapping_sub(1)).copied() {
                 if let Some(d) = self.items.get_mut(i) {
-                    *d = prev;
+                    *d = e;
                 }
             }
         }
-        if let Some(slot) = self.items.get_mut(pos) {
-            *slot = c;
+        if let Some(d) = self.items.get_mut(pos) {
+            *d = c;
         }
         self.len = end;
+        self.hint = pos;
     }
 }
 
