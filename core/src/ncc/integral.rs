@@ -132,8 +132,9 @@ impl<'b> Tables<'b> {
     }
 }
 
-/// Fill the sum and sum-of-squares tables (`(rw + 1) × (rh + 1)` each) in one
-/// pass over the window pixels.
+/// Fill the sum and sum-of-squares tables (`(rw + 1) × (rh + 1)` each), row by
+/// row: the running sums of the row's pixels (a serial pass), then the row
+/// above added entry by entry (a pass the compiler vectorizes).
 pub(super) fn fill_tables(
     win: &Win,
     x0: usize,
@@ -144,33 +145,26 @@ pub(super) fn fill_tables(
     sq: &mut [u32],
 ) {
     let w1 = rw.saturating_add(1);
-    for tab in [&mut *sum, &mut *sq] {
-        if let Some(first) = tab.get_mut(..w1) {
-            first.fill(0);
-        }
-    }
-    for r in 0..rh {
-        // Checked: tables or a window smaller than the contract end the fill.
-        let (Some(prev_at), Some(cur_at)) = (
-            r.checked_mul(w1),
-            r.checked_add(1).and_then(|r1| r1.checked_mul(w1)),
-        ) else {
-            return;
-        };
-        let (Some((sum_head, sum_tail)), Some((sq_head, sq_tail))) = (
-            sum.split_at_mut_checked(cur_at),
-            sq.split_at_mut_checked(cur_at),
-        ) else {
-            return;
-        };
-        let (Some(ps), Some(cs), Some(pq), Some(cq)) = (
-            sum_head.get(prev_at..),
-            sum_tail.get_mut(..w1),
-            sq_head.get(prev_at..),
-            sq_tail.get_mut(..w1),
-        ) else {
-            return;
-        };
+    let n = w1.saturating_mul(rh.saturating_add(1));
+    let (Some(sum), Some(sq)) = (sum.get_mut(..n), sq.get_mut(..n)) else {
+        return;
+    };
+    let (Some((s_top, s_rows)), Some((q_top, q_rows))) =
+        (sum.split_at_mut_checked(w1), sq.split_at_mut_checked(w1))
+    else {
+        return;
+    };
+    s_top.fill(0);
+    q_top.fill(0);
+    // The row above, from column 1 (its column 0 is zero).
+    let (mut s_prev, mut q_prev): (&[u32], &[u32]) =
+        (s_top.get(1..).unwrap_or(&[]), q_top.get(1..).unwrap_or(&[]));
+    for (r, (cs, cq)) in s_rows
+        .chunks_exact_mut(w1)
+        .zip(q_rows.chunks_exact_mut(w1))
+        .enumerate()
+    {
+        // Checked: a window smaller than the contract ends the fill.
         let Some(frow) = y0.checked_add(r).and_then(|y| win.span(x0, y, rw)) else {
             return;
         };
@@ -180,15 +174,43 @@ pub(super) fn fill_tables(
         };
         *cs0 = 0;
         *cq0 = 0;
+        // u32 wrapping throughout (see `Integral::build`).
         let (mut run_s, mut run_q) = (0u32, 0u32);
-        let prev = ps.iter().skip(1).zip(pq.iter().skip(1));
-        for (((s, q), (&p_s, &p_q)), &f) in cs.iter_mut().zip(cq.iter_mut()).zip(prev).zip(frow) {
+        for ((s, q), &f) in cs.iter_mut().zip(cq.iter_mut()).zip(frow) {
             let v = u32::from(f);
             run_s = run_s.wrapping_add(v);
             run_q = run_q.wrapping_add(v.wrapping_mul(v));
-            *s = p_s.wrapping_add(run_s);
-            *q = p_q.wrapping_add(run_q);
+            *s = run_s;
+            *q = run_q;
         }
+        add_row(cs, s_prev);
+        add_row(cq, q_prev);
+        // The finished row is the next one's "above".
+        s_prev = &*cs;
+        q_prev = &*cq;
+    }
+}
+
+/// `dst[i] += src[i]` (wrapping) over the common length, in fixed-size blocks
+/// the compiler turns into vector additions.
+fn add_row(dst: &mut [u32], src: &[u32]) {
+    const L: usize = 8;
+    let n = dst.len().min(src.len());
+    let (Some(dst), Some(src)) = (dst.get_mut(..n), src.get(..n)) else {
+        return;
+    };
+    // Equal lengths, so the blocks and the remainders line up.
+    let (dc, dr) = dst.as_chunks_mut::<L>();
+    let (sc, sr) = src.as_chunks::<L>();
+    for (d, s) in dc.iter_mut().zip(sc) {
+        let mut v = *d;
+        for (a, &b) in v.iter_mut().zip(s) {
+            *a = a.wrapping_add(b);
+        }
+        *d = v;
+    }
+    for (d, &s) in dr.iter_mut().zip(sr) {
+        *d = d.wrapping_add(s);
     }
 }
 
