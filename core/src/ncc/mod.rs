@@ -296,13 +296,62 @@ pub fn cmp_scores(a: &Score, b: &Score) -> Ordering {
     cmp_scores_exact(a, b)
 }
 
+/// Order key of a score of a given template: `sign(num)·num²/var_f` in f64
+/// (three roundings: relative error below 3.4·10⁻¹⁶), NaN when `var_f ≤ 0`.
+/// [`key_beats`] orders two scores of one template by their keys where these
+/// are clearly apart and by [`cmp_scores_exact`] otherwise. Only where f64 is
+/// hardware; elsewhere every key is NaN, so every comparison is the integer one.
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+#[inline]
+#[allow(
+    clippy::cast_precision_loss,
+    clippy::arithmetic_side_effects,
+    reason = "|num|, var_f < 2^48 are exact in f64; the rounding is bounded above (f64 arithmetic)"
+)]
+pub(crate) fn order_key(s: &Score) -> f64 {
+    if s.var_f <= 0 {
+        return f64::NAN;
+    }
+    let n = s.num as f64;
+    n * n.abs() / s.var_f as f64
+}
+
+/// Order key where f64 is software: NaN, so every comparison is the integer one.
+#[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+#[inline]
+pub(crate) fn order_key(_: &Score) -> f64 {
+    f64::NAN
+}
+
+/// Whether `a` (order key `ka`) is strictly better than `b` (key `kb`), two
+/// scores of one template: the keys decide when they differ by more than 10⁻¹²
+/// of their magnitudes (far above their rounding error, so the order is the
+/// exact one), [`cmp_scores_exact`] otherwise (and for NaN keys, for which both
+/// comparisons are false). Always `cmp_scores(a, b) == Greater`.
+#[inline]
+#[allow(
+    clippy::arithmetic_side_effects,
+    reason = "f64 arithmetic on finite keys or NaN (every comparison with NaN is false)"
+)]
+pub(crate) fn key_beats(ka: f64, a: &Score, kb: f64, b: &Score) -> bool {
+    const GAP: f64 = 1e-12;
+    let g = GAP * (ka.abs() + kb.abs());
+    if ka - kb > g {
+        return true;
+    }
+    if kb - ka > g {
+        return false;
+    }
+    cmp_scores_exact(a, b) == Ordering::Greater
+}
+
 /// [`cmp_scores`] by the integer products alone (the reference its f64 shortcut
 /// is tested against).
 #[allow(
     clippy::arithmetic_side_effects,
     reason = "|num| < 2^48, so num² < 2^96 fits u128; the 192-bit product is mul_wide's"
 )]
-fn cmp_scores_exact(a: &Score, b: &Score) -> Ordering {
+pub(crate) fn cmp_scores_exact(a: &Score, b: &Score) -> Ordering {
     let (sa, sb) = (a.num.signum(), b.num.signum());
     if sa != sb {
         return sa.cmp(&sb);

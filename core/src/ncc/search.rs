@@ -10,8 +10,8 @@ use super::kernel::{dot_block, KERNEL_BLOCK};
 use super::kernel::{dot_col, COL_BLOCK};
 use super::pyramid::{refine_plan, whole_level_tables, Tpl, Win};
 use super::{
-    cmp_scores, peak_radius_px, FailureCode, MatchStats, Score, SearchConfig, MAX_CANDIDATES,
-    MAX_CLIMB_STEPS, MAX_LEVELS,
+    cmp_scores, key_beats, order_key, peak_radius_px, FailureCode, MatchStats, Score, SearchConfig,
+    MAX_CANDIDATES, MAX_CLIMB_STEPS, MAX_LEVELS,
 };
 
 /// Positions per row a [`Strip`] holds: a region wider than this is scored one
@@ -274,6 +274,8 @@ pub(super) struct Cand {
 #[derive(Clone, Copy, Debug)]
 pub(super) struct TopK {
     pub(super) items: [Cand; MAX_CANDIDATES],
+    /// [`order_key`] of each entry.
+    keys: [f64; MAX_CANDIDATES],
     pub(super) len: usize,
     pub(super) cap: usize,
     pub(super) radius: usize,
@@ -295,6 +297,7 @@ impl TopK {
     pub(super) fn new(cap: usize, radius: usize) -> Self {
         Self {
             items: [Cand::default(); MAX_CANDIDATES],
+            keys: [0.0; MAX_CANDIDATES],
             len: 0,
             cap: cap.clamp(1, MAX_CANDIDATES),
             radius,
@@ -335,63 +338,93 @@ impl TopK {
         self.offer_scan(c);
     }
 
-    /// [`TopK::offer`] past its cheap rejections: one pass over the list finds
-    /// the near entries (any at least as good rejects `c`); then `c` goes in
-    /// before the first entry it beats (all near ones lie after it: `c` beats
-    /// them), and the entries after it move one place right, the near ones
-    /// dropping out, all in place over the `len` used entries.
+    /// [`TopK::offer`] past its cheap rejections: the entries near `c` (one
+    /// branch-free pass) reject it if any is at least as good; otherwise `c`
+    /// goes in before the first entry it beats (the near ones all lie after it:
+    /// `c` beats them), the entries from there to the first near one move one
+    /// place right, and those after it move left over the near ones, all in place.
+    /// Comparisons go through the entries' cached order keys ([`key_beats`]).
     #[inline(never)]
     fn offer_scan(&mut self, c: Cand) {
         let len = self.len.min(self.cap).min(MAX_CANDIDATES);
-        let cur = present(self.items.get(..len));
+        let (Some(cur), Some(keys)) = (self.items.get(..len), self.keys.get(..len)) else {
+            return;
+        };
+        // |e − c| ≤ r as `e − c + r ≤ 2r` in wrapping arithmetic (positions are
+        // far below 2⁶³; a radius whose double saturates makes everything near,
+        // as it is).
+        let (r, span) = (self.radius, self.radius.saturating_mul(2));
         let mut near = 0u64;
         for (i, e) in (0u32..).zip(cur) {
-            if self.near(e, &c) {
-                if !beats(&c.s, &e.s) {
-                    self.hint = i as usize;
+            let n = (e.x.wrapping_sub(c.x).wrapping_add(r) <= span)
+                & (e.y.wrapping_sub(c.y).wrapping_add(r) <= span);
+            near |= u64::from(n).wrapping_shl(i);
+        }
+        let kc = order_key(&c.s);
+        let mut m = near;
+        while m != 0 {
+            let i = m.trailing_zeros() as usize;
+            m &= m.wrapping_sub(1);
+            if let (Some(e), Some(&ke)) = (cur.get(i), keys.get(i)) {
+                if !key_beats(kc, &c.s, ke, &e.s) {
+                    self.hint = i;
                     return;
                 }
-                near |= 1u64.wrapping_shl(i);
             }
         }
         // Sorted best first: "c beats e" is false up to some index and true
         // from there on.
-        let pos = cur.partition_point(|e| !beats(&c.s, &e.s));
-        // The kept entries of `pos..len`, compacted towards `pos`.
-        let mut n = len;
-        if near != 0 {
-            n = pos;
-            for i in pos..len {
-                if near & 1u64.wrapping_shl(i as u32) != 0 {
-                    continue;
-                }
-                if let Some(e) = self.items.get(i).copied() {
-                    if let Some(d) = self.items.get_mut(n) {
-                        *d = e;
-                    }
-                }
-                // n ≤ i < len ≤ MAX_CANDIDATES.
-                n = n.wrapping_add(1);
+        let pos = cur
+            .iter()
+            .zip(keys)
+            .position(|(e, &ke)| key_beats(kc, &c.s, ke, &e.s))
+            .unwrap_or(len);
+        // The first near entry (every near one lies at or after `pos`), or `len`.
+        let first_near = if near == 0 {
+            len
+        } else {
+            near.trailing_zeros() as usize
+        };
+        // The kept entries after the first near one close up over the near
+        // ones, from the slot after it (`c` adds one entry before them).
+        let mut w = first_near.saturating_add(1);
+        for i in first_near.saturating_add(1)..len {
+            if near & 1u64.wrapping_shl(i as u32) != 0 {
+                continue;
             }
+            self.move_entry(i, w);
+            // w ≤ i < len ≤ MAX_CANDIDATES.
+            w = w.wrapping_add(1);
         }
-        // pos < cap (a full list's last entry is beaten) and n ≤ len ≤ cap:
-        // shift `pos..end − 1` one to the right (the last kept entry falls off
-        // when full) and put `c` at `pos`.
-        let end = n.wrapping_add(1).min(self.cap);
-        let mut i = end;
-        while i > pos.wrapping_add(1) {
+        // Entries `pos..first_near` move one right (the last falls off a full
+        // list without near entries), and `c` takes `pos`.
+        let end = if near == 0 {
+            len.saturating_add(1).min(self.cap)
+        } else {
+            w
+        };
+        let mut i = first_near.min(self.cap.saturating_sub(1));
+        while i > pos {
+            self.move_entry(i.wrapping_sub(1), i);
             i = i.wrapping_sub(1);
-            if let Some(e) = self.items.get(i.wrapping_sub(1)).copied() {
-                if let Some(d) = self.items.get_mut(i) {
-                    *d = e;
-                }
-            }
         }
-        if let Some(d) = self.items.get_mut(pos) {
+        if let (Some(d), Some(dk)) = (self.items.get_mut(pos), self.keys.get_mut(pos)) {
             *d = c;
+            *dk = kc;
         }
         self.len = end;
         self.hint = pos;
+    }
+
+    /// Copy entry `from` (and its key) to slot `to`.
+    #[inline]
+    fn move_entry(&mut self, from: usize, to: usize) {
+        if let (Some(&e), Some(&k)) = (self.items.get(from), self.keys.get(from)) {
+            if let (Some(d), Some(dk)) = (self.items.get_mut(to), self.keys.get_mut(to)) {
+                *d = e;
+                *dk = k;
+            }
+        }
     }
 }
 
