@@ -663,10 +663,10 @@ mod tests {
     extern crate std;
     use super::test_util::*;
 
-    /// The f64 shortcut of `cmp_scores` never changes an order: it agrees with
-    /// the integer comparison on random scores over the whole range, on exact
-    /// ties, and on pairs one unit apart at the top of the range (where the
-    /// shortcut must defer to the integers).
+    /// The f64 shortcuts of `cmp_scores` and `key_beats` never change an
+    /// order: they agree with the integer comparison on random scores over the
+    /// whole range, on exact ties, and on pairs one unit apart at the top of the
+    /// range (where the shortcuts must defer to the integers).
     #[test]
     fn cmp_scores_shortcut_equals_exact_comparison() {
         let mut rng = crate::rng::Rng::new(77);
@@ -703,6 +703,13 @@ mod tests {
             };
             assert_eq!(cmp_scores(&a, &b), cmp_scores_exact(&a, &b), "{a:?} {b:?}");
             assert_eq!(cmp_scores(&b, &a), cmp_scores_exact(&b, &a), "{b:?} {a:?}");
+            for (p, q) in [(&a, &b), (&b, &a)] {
+                assert_eq!(
+                    key_beats(order_key(p), p, order_key(q), q),
+                    cmp_scores_exact(p, q) == Ordering::Greater,
+                    "{p:?} {q:?}"
+                );
+            }
         }
         let a = Score {
             num: top,
@@ -715,6 +722,10 @@ mod tests {
             var_t: 1,
         };
         assert_eq!(cmp_scores(&a, &b), cmp_scores_exact(&a, &b));
+        assert_eq!(
+            key_beats(order_key(&a), &a, order_key(&b), &b),
+            cmp_scores_exact(&a, &b) == Ordering::Greater
+        );
     }
     use super::*;
     use crate::rng::Rng;
