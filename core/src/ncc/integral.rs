@@ -85,6 +85,58 @@ impl<'s> Integral<'s> {
     }
 }
 
+impl Integral<'_> {
+    /// (Σf, Σf²) over the `w × h` rectangles at region coordinates
+    /// `(x + i, y)`, `i < sf.len()`, into `sf[i]` and `sff[i]` (the shorter of
+    /// the two lengths): four table rows combined entry by entry.
+    pub(super) fn rect_row(
+        &self,
+        x: usize,
+        y: usize,
+        w: usize,
+        h: usize,
+        sf: &mut [u32],
+        sff: &mut [u32],
+    ) {
+        sf.fill(0);
+        sff.fill(0);
+        self.add_rect_row(x, y, w, h, sf, sff);
+    }
+
+    /// [`Integral::rect_row`] added (wrapping) to `sf` and `sff`. Rectangles
+    /// outside the region (never, by the contract) add nothing.
+    pub(super) fn add_rect_row(
+        &self,
+        x: usize,
+        y: usize,
+        w: usize,
+        h: usize,
+        sf: &mut [u32],
+        sff: &mut [u32],
+    ) {
+        let n = sf.len().min(sff.len());
+        // Wrapping: a rectangle inside the region (the contract) never wraps;
+        // otherwise `get` refuses the rows.
+        let i00 = y.wrapping_mul(self.w1).wrapping_add(x);
+        let i10 = y.wrapping_add(h).wrapping_mul(self.w1).wrapping_add(x);
+        for (tab, out) in [(self.sum, &mut *sf), (self.sq, &mut *sff)] {
+            let row = |i: usize| tab.get(i..).and_then(|r| r.get(..n));
+            let (Some(a), Some(b), Some(c), Some(d), Some(out)) = (
+                row(i10.wrapping_add(w)),
+                row(i10),
+                row(i00.wrapping_add(w)),
+                row(i00),
+                out.get_mut(..n),
+            ) else {
+                continue;
+            };
+            for ((((o, &a), &b), &c), &d) in out.iter_mut().zip(a).zip(b).zip(c).zip(d) {
+                *o = o.wrapping_add(a.wrapping_sub(b).wrapping_sub(c).wrapping_add(d));
+            }
+        }
+    }
+}
+
 /// The integral-table scratch of one search: either the tables of a whole window
 /// level, built once and shared by every evaluation at that level, or nothing
 /// kept, each evaluation building the tables of its own region.

@@ -33,7 +33,7 @@ fn chunk_dot<const C: usize>(t: &[u8; C], f: &[u8; C]) -> u32 {
 /// Vertically neighbouring positions the vector kernel scores per pass over
 /// the window rows ([`dot_col`]).
 #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
-pub(super) const COL_BLOCK: usize = 4;
+pub(super) const COL_BLOCK: usize = 8;
 
 /// Σ t·f of the template at the `B` vertically neighbouring positions
 /// `(px, py + j)` of the window, `j < B`, on x86-64 and AArch64: explicit
@@ -60,45 +60,176 @@ pub(super) const COL_BLOCK: usize = 4;
 pub(super) fn dot_col<const B: usize>(t: &Tpl, win: &Win, px: usize, py: usize) -> [u32; B] {
     const C: usize = KERNEL_CHUNK;
     if t.w % C == 0 {
+        // SSE2 without AVX: a 16-byte-aligned template (the usual case: the
+        // scratch is allocated aligned and carved at multiples of 16) lets
+        // `pmaddwd` take its template operand straight from memory.
+        #[cfg(all(target_arch = "x86_64", not(target_feature = "avx")))]
+        if let Ok(v) = wide::bytemuck::try_cast_slice::<u8, wide::i16x8>(t.px) {
+            let rows = v.as_chunks::<2>().0;
+            match t.w / C {
+                1 => return dot_col_fixed::<Aligned, B, 1>(rows, t.h, win, px, py),
+                2 => return dot_col_fixed::<Aligned, B, 2>(rows, t.h, win, px, py),
+                3 => return dot_col_fixed::<Aligned, B, 3>(rows, t.h, win, px, py),
+                4 => return dot_col_fixed::<Aligned, B, 4>(rows, t.h, win, px, py),
+                _ => {}
+            }
+        }
+        let rows = t.px.as_chunks::<{ 2 * C }>().0;
         match t.w / C {
-            1 => return dot_col_fixed::<B, 1>(t, win, px, py),
-            2 => return dot_col_fixed::<B, 2>(t, win, px, py),
-            3 => return dot_col_fixed::<B, 3>(t, win, px, py),
-            4 => return dot_col_fixed::<B, 4>(t, win, px, py),
+            1 => return dot_col_fixed::<Bytes, B, 1>(rows, t.h, win, px, py),
+            2 => return dot_col_fixed::<Bytes, B, 2>(rows, t.h, win, px, py),
+            3 => return dot_col_fixed::<Bytes, B, 3>(rows, t.h, win, px, py),
+            4 => return dot_col_fixed::<Bytes, B, 4>(rows, t.h, win, px, py),
             _ => {}
         }
     }
     dot_col_rows::<B>(t, win, px, py)
 }
 
-/// [`dot_col`] for templates of exactly `NC` 16-pixel chunks per row: every
-/// row is a fixed-size array, so the loops over chunks and positions carry no
-/// bounds checks, and the `B` template rows of a window row in the body of the
-/// pass are one fixed-size block (rows `yy − B + 1 ..= yy`, position `j` on
-/// block row `B − 1 − j`).
+/// How [`dot_col_fixed`] holds 16 template pixels (a chunk), 16 widened window
+/// pixels and a position's accumulator.
 #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
-#[allow(
-    clippy::arithmetic_side_effects,
-    reason = "vector lane addition wraps (wide's documented semantics); exact modulo 2^32 as above"
-)]
+trait Lanes {
+    type Chunk;
+    type Px: Copy;
+    type Acc: Copy;
+    const ZERO: Self::Acc;
+    fn widen(f: &[u8; 16]) -> Self::Px;
+    fn mac(acc: &mut Self::Acc, t: &Self::Chunk, f: Self::Px);
+    fn reduce(acc: Self::Acc) -> u32;
+}
+
+/// Template chunks as 32 unaligned bytes (16 little-endian i16). With AVX2 a
+/// 256-bit accumulator fed by one `vpmaddwd` per chunk; otherwise (SSE2, NEON)
+/// a 128-bit accumulator fed by two 8-lane multiply-adds, so that the
+/// accumulators of a column block fit the registers.
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+struct Bytes;
+
+#[cfg(all(
+    any(target_arch = "x86_64", target_arch = "aarch64"),
+    target_feature = "avx2"
+))]
+impl Lanes for Bytes {
+    type Chunk = [u8; 32];
+    type Px = wide::i16x16;
+    type Acc = wide::i32x8;
+    const ZERO: wide::i32x8 = wide::i32x8::ZERO;
+
+    #[inline(always)]
+    fn widen(f: &[u8; 16]) -> wide::i16x16 {
+        wide::i16x16::from(wide::u8x16::from(*f))
+    }
+
+    #[inline(always)]
+    #[allow(
+        clippy::arithmetic_side_effects,
+        reason = "vector lane addition wraps (wide's documented semantics); exact modulo 2^32 (numeric.md)"
+    )]
+    fn mac(acc: &mut wide::i32x8, t: &[u8; 32], f: wide::i16x16) {
+        *acc += wide::bytemuck::cast::<[u8; 32], wide::i16x16>(*t).dot(f);
+    }
+
+    #[inline(always)]
+    fn reduce(acc: wide::i32x8) -> u32 {
+        acc.reduce_add().cast_unsigned()
+    }
+}
+
+#[cfg(all(
+    any(target_arch = "x86_64", target_arch = "aarch64"),
+    not(target_feature = "avx2")
+))]
+impl Lanes for Bytes {
+    type Chunk = [u8; 32];
+    type Px = (wide::i16x8, wide::i16x8);
+    type Acc = wide::i32x4;
+    const ZERO: wide::i32x4 = wide::i32x4::ZERO;
+
+    #[inline(always)]
+    fn widen(f: &[u8; 16]) -> Self::Px {
+        let u = wide::u8x16::from(*f);
+        (
+            wide::i16x8::from_u8x16_low(u),
+            wide::i16x8::from_u8x16_high(u),
+        )
+    }
+
+    #[inline(always)]
+    #[allow(
+        clippy::arithmetic_side_effects,
+        reason = "vector lane addition wraps (wide's documented semantics); exact modulo 2^32 (numeric.md)"
+    )]
+    fn mac(acc: &mut wide::i32x4, t: &[u8; 32], f: Self::Px) {
+        let [lo, hi] = wide::bytemuck::cast::<[u8; 32], [wide::i16x8; 2]>(*t);
+        *acc += lo.dot(f.0) + hi.dot(f.1);
+    }
+
+    #[inline(always)]
+    fn reduce(acc: wide::i32x4) -> u32 {
+        acc.reduce_add().cast_unsigned()
+    }
+}
+
+/// Template chunks as two aligned 8-lane vectors (SSE2): both products of a
+/// chunk go into one 128-bit accumulator.
+#[cfg(all(target_arch = "x86_64", not(target_feature = "avx")))]
+struct Aligned;
+
+#[cfg(all(target_arch = "x86_64", not(target_feature = "avx")))]
+impl Lanes for Aligned {
+    type Chunk = [wide::i16x8; 2];
+    type Px = (wide::i16x8, wide::i16x8);
+    type Acc = wide::i32x4;
+    const ZERO: wide::i32x4 = wide::i32x4::ZERO;
+
+    #[inline(always)]
+    fn widen(f: &[u8; 16]) -> Self::Px {
+        let u = wide::u8x16::from(*f);
+        (
+            wide::i16x8::from_u8x16_low(u),
+            wide::i16x8::from_u8x16_high(u),
+        )
+    }
+
+    #[inline(always)]
+    #[allow(
+        clippy::arithmetic_side_effects,
+        reason = "vector lane addition wraps (wide's documented semantics); exact modulo 2^32 (numeric.md)"
+    )]
+    fn mac(acc: &mut wide::i32x4, [lo, hi]: &[wide::i16x8; 2], f: Self::Px) {
+        *acc += lo.dot(f.0) + hi.dot(f.1);
+    }
+
+    #[inline(always)]
+    fn reduce(acc: wide::i32x4) -> u32 {
+        acc.reduce_add().cast_unsigned()
+    }
+}
+
+/// [`dot_col`] for templates of exactly `NC` 16-pixel chunks per row (`chunks`:
+/// the level's chunks, row-major, `th` rows): every row is a fixed-size array,
+/// so the loops over chunks and positions carry no bounds checks, and the `B`
+/// template rows of a window row in the body of the pass are one fixed-size
+/// block (rows `yy − B + 1 ..= yy`, position `j` on block row `B − 1 − j`).
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
 #[inline]
-fn dot_col_fixed<const B: usize, const NC: usize>(
-    t: &Tpl,
+fn dot_col_fixed<L: Lanes, const B: usize, const NC: usize>(
+    chunks: &[L::Chunk],
+    th: usize,
     win: &Win,
     px: usize,
     py: usize,
 ) -> [u32; B] {
-    use wide::{bytemuck::cast, i16x16, i32x8, u8x16};
     const C: usize = KERNEL_CHUNK;
-    let th = t.h;
-    let rows = t.px.as_chunks::<{ 2 * C }>().0.as_chunks::<NC>().0;
+    let rows = chunks.as_chunks::<NC>().0;
     let (Some(rows), Some(mut fstart)) = (
         rows.get(..th),
         py.checked_mul(win.w).and_then(|o| o.checked_add(px)),
     ) else {
         return [0; B];
     };
-    let mut acc = [i32x8::ZERO; B];
+    let mut acc = [L::ZERO; B];
     for yy in 0..th.saturating_add(B).saturating_sub(1) {
         let frow = win
             .px
@@ -109,15 +240,15 @@ fn dot_col_fixed<const B: usize, const NC: usize>(
             continue;
         };
         let blk = yy
-            .checked_sub(B - 1)
+            .checked_sub(B.saturating_sub(1))
             .and_then(|lo| rows.get(lo..))
             .and_then(|r| r.first_chunk::<B>());
         if let Some(blk) = blk {
             for (c, f) in frow.iter().enumerate() {
-                let fv = i16x16::from(u8x16::from(*f));
+                let fv = L::widen(f);
                 for (a, row) in acc.iter_mut().zip(blk.iter().rev()) {
                     if let Some(tt) = row.get(c) {
-                        *a += cast::<[u8; 32], i16x16>(*tt).dot(fv);
+                        L::mac(a, tt, fv);
                     }
                 }
             }
@@ -125,19 +256,19 @@ fn dot_col_fixed<const B: usize, const NC: usize>(
             // First and last B − 1 window rows: position j has template row
             // yy − j when that exists. Indexed by the (unrolled) j only, so the
             // accumulators stay in registers.
-            let tr: [Option<&[[u8; 32]; NC]>; B] =
+            let tr: [Option<&[L::Chunk; NC]>; B] =
                 core::array::from_fn(|j| yy.checked_sub(j).and_then(|r| rows.get(r)));
             for (c, f) in frow.iter().enumerate() {
-                let fv = i16x16::from(u8x16::from(*f));
+                let fv = L::widen(f);
                 for (a, row) in acc.iter_mut().zip(&tr) {
                     if let Some(tt) = row.and_then(|r| r.get(c)) {
-                        *a += cast::<[u8; 32], i16x16>(*tt).dot(fv);
+                        L::mac(a, tt, fv);
                     }
                 }
             }
         }
     }
-    acc.map(|a| a.reduce_add().cast_unsigned())
+    acc.map(L::reduce)
 }
 
 /// [`dot_col`] for any template width: row by row, with a scalar tail.
@@ -268,6 +399,9 @@ mod tests {
     use std::vec;
     use std::vec::Vec;
 
+    /// Rows of positions the test windows leave room for below a template.
+    const COL_BLOCK_TEST: usize = 8;
+
     /// The template level as the vector kernel reads it (little-endian i16).
     fn widened(px: &[u8]) -> Vec<u8> {
         px.iter().flat_map(|&v| [v, 0]).collect()
@@ -292,7 +426,7 @@ mod tests {
             };
             let (ww, wh) = (
                 tw + KERNEL_BLOCK - 1 + rng.below(20) as usize,
-                th + 4 + rng.below(10) as usize,
+                th + COL_BLOCK_TEST + rng.below(10) as usize,
             );
             let win: Vec<u8> = if case % 7 == 0 {
                 vec![255; ww * wh]
@@ -320,8 +454,10 @@ mod tests {
                 st: 0,
                 var_t: 1,
             };
+            let odd_buf: Vec<u8>;
             let t8 = tpl(&px);
             let px16 = widened(&px);
+            odd_buf = [&[0u8][..], &px16].concat();
             let w = Win {
                 px: &win,
                 w: ww,
@@ -329,7 +465,7 @@ mod tests {
             };
             for _ in 0..4 {
                 let x = rng.below((ww + 2 - tw - KERNEL_BLOCK) as u32) as usize;
-                let y = rng.below((wh - th - 3) as u32) as usize;
+                let y = rng.below((wh - th - COL_BLOCK_TEST + 1) as u32) as usize;
                 let want = |dx: usize, dy: usize| {
                     let v = ref_dot(&px, tw, th, &win, ww, x + dx, y + dy);
                     assert!(v < 1 << 32, "case {case}: reference {v} exceeds u32");
@@ -348,21 +484,26 @@ mod tests {
                 assert_eq!(u64::from(one), want(0, 0), "case {case}");
                 #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
                 {
-                    let t16 = tpl(&px16);
-                    let col = |got: &[u32]| {
-                        for (j, &g) in got.iter().enumerate() {
-                            assert_eq!(
-                                u64::from(g),
-                                want(0, j),
-                                "case {case}: {tw}x{th} at ({x}, {})",
-                                y + j
-                            );
-                        }
-                    };
-                    col(&dot_col::<1>(&t16, &w, x, y));
-                    col(&dot_col::<2>(&t16, &w, x, y));
-                    col(&dot_col::<3>(&t16, &w, x, y));
-                    col(&dot_col::<COL_BLOCK>(&t16, &w, x, y));
+                    // The template i16 bytes at an aligned and at an odd address
+                    // (the aligned and the unaligned paths on SSE2).
+                    for t16 in [tpl(&px16), tpl(&odd_buf[1..])] {
+                        let col = |got: &[u32]| {
+                            for (j, &g) in got.iter().enumerate() {
+                                assert_eq!(
+                                    u64::from(g),
+                                    want(0, j),
+                                    "case {case}: {tw}x{th} at ({x}, {})",
+                                    y + j
+                                );
+                            }
+                        };
+                        col(&dot_col::<1>(&t16, &w, x, y));
+                        col(&dot_col::<2>(&t16, &w, x, y));
+                        col(&dot_col::<3>(&t16, &w, x, y));
+                        col(&dot_col::<4>(&t16, &w, x, y));
+                        col(&dot_col::<5>(&t16, &w, x, y));
+                        col(&dot_col::<COL_BLOCK>(&t16, &w, x, y));
+                    }
                 }
                 #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
                 let _ = &px16;

@@ -264,7 +264,7 @@ fn mul_wide(a: u128, b: u64) -> (u128, u64) {
     clippy::arithmetic_side_effects,
     reason = "|num|, var_f < 2^48 are exact in f64; the rounding of the products is bounded above (f64 arithmetic)"
 )]
-fn cmp_keys_f64(a: &Score, b: &Score) -> Option<Ordering> {
+pub(crate) fn cmp_keys_f64(a: &Score, b: &Score) -> Option<Ordering> {
     let (na, nb) = (a.num as f64, b.num as f64);
     let la = na * na.abs() * (b.var_f as f64).abs();
     let lb = nb * nb.abs() * (a.var_f as f64).abs();
@@ -282,7 +282,7 @@ fn cmp_keys_f64(a: &Score, b: &Score) -> Option<Ordering> {
 /// The integer comparison decides every pair on this target.
 #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
 #[inline]
-fn cmp_keys_f64(_: &Score, _: &Score) -> Option<Ordering> {
+pub(crate) fn cmp_keys_f64(_: &Score, _: &Score) -> Option<Ordering> {
     None
 }
 

@@ -3,36 +3,82 @@
 use crate::fmt::present;
 use core::cmp::Ordering;
 
-use super::integral::Tables;
+use super::integral::{Integral, Tables};
 #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
 use super::kernel::{dot_block, KERNEL_BLOCK};
 #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
 use super::kernel::{dot_col, COL_BLOCK};
 use super::pyramid::{refine_plan, whole_level_tables, Tpl, Win};
 use super::{
-    cmp_scores, key_beats, order_key, peak_radius_px, FailureCode, MatchStats, Score, SearchConfig,
-    MAX_CANDIDATES, MAX_CLIMB_STEPS, MAX_LEVELS,
+    cmp_keys_f64, cmp_scores, key_beats, order_key, peak_radius_px, FailureCode, MatchStats, Score,
+    SearchConfig, MAX_CANDIDATES, MAX_CLIMB_STEPS, MAX_LEVELS,
 };
+
+/// Receiver of the scored positions of [`eval_positions`], in raster order.
+pub(super) trait Sink {
+    /// A score such that offering any score not strictly better than it
+    /// changes nothing (`None`: any offer may count). Read again after every
+    /// offer; positions clearly below it are not offered.
+    fn floor(&self) -> Option<Score>;
+    /// Take the score of position `(x, y)`.
+    fn offer(&mut self, x: usize, y: usize, s: Score);
+}
+
+impl Sink for TopK {
+    #[inline]
+    fn floor(&self) -> Option<Score> {
+        // Only a full list rejects by its last entry (a list shortened by
+        // near entries leaving takes any offer that is not near a better one).
+        (self.len == self.cap)
+            .then(|| self.as_slice().last().map(|c| c.s))
+            .flatten()
+    }
+
+    #[inline]
+    fn offer(&mut self, x: usize, y: usize, s: Score) {
+        TopK::offer(self, Cand { x, y, s });
+    }
+}
+
+/// The argmax of the offered positions (ties keep the first offered).
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct ArgMax(pub(super) Option<Cand>);
+
+impl Sink for ArgMax {
+    #[inline]
+    fn floor(&self) -> Option<Score> {
+        self.0.map(|b| b.s)
+    }
+
+    #[inline]
+    fn offer(&mut self, x: usize, y: usize, s: Score) {
+        if self.0.as_ref().is_none_or(|b| beats(&s, &b.s)) {
+            self.0 = Some(Cand { x, y, s });
+        }
+    }
+}
+
+/// Whether `s` is clearly below `floor` (by the f64 shortcut of
+/// [`cmp_scores`]; never where that defers to the integers).
+#[inline]
+fn below(s: &Score, floor: Option<&Score>) -> bool {
+    floor.is_some_and(|f| cmp_keys_f64(s, f) == Some(Ordering::Less))
+}
 
 /// Positions per row a [`Strip`] holds: a region wider than this is scored one
 /// row at a time (exhaustive searches of wide windows).
 #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
 pub(super) const STRIP_W: usize = 128;
 
-/// One column of a strip: the window sums and Σ t·f of its positions.
-#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
-#[derive(Clone, Copy, Default)]
-struct StripCol {
-    sums: [(u32, u32); COL_BLOCK],
-    dots: [u32; COL_BLOCK],
-}
-
-/// Working memory of [`eval_positions`] on the vector targets: the results of
-/// a strip of up to [`COL_BLOCK`] rows of positions, scored column by column
-/// ([`dot_col`]) and handed on row by row, in raster order. One per search.
+/// Working memory of [`eval_positions`] on the vector targets: a strip of up
+/// to [`COL_BLOCK`] rows of positions, its window sums (computed a row at a
+/// time from the integral tables) and Σ t·f (column by column, [`dot_col`]),
+/// handed on row by row, in raster order. One per search.
 #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
 pub(super) struct Strip {
-    cols: [StripCol; STRIP_W],
+    sf: [[u32; STRIP_W]; COL_BLOCK],
+    sff: [[u32; STRIP_W]; COL_BLOCK],
+    dots: [[u32; STRIP_W]; COL_BLOCK],
 }
 
 /// Working memory of [`eval_positions`]: none with the portable kernel.
@@ -43,7 +89,9 @@ impl Strip {
     #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
     pub(super) fn new() -> Self {
         Self {
-            cols: [StripCol::default(); STRIP_W],
+            sf: [[0; STRIP_W]; COL_BLOCK],
+            sff: [[0; STRIP_W]; COL_BLOCK],
+            dots: [[0; STRIP_W]; COL_BLOCK],
         }
     }
 
@@ -53,84 +101,72 @@ impl Strip {
     }
 }
 
+/// The template terms `eval_positions` turns window sums and Σ t·f into scores with.
+#[derive(Clone, Copy)]
+struct Terms {
+    n: i64,
+    st: i64,
+    var_t: i64,
+}
+
+impl Terms {
+    /// (Σf, var_f) from the window sums: N·Σf² − (Σf)² < 2⁴⁸ (numeric.md), no
+    /// wrap for templates within the caps.
+    #[inline]
+    fn var_f(&self, sf: u32, sff: u32) -> (i64, i64) {
+        let (sf, sff) = (i64::from(sf), i64::from(sff));
+        (
+            sf,
+            self.n.wrapping_mul(sff).wrapping_sub(sf.wrapping_mul(sf)),
+        )
+    }
+
+    /// The score from Σf, var_f and Σ t·f: N·Σft − Σf·Σt < 2⁴⁸ (numeric.md).
+    #[inline]
+    fn score(&self, sf: i64, var_f: i64, dot: u32) -> Score {
+        Score {
+            num: self
+                .n
+                .wrapping_mul(i64::from(dot))
+                .wrapping_sub(sf.wrapping_mul(self.st)),
+            var_f,
+            var_t: self.var_t,
+        }
+    }
+}
+
 /// Score every position `(x, y)` with `x0 ≤ x ≤ x1`, `y0 ≤ y ≤ y1` (all valid
-/// top-left positions) and hand each non-flat one to `sink`, in raster order.
-#[allow(clippy::too_many_arguments, clippy::too_many_lines)]
+/// top-left positions) and hand each non-flat one that is not clearly below
+/// the sink's floor to `sink`, in raster order; every non-flat position counts
+/// as scored.
 #[allow(
     clippy::arithmetic_side_effects,
     reason = "x1 ≥ x0 and y1 ≥ y0 are checked at entry"
 )]
-pub(super) fn eval_positions<F: FnMut(usize, usize, Score)>(
+pub(super) fn eval_positions<S: Sink>(
     t: &Tpl,
     (k, win): (usize, &Win),
     (x0, y0, x1, y1): (usize, usize, usize, usize),
     tables: &mut Tables,
     strip: &mut Strip,
     stats: &mut MatchStats,
-    mut sink: F,
+    sink: &mut S,
 ) -> Result<(), FailureCode> {
     if x1 < x0 || y1 < y0 {
         return Ok(());
     }
     // Wrapping index arithmetic below: positions lie in `[x0, x1] × [y0, y1]`
     // of a window that holds the template there (the contract), so nothing
-    // wraps; `Integral::rect` and the kernels read through `get` in any case.
+    // wraps; the integral tables and the kernels read through `get` in any case.
     let rw = (x1 - x0).saturating_add(t.w);
     let rh = (y1 - y0).saturating_add(t.h);
     let integ = tables.region(k, win, (x0, y0, rw, rh))?;
-    // (Σf, Σf²) of the window at window-level coordinates (x, y).
-    let window_sums = |x: usize, y: usize| -> (u32, u32) {
-        let (rx, ry) = (x.wrapping_sub(integ.x0), y.wrapping_sub(integ.y0));
-        match t.runs {
-            None => integ.rect(rx, ry, t.w, t.h),
-            Some(runs) => runs.iter().fold((0u32, 0u32), |(s, q), run| {
-                let (a, b) = integ.rect(
-                    rx.wrapping_add(usize::from(run.x0)),
-                    ry.wrapping_add(usize::from(run.row)),
-                    usize::from(run.x1.wrapping_sub(run.x0)),
-                    usize::from(run.rows),
-                );
-                (s.wrapping_add(a), q.wrapping_add(b))
-            }),
-        }
+    let terms = Terms {
+        n: t.n,
+        st: t.st,
+        var_t: t.var_t,
     };
-    // (Σf, var_f) from the sums: N·Σf² − (Σf)² < 2⁴⁸ (numeric.md), no wrap
-    // for templates within the caps.
-    let var_f = |(sf, sff): (u32, u32)| -> (i64, i64) {
-        let (sf, sff) = (i64::from(sf), i64::from(sff));
-        (sf, t.n.wrapping_mul(sff).wrapping_sub(sf.wrapping_mul(sf)))
-    };
-    let (mut scored, mut flat) = (0u64, 0u64);
-    let mut emit = |x: usize, y: usize, sums: (u32, u32), dot: u32| {
-        let (sf, var_f) = var_f(sums);
-        if var_f <= 0 {
-            flat = flat.wrapping_add(1);
-            return;
-        }
-        scored = scored.wrapping_add(1);
-        sink(
-            x,
-            y,
-            Score {
-                // N·Σft − Σf·Σt < 2⁴⁸ (numeric.md).
-                num: t
-                    .n
-                    .wrapping_mul(i64::from(dot))
-                    .wrapping_sub(sf.wrapping_mul(t.st)),
-                var_f,
-                var_t: t.var_t,
-            },
-        );
-    };
-    scan(
-        t,
-        win,
-        (x0, y0, x1, y1),
-        strip,
-        &window_sums,
-        &var_f,
-        &mut emit,
-    );
+    let (scored, flat) = scan(t, win, &integ, (x0, y0, x1, y1), strip, terms, sink);
     stats.positions_scored = stats.positions_scored.saturating_add(scored);
     stats.flat_positions = stats.flat_positions.saturating_add(flat);
     let per = t.w.saturating_mul(t.h) as u64;
@@ -138,72 +174,170 @@ pub(super) fn eval_positions<F: FnMut(usize, usize, Score)>(
     Ok(())
 }
 
-/// The vector targets' scan: strips of up to [`COL_BLOCK`] rows, each scored
-/// column by column with [`dot_col`] (one pass over the window rows per column
-/// of positions), then handed to `emit` row by row. A column whose positions
-/// are all flat skips the kernel. Regions wider than [`STRIP_W`] go one row at
-/// a time.
+/// (Σf, Σf²) of the window under the template's kept pixels at window-level
+/// coordinates (x, y).
+#[inline]
+fn window_sums(t: &Tpl, integ: &Integral, x: usize, y: usize) -> (u32, u32) {
+    let (rx, ry) = (x.wrapping_sub(integ.x0), y.wrapping_sub(integ.y0));
+    match t.runs {
+        None => integ.rect(rx, ry, t.w, t.h),
+        Some(runs) => runs.iter().fold((0u32, 0u32), |(s, q), run| {
+            let (a, b) = integ.rect(
+                rx.wrapping_add(usize::from(run.x0)),
+                ry.wrapping_add(usize::from(run.row)),
+                usize::from(run.x1.wrapping_sub(run.x0)),
+                usize::from(run.rows),
+            );
+            (s.wrapping_add(a), q.wrapping_add(b))
+        }),
+    }
+}
+
+/// Hand one position to `sink` unless flat or clearly below `floor` (which is
+/// read again after an offer); counts it in `(scored, flat)`.
+#[inline]
+#[allow(clippy::too_many_arguments)]
+fn deliver<S: Sink>(
+    terms: &Terms,
+    sink: &mut S,
+    floor: &mut Option<Score>,
+    counts: &mut (u64, u64),
+    x: usize,
+    y: usize,
+    (sf, sff): (u32, u32),
+    dot: u32,
+) {
+    let (sf, var_f) = terms.var_f(sf, sff);
+    if var_f <= 0 {
+        counts.1 = counts.1.wrapping_add(1);
+        return;
+    }
+    counts.0 = counts.0.wrapping_add(1);
+    let s = terms.score(sf, var_f, dot);
+    if below(&s, floor.as_ref()) {
+        return;
+    }
+    sink.offer(x, y, s);
+    *floor = sink.floor();
+}
+
+/// The vector targets' scan: strips of up to [`COL_BLOCK`] rows, their window
+/// sums a row at a time, their Σ t·f column by column with [`dot_col`] (one
+/// pass over the window rows per column of positions), handed on row by row.
+/// A column whose positions are all flat skips the kernel. Regions wider than
+/// [`STRIP_W`] go one position at a time. Returns (scored, flat) counts.
 #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
 #[allow(
     clippy::arithmetic_side_effects,
     reason = "x1 ≥ x0 and y1 ≥ y0 (checked by the caller); strip indices < COL_BLOCK"
 )]
-fn scan(
+fn scan<S: Sink>(
     t: &Tpl,
     win: &Win,
+    integ: &Integral,
     (x0, y0, x1, y1): (usize, usize, usize, usize),
     strip: &mut Strip,
-    window_sums: &impl Fn(usize, usize) -> (u32, u32),
-    var_f: &impl Fn((u32, u32)) -> (i64, i64),
-    emit: &mut impl FnMut(usize, usize, (u32, u32), u32),
-) {
+    terms: Terms,
+    sink: &mut S,
+) -> (u64, u64) {
+    let mut counts = (0u64, 0u64);
+    let mut floor = sink.floor();
     let width = x1 - x0 + 1;
-    let Some(cols) = strip.cols.get_mut(..width) else {
+    if width > STRIP_W {
         for y in y0..=y1 {
             for x in x0..=x1 {
-                let sums = window_sums(x, y);
-                let dot = if var_f(sums).1 > 0 {
+                let (sf, sff) = window_sums(t, integ, x, y);
+                let dot = if terms.var_f(sf, sff).1 > 0 {
                     let [d] = dot_col::<1>(t, win, x, y);
                     d
                 } else {
                     0
                 };
-                emit(x, y, sums, dot);
+                deliver(&terms, sink, &mut floor, &mut counts, x, y, (sf, sff), dot);
             }
         }
-        return;
-    };
+        return counts;
+    }
+    let (rx0, ry0) = (x0.wrapping_sub(integ.x0), y0.wrapping_sub(integ.y0));
     let mut ys = y0;
     loop {
         let hs = (y1 - ys + 1).min(COL_BLOCK);
-        for (x, col) in (x0..).zip(cols.iter_mut()) {
-            let mut any = false;
-            for (j, s) in (0..hs).zip(col.sums.iter_mut()) {
-                *s = window_sums(x, ys + j);
-                any |= var_f(*s).1 > 0;
-            }
-            if !any {
+        let ry = ry0.wrapping_add(ys - y0);
+        // Window sums, a row of positions at a time.
+        for (j, (sf, sff)) in (0..hs).zip(strip.sf.iter_mut().zip(strip.sff.iter_mut())) {
+            let (Some(sf), Some(sff)) = (sf.get_mut(..width), sff.get_mut(..width)) else {
                 continue;
-            }
-            let d = &mut col.dots;
-            let put = |d: &mut [u32; COL_BLOCK], v: &[u32]| {
-                for (a, &b) in d.iter_mut().zip(v) {
-                    *a = b;
-                }
             };
-            match hs {
-                1 => put(d, &dot_col::<1>(t, win, x, ys)),
-                2 => put(d, &dot_col::<2>(t, win, x, ys)),
-                3 => put(d, &dot_col::<3>(t, win, x, ys)),
-                _ => *d = dot_col::<COL_BLOCK>(t, win, x, ys),
+            let ry = ry.wrapping_add(j);
+            match t.runs {
+                None => integ.rect_row(rx0, ry, t.w, t.h, sf, sff),
+                Some(runs) => {
+                    sf.fill(0);
+                    sff.fill(0);
+                    for run in runs {
+                        integ.add_rect_row(
+                            rx0.wrapping_add(usize::from(run.x0)),
+                            ry.wrapping_add(usize::from(run.row)),
+                            usize::from(run.x1.wrapping_sub(run.x0)),
+                            usize::from(run.rows),
+                            sf,
+                            sff,
+                        );
+                    }
+                }
             }
         }
-        for j in 0..hs {
-            for (x, col) in (x0..).zip(cols.iter()) {
-                let (Some(&sums), Some(&dot)) = (col.sums.get(j), col.dots.get(j)) else {
-                    continue;
+        // Σ t·f, a column of positions at a time.
+        for (i, x) in (x0..=x1).enumerate() {
+            let live = (0..hs).any(|j| {
+                let (sf, sff) = (
+                    strip.sf.get(j).and_then(|r| r.get(i)).copied().unwrap_or(0),
+                    strip
+                        .sff
+                        .get(j)
+                        .and_then(|r| r.get(i))
+                        .copied()
+                        .unwrap_or(0),
+                );
+                terms.var_f(sf, sff).1 > 0
+            });
+            if !live {
+                continue;
+            }
+            let mut d = [0u32; COL_BLOCK];
+            let mut j = 0usize;
+            while j < hs {
+                let y = ys + j;
+                let Some(dst) = d.get_mut(j..) else {
+                    break;
                 };
-                emit(x, ys + j, sums, dot);
+                let put = |dst: &mut [u32], v: &[u32]| {
+                    for (a, &b) in dst.iter_mut().zip(v) {
+                        *a = b;
+                    }
+                    v.len()
+                };
+                j += match hs - j {
+                    8.. => put(dst, &dot_col::<8>(t, win, x, y)),
+                    5..=7 => put(dst, &dot_col::<5>(t, win, x, y)),
+                    4 => put(dst, &dot_col::<4>(t, win, x, y)),
+                    3 => put(dst, &dot_col::<3>(t, win, x, y)),
+                    2 => put(dst, &dot_col::<2>(t, win, x, y)),
+                    _ => put(dst, &dot_col::<1>(t, win, x, y)),
+                };
+            }
+            for (row, &v) in strip.dots.iter_mut().zip(&d) {
+                if let Some(o) = row.get_mut(i) {
+                    *o = v;
+                }
+            }
+        }
+        // Hand the positions on, row by row.
+        for (j, ((sf, sff), dots)) in (0..hs).zip(strip.sf.iter().zip(&strip.sff).zip(&strip.dots))
+        {
+            let y = ys + j;
+            for (x, ((&a, &b), &d)) in (x0..=x1).zip(sf.iter().zip(sff).zip(dots)) {
+                deliver(&terms, sink, &mut floor, &mut counts, x, y, (a, b), d);
             }
         }
         ys += hs;
@@ -211,21 +345,24 @@ fn scan(
             break;
         }
     }
+    counts
 }
 
 /// The portable scan: row by row, runs of [`KERNEL_BLOCK`] consecutive x
 /// sharing one pass over the template rows ([`dot_block`]); a run whose
-/// positions are all flat skips the kernel.
+/// positions are all flat skips the kernel. Returns (scored, flat) counts.
 #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
-fn scan(
+fn scan<S: Sink>(
     t: &Tpl,
     win: &Win,
+    integ: &Integral,
     (x0, y0, x1, y1): (usize, usize, usize, usize),
     _strip: &mut Strip,
-    window_sums: &impl Fn(usize, usize) -> (u32, u32),
-    var_f: &impl Fn((u32, u32)) -> (i64, i64),
-    emit: &mut impl FnMut(usize, usize, (u32, u32), u32),
-) {
+    terms: Terms,
+    sink: &mut S,
+) -> (u64, u64) {
+    let mut counts = (0u64, 0u64);
+    let mut floor = sink.floor();
     for y in y0..=y1 {
         // `x0, x0 + KERNEL_BLOCK, … ≤ x1` without `step_by` over an inclusive
         // range, whose `nth` has an overflow panic path.
@@ -238,8 +375,8 @@ fn scan(
             // `(0..n).zip(…)` rather than `enumerate().take(n)`: the same
             // pairs without the enumerate counter's overflow check.
             for ((i, s), l) in (0..n).zip(sums.iter_mut()).zip(live.iter_mut()) {
-                *s = window_sums(xb.wrapping_add(i), y);
-                *l = var_f(*s).1 > 0;
+                *s = window_sums(t, integ, xb.wrapping_add(i), y);
+                *l = terms.var_f(s.0, s.1).1 > 0;
             }
             let mut dots = [0u32; KERNEL_BLOCK];
             if n == KERNEL_BLOCK {
@@ -255,10 +392,20 @@ fn scan(
                 }
             }
             for ((i, &s), &d) in (0..n).zip(&sums).zip(&dots) {
-                emit(xb.wrapping_add(i), y, s, d);
+                deliver(
+                    &terms,
+                    sink,
+                    &mut floor,
+                    &mut counts,
+                    xb.wrapping_add(i),
+                    y,
+                    s,
+                    d,
+                );
             }
         }
     }
+    counts
 }
 
 #[derive(Clone, Copy, Debug, Default)]
@@ -468,9 +615,7 @@ pub(super) fn coarse_to_fine(
         tables,
         strip,
         stats,
-        |x, y, s| {
-            top.offer(Cand { x, y, s });
-        },
+        &mut top,
     )?;
     stats.candidates = top.len as u8;
 
@@ -492,9 +637,8 @@ pub(super) fn coarse_to_fine(
         let mut n_visited = 0;
         for c in top.as_slice().iter().take(keep) {
             let mut center = (c.x.saturating_mul(2).min(lx), c.y.saturating_mul(2).min(ly));
-            // The region's argmax (ties keep the first offered): `TopK` with one
-            // entry and radius 0, without its 64-entry array.
-            let mut best: Option<Cand> = None;
+            // The region's argmax (ties keep the first offered).
+            let mut best = ArgMax::default();
             for _ in 0..=MAX_CLIMB_STEPS {
                 let seen = present(visited.get(..n_visited));
                 if seen.contains(&center) {
@@ -512,15 +656,8 @@ pub(super) fn coarse_to_fine(
                     cx.saturating_add(r).min(lx),
                     cy.saturating_add(r).min(ly),
                 );
-                eval_positions(&t, (k, &w), bounds, tables, strip, stats, |x, y, s| {
-                    let better = best
-                        .as_ref()
-                        .is_none_or(|b| cmp_scores(&s, &b.s) == Ordering::Greater);
-                    if better {
-                        best = Some(Cand { x, y, s });
-                    }
-                })?;
-                let Some(b) = best.as_ref() else {
+                eval_positions(&t, (k, &w), bounds, tables, strip, stats, &mut best)?;
+                let Some(b) = best.0.as_ref() else {
                     break;
                 };
                 // Stop unless the peak sits on a border that is not the window's edge.
@@ -533,7 +670,7 @@ pub(super) fn coarse_to_fine(
                 }
                 center = (b.x, b.y);
             }
-            if let Some(b) = best {
+            if let Some(b) = best.0 {
                 next.offer(b);
             }
         }
