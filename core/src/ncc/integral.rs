@@ -281,7 +281,12 @@ mod tests {
         let mut rng = Rng::new(5);
         let (w, h) = (37usize, 29usize);
         let px = random_px(w * h, &mut rng);
-        let win = Win { px: &px, w, h };
+        let win = Win {
+            px: &px,
+            w,
+            h,
+            stride: w,
+        };
         let mut whole = vec![0u32; 2 * (w + 1) * (h + 1)];
         let mut region = vec![0u32; 2 * (w + 1) * (h + 1)];
         Integral::build(&win, 0, 0, w, h, &mut whole).unwrap();

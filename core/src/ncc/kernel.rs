@@ -225,7 +225,7 @@ fn dot_col_fixed<L: Lanes, const B: usize, const NC: usize>(
     let rows = chunks.as_chunks::<NC>().0;
     let (Some(rows), Some(mut fstart)) = (
         rows.get(..th),
-        py.checked_mul(win.w).and_then(|o| o.checked_add(px)),
+        py.checked_mul(win.stride).and_then(|o| o.checked_add(px)),
     ) else {
         return [0; B];
     };
@@ -235,7 +235,7 @@ fn dot_col_fixed<L: Lanes, const B: usize, const NC: usize>(
             .px
             .get(fstart..)
             .and_then(|f| f.as_chunks::<C>().0.first_chunk::<NC>());
-        fstart = fstart.wrapping_add(win.w);
+        fstart = fstart.wrapping_add(win.stride);
         let Some(frow) = frow else {
             continue;
         };
@@ -462,6 +462,7 @@ mod tests {
                 px: &win,
                 w: ww,
                 h: wh,
+                stride: ww,
             };
             for _ in 0..4 {
                 let x = rng.below((ww + 2 - tw - KERNEL_BLOCK) as u32) as usize;

@@ -313,9 +313,12 @@ pub(super) struct Tpl<'s> {
 /// One pyramid level of the window.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Win<'s> {
+    /// Pixels, row-major with `stride` pixels per row (at least
+    /// `(h − 1)·stride + w` of them).
     pub(super) px: &'s [u8],
     pub(super) w: usize,
     pub(super) h: usize,
+    pub(super) stride: usize,
 }
 
 impl<'s> Win<'s> {
@@ -324,11 +327,11 @@ impl<'s> Win<'s> {
         (self.w.saturating_sub(tw), self.h.saturating_sub(th))
     }
 
-    /// `len` pixels of row `y` from column `x` (row-major, stride `w`), or
-    /// `None` where they would leave the buffer: checked offsets, no panic path.
+    /// `len` pixels of row `y` from column `x`, or `None` where they would
+    /// leave the buffer: checked offsets, no panic path.
     #[inline]
     pub(super) fn span(&self, x: usize, y: usize, len: usize) -> Option<&'s [u8]> {
-        let start = y.checked_mul(self.w)?.checked_add(x)?;
+        let start = y.checked_mul(self.stride)?.checked_add(x)?;
         self.px.get(start..start.checked_add(len)?)
     }
 }
@@ -573,9 +576,10 @@ pub(super) fn build_template_levels<'s>(
 }
 
 /// Build the window pyramid of `levels` levels: level 0 is `wr` of `image` after
-/// `filter`, each further level the 2× box downsample of the one above.
+/// `filter` (for the gray domain, `wr` of `image` itself: no copy), each further
+/// level the 2× box downsample of the one above.
 pub(super) fn build_window_levels<'s>(
-    image: &GrayView,
+    image: &GrayView<'s>,
     wr: Rect,
     filter: Filter,
     levels: usize,
@@ -591,12 +595,35 @@ pub(super) fn build_window_levels<'s>(
             .split_at_mut_checked(w.saturating_mul(h))
             .ok_or(FailureCode::NccScratchTooSmall)?;
         wbuf = rest;
-        match prev {
-            None => filter_region(image, wr, filter, px)?,
-            Some(p) => downsample(&GrayView::new(p.px, p.w, p.h, p.w)?, px),
-        }
-        let px: &[u8] = px;
-        let win = Win { px, w, h };
+        let win = match prev {
+            None if filter == Filter::Gray => {
+                let v = image.sub(wr).ok_or(FailureCode::NccWindowOutsideImage)?;
+                Win {
+                    px: v.data(),
+                    w,
+                    h,
+                    stride: v.stride(),
+                }
+            }
+            None => {
+                filter_region(image, wr, filter, px)?;
+                Win {
+                    px,
+                    w,
+                    h,
+                    stride: w,
+                }
+            }
+            Some(p) => {
+                downsample(&GrayView::new(p.px, p.w, p.h, p.stride)?, px);
+                Win {
+                    px,
+                    w,
+                    h,
+                    stride: w,
+                }
+            }
+        };
         *slot = Some(win);
         prev = Some(win);
     }
