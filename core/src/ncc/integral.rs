@@ -88,7 +88,8 @@ impl<'s> Integral<'s> {
 impl Integral<'_> {
     /// (Σf, Σf²) over the `w × h` rectangles at region coordinates
     /// `(x + i, y)`, `i < sf.len()`, into `sf[i]` and `sff[i]` (the shorter of
-    /// the two lengths): four table rows combined entry by entry.
+    /// the two lengths): four table rows combined entry by entry. Rectangles
+    /// outside the region (never, by the contract) give zeros.
     pub(super) fn rect_row(
         &self,
         x: usize,
@@ -98,13 +99,11 @@ impl Integral<'_> {
         sf: &mut [u32],
         sff: &mut [u32],
     ) {
-        sf.fill(0);
-        sff.fill(0);
-        self.add_rect_row(x, y, w, h, sf, sff);
+        self.rect_row_with(x, y, w, h, sf, sff, false);
     }
 
-    /// [`Integral::rect_row`] added (wrapping) to `sf` and `sff`. Rectangles
-    /// outside the region (never, by the contract) add nothing.
+    /// [`Integral::rect_row`] added (wrapping) to `sf` and `sff`; rectangles
+    /// outside the region add nothing.
     pub(super) fn add_rect_row(
         &self,
         x: usize,
@@ -113,6 +112,21 @@ impl Integral<'_> {
         h: usize,
         sf: &mut [u32],
         sff: &mut [u32],
+    ) {
+        self.rect_row_with(x, y, w, h, sf, sff, true);
+    }
+
+    #[inline]
+    #[allow(clippy::too_many_arguments)]
+    fn rect_row_with(
+        &self,
+        x: usize,
+        y: usize,
+        w: usize,
+        h: usize,
+        sf: &mut [u32],
+        sff: &mut [u32],
+        add: bool,
     ) {
         let n = sf.len().min(sff.len());
         // Wrapping: a rectangle inside the region (the contract) never wraps;
@@ -128,10 +142,20 @@ impl Integral<'_> {
                 row(i00),
                 out.get_mut(..n),
             ) else {
+                if !add {
+                    out.fill(0);
+                }
                 continue;
             };
-            for ((((o, &a), &b), &c), &d) in out.iter_mut().zip(a).zip(b).zip(c).zip(d) {
-                *o = o.wrapping_add(a.wrapping_sub(b).wrapping_sub(c).wrapping_add(d));
+            let rects = out.iter_mut().zip(a).zip(b).zip(c).zip(d);
+            if add {
+                for ((((o, &a), &b), &c), &d) in rects {
+                    *o = o.wrapping_add(a.wrapping_sub(b).wrapping_sub(c).wrapping_add(d));
+                }
+            } else {
+                for ((((o, &a), &b), &c), &d) in rects {
+                    *o = a.wrapping_sub(b).wrapping_sub(c).wrapping_add(d);
+                }
             }
         }
     }

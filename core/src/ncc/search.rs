@@ -304,32 +304,30 @@ fn scan<S: Sink>(
             if !live {
                 continue;
             }
-            let mut d = [0u32; COL_BLOCK];
+            // Column blocks of 8, 5, 4, 3, 2 and 1 positions, each result
+            // written straight into its strip rows.
             let mut j = 0usize;
             while j < hs {
                 let y = ys + j;
-                let Some(dst) = d.get_mut(j..) else {
+                let Some(rows) = strip.dots.get_mut(j..) else {
                     break;
                 };
-                let put = |dst: &mut [u32], v: &[u32]| {
-                    for (a, &b) in dst.iter_mut().zip(v) {
-                        *a = b;
+                let mut put = |v: &[u32]| {
+                    for (row, &d) in rows.iter_mut().zip(v) {
+                        if let Some(o) = row.get_mut(i) {
+                            *o = d;
+                        }
                     }
                     v.len()
                 };
                 j += match hs - j {
-                    8.. => put(dst, &dot_col::<8>(t, win, x, y)),
-                    5..=7 => put(dst, &dot_col::<5>(t, win, x, y)),
-                    4 => put(dst, &dot_col::<4>(t, win, x, y)),
-                    3 => put(dst, &dot_col::<3>(t, win, x, y)),
-                    2 => put(dst, &dot_col::<2>(t, win, x, y)),
-                    _ => put(dst, &dot_col::<1>(t, win, x, y)),
+                    8.. => put(&dot_col::<8>(t, win, x, y)),
+                    5..=7 => put(&dot_col::<5>(t, win, x, y)),
+                    4 => put(&dot_col::<4>(t, win, x, y)),
+                    3 => put(&dot_col::<3>(t, win, x, y)),
+                    2 => put(&dot_col::<2>(t, win, x, y)),
+                    _ => put(&dot_col::<1>(t, win, x, y)),
                 };
-            }
-            for (row, &v) in strip.dots.iter_mut().zip(&d) {
-                if let Some(o) = row.get_mut(i) {
-                    *o = v;
-                }
             }
         }
         // Hand the positions on, row by row.
