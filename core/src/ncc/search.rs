@@ -421,6 +421,10 @@ pub(super) struct TopK {
     pub(super) items: [Cand; MAX_CANDIDATES],
     /// [`order_key`] of each entry.
     keys: [f64; MAX_CANDIDATES],
+    /// Each entry's position (`x`, `y` as u32: positions lie in a window of at
+    /// most `MAX_SEARCH_PX` pixels), for the near test over the whole list.
+    xs: [u32; MAX_CANDIDATES],
+    ys: [u32; MAX_CANDIDATES],
     pub(super) len: usize,
     pub(super) cap: usize,
     pub(super) radius: usize,
@@ -430,6 +434,13 @@ pub(super) struct TopK {
     /// tries it before scanning the list. Any index is correct (the scan
     /// decides whenever the hint does not reject).
     hint: usize,
+}
+
+/// A position as u32 (positions lie in a window of at most `MAX_SEARCH_PX`
+/// pixels; saturating, so nothing wraps).
+#[inline]
+fn pos_u32(v: usize) -> u32 {
+    u32::try_from(v).unwrap_or(u32::MAX)
 }
 
 /// `a` strictly better than `b` (scores of one template).
@@ -443,6 +454,8 @@ impl TopK {
         Self {
             items: [Cand::default(); MAX_CANDIDATES],
             keys: [0.0; MAX_CANDIDATES],
+            xs: [0; MAX_CANDIDATES],
+            ys: [0; MAX_CANDIDATES],
             len: 0,
             cap: cap.clamp(1, MAX_CANDIDATES),
             radius,
@@ -495,16 +508,25 @@ impl TopK {
         let (Some(cur), Some(keys)) = (self.items.get(..len), self.keys.get(..len)) else {
             return;
         };
-        // |e − c| ≤ r as `e − c + r ≤ 2r` in wrapping arithmetic (positions are
-        // far below 2⁶³; a radius whose double saturates makes everything near,
-        // as it is).
-        let (r, span) = (self.radius, self.radius.saturating_mul(2));
+        // |e − c| ≤ r as `e − c + r ≤ 2r` in wrapping u32 arithmetic (positions
+        // are far below 2³¹; a radius of 2³⁰ or more makes everything near, as
+        // it is), eight entries at a time.
+        let r = u32::try_from(self.radius).unwrap_or(u32::MAX).min(1 << 30);
+        let span = r.wrapping_mul(2);
+        let (cx, cy) = (pos_u32(c.x), pos_u32(c.y));
         let mut near = 0u64;
-        for (i, e) in (0u32..).zip(cur) {
-            let n = (e.x.wrapping_sub(c.x).wrapping_add(r) <= span)
-                & (e.y.wrapping_sub(c.y).wrapping_add(r) <= span);
-            near |= u64::from(n).wrapping_shl(i);
+        let blocks = self.xs.as_chunks::<8>().0.iter().zip(self.ys.as_chunks::<8>().0);
+        for (b, (xb, yb)) in (0u32..).zip(blocks).take(len.div_ceil(8)) {
+            let mut m = 0u64;
+            for (i, (&x, &y)) in (0u32..).zip(xb.iter().zip(yb)) {
+                let n = (x.wrapping_sub(cx).wrapping_add(r) <= span)
+                    & (y.wrapping_sub(cy).wrapping_add(r) <= span);
+                m |= u64::from(n).wrapping_shl(i);
+            }
+            near |= m.wrapping_shl(b.wrapping_mul(8));
         }
+        // Slots past `len` hold stale positions.
+        near &= u64::MAX.checked_shr(64u32.saturating_sub(len as u32)).unwrap_or(0);
         let kc = order_key(&c.s);
         let mut m = near;
         while m != 0 {
@@ -553,9 +575,16 @@ impl TopK {
             self.move_entry(i.wrapping_sub(1), i);
             i = i.wrapping_sub(1);
         }
-        if let (Some(d), Some(dk)) = (self.items.get_mut(pos), self.keys.get_mut(pos)) {
+        if let (Some(d), Some(dk), Some(dx), Some(dy)) = (
+            self.items.get_mut(pos),
+            self.keys.get_mut(pos),
+            self.xs.get_mut(pos),
+            self.ys.get_mut(pos),
+        ) {
             *d = c;
             *dk = kc;
+            *dx = pos_u32(c.x);
+            *dy = pos_u32(c.y);
         }
         self.len = end;
         self.hint = pos;
@@ -564,10 +593,22 @@ impl TopK {
     /// Copy entry `from` (and its key) to slot `to`.
     #[inline]
     fn move_entry(&mut self, from: usize, to: usize) {
-        if let (Some(&e), Some(&k)) = (self.items.get(from), self.keys.get(from)) {
-            if let (Some(d), Some(dk)) = (self.items.get_mut(to), self.keys.get_mut(to)) {
+        if let (Some(&e), Some(&k), Some(&x), Some(&y)) = (
+            self.items.get(from),
+            self.keys.get(from),
+            self.xs.get(from),
+            self.ys.get(from),
+        ) {
+            if let (Some(d), Some(dk), Some(dx), Some(dy)) = (
+                self.items.get_mut(to),
+                self.keys.get_mut(to),
+                self.xs.get_mut(to),
+                self.ys.get_mut(to),
+            ) {
                 *d = e;
                 *dk = k;
+                *dx = x;
+                *dy = y;
             }
         }
     }
