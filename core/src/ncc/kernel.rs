@@ -59,7 +59,7 @@ pub(super) const COL_BLOCK: usize = 8;
 #[inline]
 pub(super) fn dot_col<const B: usize>(t: &Tpl, win: &Win, px: usize, py: usize) -> [u32; B] {
     const C: usize = KERNEL_CHUNK;
-    if t.w % C == 0 {
+    if t.w % C == 0 && t.h >= B {
         // SSE2 without AVX: a 16-byte-aligned template (the usual case: the
         // scratch is allocated aligned and carved at multiples of 16) lets
         // `pmaddwd` take its template operand straight from memory.
@@ -223,52 +223,74 @@ fn dot_col_fixed<L: Lanes, const B: usize, const NC: usize>(
 ) -> [u32; B] {
     const C: usize = KERNEL_CHUNK;
     let rows = chunks.as_chunks::<NC>().0;
-    let (Some(rows), Some(mut fstart)) = (
+    let (Some(rows), Some(fstart)) = (
         rows.get(..th),
         py.checked_mul(win.stride).and_then(|o| o.checked_add(px)),
     ) else {
         return [0; B];
     };
     let mut acc = [L::ZERO; B];
-    for yy in 0..th.saturating_add(B).saturating_sub(1) {
-        let frow = win
-            .px
-            .get(fstart..)
-            .and_then(|f| f.as_chunks::<C>().0.first_chunk::<NC>());
-        fstart = fstart.wrapping_add(win.stride);
-        let Some(frow) = frow else {
+    // Window rows py, py + 1, …, each as NC chunks of 16 pixels (None where
+    // the window ends, never by the contract: such a row adds nothing).
+    let mut frows = win
+        .px
+        .get(fstart..)
+        .unwrap_or(&[])
+        .chunks(win.stride.max(1))
+        .map(|r| r.as_chunks::<C>().0.first_chunk::<NC>());
+    // First B − 1 window rows: only positions j ≤ yy have a template row.
+    for yy in 0..B.saturating_sub(1) {
+        if let Some(Some(frow)) = frows.next() {
+            edge_row::<L, B, NC>(&mut acc, rows, yy, frow);
+        }
+    }
+    // Body: window row yy = B − 1 + i meets template rows i ..= i + B − 1,
+    // one block (position j on block row B − 1 − j); the blocks and the window
+    // rows advance together.
+    for (blk, frow) in rows.windows(B).zip(frows.by_ref()) {
+        let (Some(blk), Some(frow)) = (blk.first_chunk::<B>(), frow) else {
             continue;
         };
-        let blk = yy
-            .checked_sub(B.saturating_sub(1))
-            .and_then(|lo| rows.get(lo..))
-            .and_then(|r| r.first_chunk::<B>());
-        if let Some(blk) = blk {
-            for (c, f) in frow.iter().enumerate() {
-                let fv = L::widen(f);
-                for (a, row) in acc.iter_mut().zip(blk.iter().rev()) {
-                    if let Some(tt) = row.get(c) {
-                        L::mac(a, tt, fv);
-                    }
-                }
-            }
-        } else {
-            // First and last B − 1 window rows: position j has template row
-            // yy − j when that exists. Indexed by the (unrolled) j only, so the
-            // accumulators stay in registers.
-            let tr: [Option<&[L::Chunk; NC]>; B] =
-                core::array::from_fn(|j| yy.checked_sub(j).and_then(|r| rows.get(r)));
-            for (c, f) in frow.iter().enumerate() {
-                let fv = L::widen(f);
-                for (a, row) in acc.iter_mut().zip(&tr) {
-                    if let Some(tt) = row.and_then(|r| r.get(c)) {
-                        L::mac(a, tt, fv);
-                    }
+        for (c, f) in frow.iter().enumerate() {
+            let fv = L::widen(f);
+            for (a, row) in acc.iter_mut().zip(blk.iter().rev()) {
+                if let Some(tt) = row.get(c) {
+                    L::mac(a, tt, fv);
                 }
             }
         }
     }
+    // Last B − 1 window rows: only positions j > i have a template row.
+    for yy in th..th.saturating_add(B).saturating_sub(1) {
+        if let Some(Some(frow)) = frows.next() {
+            edge_row::<L, B, NC>(&mut acc, rows, yy, frow);
+        }
+    }
     acc.map(L::reduce)
+}
+
+/// One of the first or last `B − 1` window rows of a [`dot_col_fixed`] pass:
+/// window row `yy` meets template row `yy − j` of position `j` where that
+/// exists. Indexed by the (unrolled) `j` only, so the accumulators stay in
+/// registers once inlined.
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+#[inline(always)]
+fn edge_row<L: Lanes, const B: usize, const NC: usize>(
+    acc: &mut [L::Acc; B],
+    rows: &[[L::Chunk; NC]],
+    yy: usize,
+    frow: &[[u8; KERNEL_CHUNK]; NC],
+) {
+    let tr: [Option<&[L::Chunk; NC]>; B] =
+        core::array::from_fn(|j| yy.checked_sub(j).and_then(|r| rows.get(r)));
+    for (c, f) in frow.iter().enumerate() {
+        let fv = L::widen(f);
+        for (a, row) in acc.iter_mut().zip(&tr) {
+            if let Some(tt) = row.and_then(|r| r.get(c)) {
+                L::mac(a, tt, fv);
+            }
+        }
+    }
 }
 
 /// [`dot_col`] for any template width: row by row, with a scalar tail.

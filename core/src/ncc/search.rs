@@ -515,7 +515,12 @@ impl TopK {
         let span = r.wrapping_mul(2);
         let (cx, cy) = (pos_u32(c.x), pos_u32(c.y));
         let mut near = 0u64;
-        let blocks = self.xs.as_chunks::<8>().0.iter().zip(self.ys.as_chunks::<8>().0);
+        let blocks = self
+            .xs
+            .as_chunks::<8>()
+            .0
+            .iter()
+            .zip(self.ys.as_chunks::<8>().0);
         for (b, (xb, yb)) in (0u32..).zip(blocks).take(len.div_ceil(8)) {
             let mut m = 0u64;
             for (i, (&x, &y)) in (0u32..).zip(xb.iter().zip(yb)) {
@@ -526,7 +531,9 @@ impl TopK {
             near |= m.wrapping_shl(b.wrapping_mul(8));
         }
         // Slots past `len` hold stale positions.
-        near &= u64::MAX.checked_shr(64u32.saturating_sub(len as u32)).unwrap_or(0);
+        near &= u64::MAX
+            .checked_shr(64u32.saturating_sub(len as u32))
+            .unwrap_or(0);
         let kc = order_key(&c.s);
         let mut m = near;
         while m != 0 {
