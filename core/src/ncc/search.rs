@@ -3,7 +3,7 @@
 use crate::fmt::present;
 use core::cmp::Ordering;
 
-use super::integral::{Integral, Tables};
+use super::integral::{unpack, Integral, Tables};
 #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
 use super::kernel::{dot_block, KERNEL_BLOCK};
 #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
@@ -76,8 +76,8 @@ pub(super) const STRIP_W: usize = 128;
 /// handed on row by row, in raster order. One per search.
 #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
 pub(super) struct Strip {
-    sf: [[u32; STRIP_W]; COL_BLOCK],
-    sff: [[u32; STRIP_W]; COL_BLOCK],
+    /// Packed window sums (`Σf + 2³²·Σf²`, see [`Integral`]).
+    sums: [[u64; STRIP_W]; COL_BLOCK],
     dots: [[u32; STRIP_W]; COL_BLOCK],
 }
 
@@ -89,8 +89,7 @@ impl Strip {
     #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
     pub(super) fn new() -> Self {
         Self {
-            sf: [[0; STRIP_W]; COL_BLOCK],
-            sff: [[0; STRIP_W]; COL_BLOCK],
+            sums: [[0; STRIP_W]; COL_BLOCK],
             dots: [[0; STRIP_W]; COL_BLOCK],
         }
     }
@@ -264,24 +263,23 @@ fn scan<S: Sink>(
         let hs = (y1 - ys + 1).min(COL_BLOCK);
         let ry = ry0.wrapping_add(ys - y0);
         // Window sums, a row of positions at a time.
-        for (j, (sf, sff)) in (0..hs).zip(strip.sf.iter_mut().zip(strip.sff.iter_mut())) {
-            let (Some(sf), Some(sff)) = (sf.get_mut(..width), sff.get_mut(..width)) else {
+        for (j, sums) in (0..hs).zip(strip.sums.iter_mut()) {
+            let Some(sums) = sums.get_mut(..width) else {
                 continue;
             };
             let ry = ry.wrapping_add(j);
             match t.runs {
-                None => integ.rect_row(rx0, ry, t.w, t.h, sf, sff),
+                None => integ.rect_row(rx0, ry, t.w, t.h, sums, false),
                 Some(runs) => {
-                    sf.fill(0);
-                    sff.fill(0);
+                    sums.fill(0);
                     for run in runs {
-                        integ.add_rect_row(
+                        integ.rect_row(
                             rx0.wrapping_add(usize::from(run.x0)),
                             ry.wrapping_add(usize::from(run.row)),
                             usize::from(run.x1.wrapping_sub(run.x0)),
                             usize::from(run.rows),
-                            sf,
-                            sff,
+                            sums,
+                            true,
                         );
                     }
                 }
@@ -290,10 +288,9 @@ fn scan<S: Sink>(
         // Σ t·f, a column of positions at a time.
         for (i, x) in (x0..=x1).enumerate() {
             let live = (0..hs).any(|j| {
-                let (sf, sff) = (
-                    strip.sf.get(j).and_then(|r| r.get(i)).copied().unwrap_or(0),
+                let (sf, sff) = unpack(
                     strip
-                        .sff
+                        .sums
                         .get(j)
                         .and_then(|r| r.get(i))
                         .copied()
@@ -331,11 +328,10 @@ fn scan<S: Sink>(
             }
         }
         // Hand the positions on, row by row.
-        for (j, ((sf, sff), dots)) in (0..hs).zip(strip.sf.iter().zip(&strip.sff).zip(&strip.dots))
-        {
+        for (j, (sums, dots)) in (0..hs).zip(strip.sums.iter().zip(&strip.dots)) {
             let y = ys + j;
-            for (x, ((&a, &b), &d)) in (x0..=x1).zip(sf.iter().zip(sff).zip(dots)) {
-                deliver(&terms, sink, &mut floor, &mut counts, x, y, (a, b), d);
+            for (x, (&v, &d)) in (x0..=x1).zip(sums.iter().zip(dots)) {
+                deliver(&terms, sink, &mut floor, &mut counts, x, y, unpack(v), d);
             }
         }
         ys += hs;
