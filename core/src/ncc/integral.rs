@@ -4,16 +4,10 @@
 use super::pyramid::Win;
 use crate::failure::FailureCode;
 
-/// Integral images (sum and sum of squares) of a rectangle of a window level,
-/// interleaved: entry `i` is `tab[2i]` (Σf) and `tab[2i + 1]` (Σf², mod 2³²).
-///
-/// Read as one u64 `Σf + 2³²·Σf²` per entry, window sums are one wrapping
-/// combination of four entries: every true Σf of a window level (at most
-/// `MAX_SEARCH_PX`² · 255 < 2³²) and Σf² of a window (≤ 65 536·255² < 2³²) is
-/// below 2³², so a rectangle's combination modulo 2⁶⁴ is `Σf + 2³²·Σf²` of the
-/// rectangle exactly, its halves the two sums.
+/// Integral images (sum and sum of squares) of a rectangle of a window level.
 pub(super) struct Integral<'s> {
-    pub(super) tab: &'s [u32],
+    pub(super) sum: &'s [u32],
+    pub(super) sq: &'s [u32],
     /// Row length of the tables (region width + 1).
     pub(super) w1: usize,
     /// Window-level coordinates of the rectangle's top-left pixel.
@@ -21,24 +15,12 @@ pub(super) struct Integral<'s> {
     pub(super) y0: usize,
 }
 
-/// An entry (`[Σf, Σf²]`) as `Σf + 2³²·Σf²`.
-#[inline(always)]
-fn packed(e: &[u32; 2]) -> u64 {
-    u64::from(e[0]) | u64::from(e[1]) << 32
-}
-
-/// (Σf, Σf²) from a packed rectangle sum.
-#[inline(always)]
-#[allow(
-    clippy::cast_possible_truncation,
-    reason = "the two 32-bit halves of the packed sums"
-)]
-pub(super) fn unpack(v: u64) -> (u32, u32) {
-    (v as u32, (v >> 32) as u32)
-}
-
 impl<'s> Integral<'s> {
     /// Build the tables of `rw × rh` pixels of `win` starting at `(x0, y0)` in `buf`.
+    ///
+    /// u32 wrapping: the tables themselves may wrap, but a window sum is a signed
+    /// combination of four entries, which is exact modulo 2³², and every true
+    /// window sum (≤ 65 536·255² < 2³²) is below 2³², so the result is exact.
     pub(super) fn build(
         win: &Win,
         x0: usize,
@@ -47,69 +29,73 @@ impl<'s> Integral<'s> {
         rh: usize,
         buf: &'s mut [u32],
     ) -> Result<Self, FailureCode> {
-        // Saturating: sizes no scratch can hold are refused by `get_mut`.
+        // Saturating: sizes no scratch can hold are refused by the split.
         let w1 = rw.saturating_add(1);
-        let n = w1.saturating_mul(rh.saturating_add(1)).saturating_mul(2);
-        let tab = buf.get_mut(..n).ok_or(FailureCode::NccScratchTooSmall)?;
-        fill_tables(win, x0, y0, rw, rh, tab);
-        Ok(Self { tab, w1, x0, y0 })
+        let n = w1.saturating_mul(rh.saturating_add(1));
+        let (sum, rest) = buf
+            .split_at_mut_checked(n)
+            .ok_or(FailureCode::NccScratchTooSmall)?;
+        let sq = rest.get_mut(..n).ok_or(FailureCode::NccScratchTooSmall)?;
+        fill_tables(win, x0, y0, rw, rh, sum, sq);
+        Ok(Self {
+            sum,
+            sq,
+            w1,
+            x0,
+            y0,
+        })
     }
 
     /// The tables of a whole `w × h` window level already built in `buf`.
     pub(super) fn view(w: usize, h: usize, buf: &'s [u32]) -> Result<Self, FailureCode> {
         let w1 = w.saturating_add(1);
-        let n = w1.saturating_mul(h.saturating_add(1)).saturating_mul(2);
-        let tab = buf.get(..n).ok_or(FailureCode::NccScratchTooSmall)?;
+        let n = w1.saturating_mul(h.saturating_add(1));
+        let (sum, rest) = buf
+            .split_at_checked(n)
+            .ok_or(FailureCode::NccScratchTooSmall)?;
+        let sq = rest.get(..n).ok_or(FailureCode::NccScratchTooSmall)?;
         Ok(Self {
-            tab,
+            sum,
+            sq,
             w1,
             x0: 0,
             y0: 0,
         })
     }
 
-    /// Entry `i` packed, 0 outside the tables.
-    #[inline]
-    fn entry(&self, i: usize) -> u64 {
-        self.tab
-            .get(i.wrapping_mul(2)..)
-            .and_then(|t| t.first_chunk::<2>())
-            .map_or(0, packed)
-    }
-
     /// (Σf, Σf²) over `w × h` pixels at region coordinates `(x, y)`.
     #[inline]
     pub(super) fn rect(&self, x: usize, y: usize, w: usize, h: usize) -> (u32, u32) {
-        unpack(self.rect_packed(x, y, w, h))
-    }
-
-    /// [`Integral::rect`] packed (`Σf + 2³²·Σf²`).
-    #[inline]
-    pub(super) fn rect_packed(&self, x: usize, y: usize, w: usize, h: usize) -> u64 {
         // Wrapping: a rectangle inside the region (the contract) never wraps; one
         // outside reads some entry or 0 through `get`, never out of bounds.
         let i00 = y.wrapping_mul(self.w1).wrapping_add(x);
         let i01 = i00.wrapping_add(w);
         let i10 = y.wrapping_add(h).wrapping_mul(self.w1).wrapping_add(x);
         let i11 = i10.wrapping_add(w);
-        self.entry(i11)
-            .wrapping_sub(self.entry(i10))
-            .wrapping_sub(self.entry(i01))
-            .wrapping_add(self.entry(i00))
+        let g = |t: &[u32], i: usize| t.get(i).copied().unwrap_or(0);
+        let s = g(self.sum, i11)
+            .wrapping_sub(g(self.sum, i10))
+            .wrapping_sub(g(self.sum, i01))
+            .wrapping_add(g(self.sum, i00));
+        let q = g(self.sq, i11)
+            .wrapping_sub(g(self.sq, i10))
+            .wrapping_sub(g(self.sq, i01))
+            .wrapping_add(g(self.sq, i00));
+        (s, q)
     }
 
-    /// The packed sums over the `w × h` rectangles at region coordinates
+    /// `[Σf, Σf²]` over the `w × h` rectangles at region coordinates
     /// `(x + i, y)`, `i < out.len()`, into `out[i]` (with `add`, added to it,
-    /// wrapping): four table rows combined entry by entry. Rectangles outside
-    /// the region (never, by the contract) give zeros, or add nothing.
-    #[allow(clippy::too_many_arguments)]
+    /// wrapping): four rows of each table combined entry by entry. Rectangles
+    /// outside the region (never, by the contract) give zeros, or add nothing.
+    #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
     pub(super) fn rect_row(
         &self,
         x: usize,
         y: usize,
         w: usize,
         h: usize,
-        out: &mut [u64],
+        out: &mut [[u32; 2]],
         add: bool,
     ) {
         let n = out.len();
@@ -117,38 +103,34 @@ impl<'s> Integral<'s> {
         // otherwise `get` refuses the rows.
         let i00 = y.wrapping_mul(self.w1).wrapping_add(x);
         let i10 = y.wrapping_add(h).wrapping_mul(self.w1).wrapping_add(x);
-        let row = |i: usize| {
-            self.tab
-                .get(i.wrapping_mul(2)..)
-                .map(|t| t.as_chunks::<2>().0)
-                .and_then(|r| r.get(..n))
+        let rows = |t: &'s [u32]| {
+            let row = |i: usize| t.get(i..).and_then(|r| r.get(..n));
+            Some((
+                row(i10.wrapping_add(w))?,
+                row(i10)?,
+                row(i00.wrapping_add(w))?,
+                row(i00)?,
+            ))
         };
-        let (Some(a), Some(b), Some(c), Some(d)) = (
-            row(i10.wrapping_add(w)),
-            row(i10),
-            row(i00.wrapping_add(w)),
-            row(i00),
-        ) else {
+        let (Some(s), Some(q)) = (rows(self.sum), rows(self.sq)) else {
             if !add {
-                out.fill(0);
+                out.fill([0, 0]);
             }
             return;
         };
-        let rects = out.iter_mut().zip(a).zip(b).zip(c).zip(d);
-        let v = |a, b, c, d| {
-            packed(a)
-                .wrapping_sub(packed(b))
-                .wrapping_sub(packed(c))
-                .wrapping_add(packed(d))
+        let v = |(a, b, c, d): (&[u32], &[u32], &[u32], &[u32]), i: usize| {
+            let g = |t: &[u32]| t.get(i).copied().unwrap_or(0);
+            g(a).wrapping_sub(g(b))
+                .wrapping_sub(g(c))
+                .wrapping_add(g(d))
         };
-        if add {
-            for ((((o, a), b), c), d) in rects {
-                *o = o.wrapping_add(v(a, b, c, d));
-            }
-        } else {
-            for ((((o, a), b), c), d) in rects {
-                *o = v(a, b, c, d);
-            }
+        for (i, o) in out.iter_mut().enumerate() {
+            let r = [v(s, i), v(q, i)];
+            *o = if add {
+                [o[0].wrapping_add(r[0]), o[1].wrapping_add(r[1])]
+            } else {
+                r
+            };
         }
     }
 }
@@ -200,42 +182,62 @@ impl<'b> Tables<'b> {
     }
 }
 
-/// Fill the interleaved tables (`(rw + 1) × (rh + 1)` entries), row by row:
-/// the running packed sum of the row's pixels plus the entry above, one pass.
-pub(super) fn fill_tables(win: &Win, x0: usize, y0: usize, rw: usize, rh: usize, tab: &mut [u32]) {
-    let w2 = rw.saturating_add(1).saturating_mul(2);
-    let n = w2.saturating_mul(rh.saturating_add(1));
-    let Some(tab) = tab.get_mut(..n) else {
+/// Fill the sum and sum-of-squares tables (`(rw + 1) × (rh + 1)` each), row by
+/// row in one pass: the running sums of the row's pixels plus the entries above
+/// (read from the previous row, not from what this pass has just stored).
+pub(super) fn fill_tables(
+    win: &Win,
+    x0: usize,
+    y0: usize,
+    rw: usize,
+    rh: usize,
+    sum: &mut [u32],
+    sq: &mut [u32],
+) {
+    let w1 = rw.saturating_add(1);
+    let n = w1.saturating_mul(rh.saturating_add(1));
+    let (Some(sum), Some(sq)) = (sum.get_mut(..n), sq.get_mut(..n)) else {
         return;
     };
-    let Some((top, rows)) = tab.split_at_mut_checked(w2) else {
+    let (Some((s_top, s_rows)), Some((q_top, q_rows))) =
+        (sum.split_at_mut_checked(w1), sq.split_at_mut_checked(w1))
+    else {
         return;
     };
-    top.fill(0);
-    // The row above, from entry 1 (its entry 0 is zero).
-    let mut prev: &[u32] = top.get(2..).unwrap_or(&[]);
-    for (r, cur) in rows.chunks_exact_mut(w2.max(1)).enumerate() {
+    s_top.fill(0);
+    q_top.fill(0);
+    // The rows above, from column 1 (their column 0 is zero).
+    let (mut s_prev, mut q_prev): (&[u32], &[u32]) =
+        (s_top.get(1..).unwrap_or(&[]), q_top.get(1..).unwrap_or(&[]));
+    // `(0..rh).zip(…)` rather than `enumerate()`: the same pairs without the
+    // enumerate counter's overflow check.
+    let rows = s_rows
+        .chunks_exact_mut(w1.max(1))
+        .zip(q_rows.chunks_exact_mut(w1.max(1)));
+    for (r, (cs, cq)) in (0..rh).zip(rows) {
         // Checked: a window smaller than the contract ends the fill.
         let Some(frow) = y0.checked_add(r).and_then(|y| win.span(x0, y, rw)) else {
             return;
         };
-        let Some((first, cur)) = cur.split_first_chunk_mut::<2>() else {
+        let (Some((cs0, cs)), Some((cq0, cq))) = (cs.split_first_mut(), cq.split_first_mut())
+        else {
             return;
         };
-        *first = [0, 0];
-        // u64 wrapping: the packed running sum of the row (Σf < 2³² here),
-        // plus the entry above (read from the previous row, not from what this
-        // pass has just stored).
-        let mut run = 0u64;
-        let above = prev.as_chunks::<2>().0;
-        for ((e, a), &f) in cur.as_chunks_mut::<2>().0.iter_mut().zip(above).zip(frow) {
-            let v = u64::from(f);
-            run = run.wrapping_add(v | v.wrapping_mul(v).wrapping_shl(32));
-            let (lo, hi) = unpack(run.wrapping_add(packed(a)));
-            *e = [lo, hi];
+        *cs0 = 0;
+        *cq0 = 0;
+        // u32 wrapping throughout (see `Integral::build`).
+        let (mut run_s, mut run_q) = (0u32, 0u32);
+        let above = s_prev.iter().zip(q_prev);
+        for (((s, q), (&ps, &pq)), &f) in cs.iter_mut().zip(cq.iter_mut()).zip(above).zip(frow) {
+            let v = u32::from(f);
+            run_s = run_s.wrapping_add(v);
+            run_q = run_q.wrapping_add(v.wrapping_mul(v));
+            *s = run_s.wrapping_add(ps);
+            *q = run_q.wrapping_add(pq);
         }
-        // The finished row is the next one's "above".
-        prev = &*cur;
+        // The finished rows are the next one's "above".
+        s_prev = &*cs;
+        q_prev = &*cq;
     }
 }
 

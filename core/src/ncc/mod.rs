@@ -328,6 +328,7 @@ pub(crate) fn order_key(_: &Score) -> f64 {
 /// of their magnitudes (far above their rounding error, so the order is the
 /// exact one), [`cmp_scores_exact`] otherwise (and for NaN keys, for which both
 /// comparisons are false). Always `cmp_scores(a, b) == Greater`.
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
 #[inline]
 #[allow(
     clippy::arithmetic_side_effects,
@@ -342,6 +343,13 @@ pub(crate) fn key_beats(ka: f64, a: &Score, kb: f64, b: &Score) -> bool {
     if kb - ka > g {
         return false;
     }
+    cmp_scores_exact(a, b) == Ordering::Greater
+}
+
+/// [`key_beats`] where f64 is software: the integer comparison alone.
+#[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+#[inline]
+pub(crate) fn key_beats(_: f64, a: &Score, _: f64, b: &Score) -> bool {
     cmp_scores_exact(a, b) == Ordering::Greater
 }
 

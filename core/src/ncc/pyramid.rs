@@ -411,11 +411,10 @@ pub(super) fn build_template_levels<'s>(
             .checked_sub(1)
             .and_then(|p| regions.get(p))
             .and_then(|r| r.as_ref())
-            .map(|(r, _)| {
-                let (a, b) = r.split_at(r.len() / 2);
-                (a, b)
-            });
-        let (px, mk) = region.split_at_mut(n_px);
+            .and_then(|(r, _)| r.split_at_checked(r.len() / 2));
+        let (px, mk) = region
+            .split_at_mut_checked(n_px)
+            .ok_or(FailureCode::NccScratchTooSmall)?;
         match prev {
             None => {
                 filter_region(template, template.rect(), filter, px)?;

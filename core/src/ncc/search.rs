@@ -3,7 +3,7 @@
 use crate::fmt::present;
 use core::cmp::Ordering;
 
-use super::integral::{unpack, Integral, Tables};
+use super::integral::{Integral, Tables};
 #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
 use super::kernel::{dot_block, KERNEL_BLOCK};
 #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
@@ -76,8 +76,8 @@ pub(super) const STRIP_W: usize = 128;
 /// handed on row by row, in raster order. One per search.
 #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
 pub(super) struct Strip {
-    /// Packed window sums (`Σf + 2³²·Σf²`, see [`Integral`]).
-    sums: [[u64; STRIP_W]; COL_BLOCK],
+    /// Window sums `[Σf, Σf²]`.
+    sums: [[[u32; 2]; STRIP_W]; COL_BLOCK],
     dots: [[u32; STRIP_W]; COL_BLOCK],
 }
 
@@ -89,7 +89,7 @@ impl Strip {
     #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
     pub(super) fn new() -> Self {
         Self {
-            sums: [[0; STRIP_W]; COL_BLOCK],
+            sums: [[[0; 2]; STRIP_W]; COL_BLOCK],
             dots: [[0; STRIP_W]; COL_BLOCK],
         }
     }
@@ -192,8 +192,9 @@ fn window_sums(t: &Tpl, integ: &Integral, x: usize, y: usize) -> (u32, u32) {
     }
 }
 
-/// Hand one position to `sink` unless flat or clearly below `floor` (which is
-/// read again after an offer); counts it in `(scored, flat)`.
+/// Hand one position (its Σf, var_f and Σ t·f) to `sink` unless flat or
+/// clearly below `floor` (which is read again after an offer); counts it in
+/// `(scored, flat)`.
 #[inline]
 #[allow(clippy::too_many_arguments)]
 fn deliver<S: Sink>(
@@ -203,10 +204,9 @@ fn deliver<S: Sink>(
     counts: &mut (u64, u64),
     x: usize,
     y: usize,
-    (sf, sff): (u32, u32),
+    (sf, var_f): (i64, i64),
     dot: u32,
 ) {
-    let (sf, var_f) = terms.var_f(sf, sff);
     if var_f <= 0 {
         counts.1 = counts.1.wrapping_add(1);
         return;
@@ -226,10 +226,6 @@ fn deliver<S: Sink>(
 /// A column whose positions are all flat skips the kernel. Regions wider than
 /// [`STRIP_W`] go one position at a time. Returns (scored, flat) counts.
 #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
-#[allow(
-    clippy::arithmetic_side_effects,
-    reason = "x1 ≥ x0 and y1 ≥ y0 (checked by the caller); strip indices < COL_BLOCK"
-)]
 fn scan<S: Sink>(
     t: &Tpl,
     win: &Win,
@@ -241,18 +237,19 @@ fn scan<S: Sink>(
 ) -> (u64, u64) {
     let mut counts = (0u64, 0u64);
     let mut floor = sink.floor();
-    let width = x1 - x0 + 1;
+    let width = x1.wrapping_sub(x0).wrapping_add(1);
     if width > STRIP_W {
         for y in y0..=y1 {
             for x in x0..=x1 {
                 let (sf, sff) = window_sums(t, integ, x, y);
-                let dot = if terms.var_f(sf, sff).1 > 0 {
+                let v = terms.var_f(sf, sff);
+                let dot = if v.1 > 0 {
                     let [d] = dot_col::<1>(t, win, x, y);
                     d
                 } else {
                     0
                 };
-                deliver(&terms, sink, &mut floor, &mut counts, x, y, (sf, sff), dot);
+                deliver(&terms, sink, &mut floor, &mut counts, x, y, v, dot);
             }
         }
         return counts;
@@ -260,8 +257,8 @@ fn scan<S: Sink>(
     let (rx0, ry0) = (x0.wrapping_sub(integ.x0), y0.wrapping_sub(integ.y0));
     let mut ys = y0;
     loop {
-        let hs = (y1 - ys + 1).min(COL_BLOCK);
-        let ry = ry0.wrapping_add(ys - y0);
+        let hs = y1.wrapping_sub(ys).wrapping_add(1).min(COL_BLOCK);
+        let ry = ry0.wrapping_add(ys.wrapping_sub(y0));
         // Window sums, a row of positions at a time.
         for (j, sums) in (0..hs).zip(strip.sums.iter_mut()) {
             let Some(sums) = sums.get_mut(..width) else {
@@ -271,7 +268,7 @@ fn scan<S: Sink>(
             match t.runs {
                 None => integ.rect_row(rx0, ry, t.w, t.h, sums, false),
                 Some(runs) => {
-                    sums.fill(0);
+                    sums.fill([0, 0]);
                     for run in runs {
                         integ.rect_row(
                             rx0.wrapping_add(usize::from(run.x0)),
@@ -286,16 +283,14 @@ fn scan<S: Sink>(
             }
         }
         // Σ t·f, a column of positions at a time.
-        for (i, x) in (x0..=x1).enumerate() {
+        for (i, x) in (0..width).zip(x0..=x1) {
             let live = (0..hs).any(|j| {
-                let (sf, sff) = unpack(
-                    strip
-                        .sums
-                        .get(j)
-                        .and_then(|r| r.get(i))
-                        .copied()
-                        .unwrap_or(0),
-                );
+                let [sf, sff] = strip
+                    .sums
+                    .get(j)
+                    .and_then(|r| r.get(i))
+                    .copied()
+                    .unwrap_or([0, 0]);
                 terms.var_f(sf, sff).1 > 0
             });
             if !live {
@@ -305,7 +300,7 @@ fn scan<S: Sink>(
             // written straight into its strip rows.
             let mut j = 0usize;
             while j < hs {
-                let y = ys + j;
+                let y = ys.wrapping_add(j);
                 let Some(rows) = strip.dots.get_mut(j..) else {
                     break;
                 };
@@ -317,7 +312,7 @@ fn scan<S: Sink>(
                     }
                     v.len()
                 };
-                j += match hs - j {
+                let done = match hs.wrapping_sub(j) {
                     8.. => put(&dot_col::<8>(t, win, x, y)),
                     5..=7 => put(&dot_col::<5>(t, win, x, y)),
                     4 => put(&dot_col::<4>(t, win, x, y)),
@@ -325,16 +320,18 @@ fn scan<S: Sink>(
                     2 => put(&dot_col::<2>(t, win, x, y)),
                     _ => put(&dot_col::<1>(t, win, x, y)),
                 };
+                j = j.wrapping_add(done);
             }
         }
         // Hand the positions on, row by row.
         for (j, (sums, dots)) in (0..hs).zip(strip.sums.iter().zip(&strip.dots)) {
-            let y = ys + j;
-            for (x, (&v, &d)) in (x0..=x1).zip(sums.iter().zip(dots)) {
-                deliver(&terms, sink, &mut floor, &mut counts, x, y, unpack(v), d);
+            let y = ys.wrapping_add(j);
+            for (x, (&[a, b], &d)) in (x0..=x1).zip(sums.iter().zip(dots)) {
+                let v = terms.var_f(a, b);
+                deliver(&terms, sink, &mut floor, &mut counts, x, y, v, d);
             }
         }
-        ys += hs;
+        ys = ys.wrapping_add(hs);
         if ys > y1 {
             break;
         }
@@ -364,13 +361,14 @@ fn scan<S: Sink>(
         while let Some(xb) = next_xb {
             next_xb = xb.checked_add(KERNEL_BLOCK).filter(|&n| n <= x1);
             let n = x1.wrapping_sub(xb).saturating_add(1).min(KERNEL_BLOCK);
-            let mut sums = [(0u32, 0u32); KERNEL_BLOCK];
+            let mut vs = [(0i64, 0i64); KERNEL_BLOCK];
             let mut live = [false; KERNEL_BLOCK];
             // `(0..n).zip(…)` rather than `enumerate().take(n)`: the same
             // pairs without the enumerate counter's overflow check.
-            for ((i, s), l) in (0..n).zip(sums.iter_mut()).zip(live.iter_mut()) {
-                *s = window_sums(t, integ, xb.wrapping_add(i), y);
-                *l = terms.var_f(s.0, s.1).1 > 0;
+            for ((i, v), l) in (0..n).zip(vs.iter_mut()).zip(live.iter_mut()) {
+                let (sf, sff) = window_sums(t, integ, xb.wrapping_add(i), y);
+                *v = terms.var_f(sf, sff);
+                *l = v.1 > 0;
             }
             let mut dots = [0u32; KERNEL_BLOCK];
             if n == KERNEL_BLOCK {
@@ -385,7 +383,7 @@ fn scan<S: Sink>(
                     }
                 }
             }
-            for ((i, &s), &d) in (0..n).zip(&sums).zip(&dots) {
+            for ((i, &s), &d) in (0..n).zip(&vs).zip(&dots) {
                 deliver(
                     &terms,
                     sink,
@@ -430,6 +428,78 @@ pub(super) struct TopK {
     /// tries it before scanning the list. Any index is correct (the scan
     /// decides whenever the hint does not reject).
     hint: usize,
+}
+
+/// The first index `i` of `cur` (with its key) for which `pred` is false, `pred`
+/// being true up to some index and false from there on (a binary search: few
+/// comparisons, which on targets without hardware f64 are the exact integer
+/// ones).
+fn pairs_partition_point(cur: &[Cand], keys: &[f64], pred: impl Fn(&Cand, f64) -> bool) -> usize {
+    let (mut lo, mut hi) = (0usize, cur.len().min(keys.len()));
+    while lo < hi {
+        // lo < hi ≤ MAX_CANDIDATES: no overflow.
+        let mid = lo.wrapping_add(hi.wrapping_sub(lo) / 2);
+        let (Some(e), Some(&k)) = (cur.get(mid), keys.get(mid)) else {
+            break;
+        };
+        if pred(e, k) {
+            lo = mid.wrapping_add(1);
+        } else {
+            hi = mid;
+        }
+    }
+    lo
+}
+
+/// Bit `i` set for each entry `i < len` whose position (`xs[i]`, `ys[i]`) is
+/// within `r` of `(cx, cy)` on both axes (`e − c + r ≤ span = 2r`, wrapping).
+/// On the vector targets eight entries at a time, branch-free (vectorized);
+/// elsewhere entry by entry, touching the 64-bit mask only for near entries
+/// (rare; 64-bit shifts are several instructions on a 32-bit core).
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+#[inline]
+fn near_mask(
+    xs: &[u32; MAX_CANDIDATES],
+    ys: &[u32; MAX_CANDIDATES],
+    len: usize,
+    (cx, cy): (u32, u32),
+    (r, span): (u32, u32),
+) -> u64 {
+    let mut near = 0u64;
+    let blocks = xs.as_chunks::<8>().0.iter().zip(ys.as_chunks::<8>().0);
+    for (b, (xb, yb)) in (0u32..).zip(blocks).take(len.div_ceil(8)) {
+        let mut m = 0u64;
+        for (i, (&x, &y)) in (0u32..).zip(xb.iter().zip(yb)) {
+            let n = (x.wrapping_sub(cx).wrapping_add(r) <= span)
+                & (y.wrapping_sub(cy).wrapping_add(r) <= span);
+            m |= u64::from(n).wrapping_shl(i);
+        }
+        near |= m.wrapping_shl(b.wrapping_mul(8));
+    }
+    // Slots past `len` hold stale positions.
+    near & u64::MAX
+        .checked_shr(64u32.saturating_sub(u32::try_from(len).unwrap_or(64)))
+        .unwrap_or(0)
+}
+
+/// [`near_mask`] entry by entry.
+#[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+#[inline]
+fn near_mask(
+    xs: &[u32; MAX_CANDIDATES],
+    ys: &[u32; MAX_CANDIDATES],
+    len: usize,
+    (cx, cy): (u32, u32),
+    (r, span): (u32, u32),
+) -> u64 {
+    let mut near = 0u64;
+    for (i, (&x, &y)) in (0u32..64).zip(xs.iter().zip(ys)).take(len) {
+        if x.wrapping_sub(cx).wrapping_add(r) <= span && y.wrapping_sub(cy).wrapping_add(r) <= span
+        {
+            near |= 1u64.wrapping_shl(i);
+        }
+    }
+    near
 }
 
 /// A position as u32 (positions lie in a window of at most `MAX_SEARCH_PX`
@@ -510,26 +580,7 @@ impl TopK {
         let r = u32::try_from(self.radius).unwrap_or(u32::MAX).min(1 << 30);
         let span = r.wrapping_mul(2);
         let (cx, cy) = (pos_u32(c.x), pos_u32(c.y));
-        let mut near = 0u64;
-        let blocks = self
-            .xs
-            .as_chunks::<8>()
-            .0
-            .iter()
-            .zip(self.ys.as_chunks::<8>().0);
-        for (b, (xb, yb)) in (0u32..).zip(blocks).take(len.div_ceil(8)) {
-            let mut m = 0u64;
-            for (i, (&x, &y)) in (0u32..).zip(xb.iter().zip(yb)) {
-                let n = (x.wrapping_sub(cx).wrapping_add(r) <= span)
-                    & (y.wrapping_sub(cy).wrapping_add(r) <= span);
-                m |= u64::from(n).wrapping_shl(i);
-            }
-            near |= m.wrapping_shl(b.wrapping_mul(8));
-        }
-        // Slots past `len` hold stale positions.
-        near &= u64::MAX
-            .checked_shr(64u32.saturating_sub(len as u32))
-            .unwrap_or(0);
+        let near = near_mask(&self.xs, &self.ys, len, (cx, cy), (r, span));
         let kc = order_key(&c.s);
         let mut m = near;
         while m != 0 {
@@ -544,11 +595,7 @@ impl TopK {
         }
         // Sorted best first: "c beats e" is false up to some index and true
         // from there on.
-        let pos = cur
-            .iter()
-            .zip(keys)
-            .position(|(e, &ke)| key_beats(kc, &c.s, ke, &e.s))
-            .unwrap_or(len);
+        let pos = pairs_partition_point(cur, keys, |e, ke| !key_beats(kc, &c.s, ke, &e.s));
         // The first near entry (every near one lies at or after `pos`), or `len`.
         let first_near = if near == 0 {
             len
