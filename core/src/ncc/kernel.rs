@@ -60,10 +60,15 @@ pub(super) const COL_BLOCK: usize = 8;
 pub(super) fn dot_col<const B: usize>(t: &Tpl, win: &Win, px: usize, py: usize) -> [u32; B] {
     const C: usize = KERNEL_CHUNK;
     if t.w % C == 0 && t.h >= B {
-        // SSE2 without AVX: a 16-byte-aligned template (the usual case: the
-        // scratch is allocated aligned and carved at multiples of 16) lets
-        // `pmaddwd` take its template operand straight from memory.
-        #[cfg(all(target_arch = "x86_64", not(target_feature = "avx")))]
+        // A 16-byte-aligned template (the usual case: the scratch is allocated
+        // aligned and carved at multiples of 16) is read as whole aligned
+        // vectors: on SSE2 without AVX `pmaddwd` takes it straight from memory;
+        // on AArch64 with strict alignment (aarch64-unknown-none) the 16-bit
+        // lanes of a byte-aligned chunk would be assembled byte by byte.
+        #[cfg(any(
+            target_arch = "aarch64",
+            all(target_arch = "x86_64", not(target_feature = "avx"))
+        ))]
         if let Ok(v) = wide::bytemuck::try_cast_slice::<u8, wide::i16x8>(t.px) {
             let rows = v.as_chunks::<2>().0;
             match t.w / C {
@@ -97,6 +102,23 @@ trait Lanes {
     fn widen(f: &[u8; 16]) -> Self::Px;
     fn mac(acc: &mut Self::Acc, t: &Self::Chunk, f: Self::Px);
     fn reduce(acc: Self::Acc) -> u32;
+}
+
+/// 16 window pixels as two vectors of 8 i16 lanes: interleaved with zero bytes
+/// (`punpck{l,h}bw` on SSE2, `zip1`/`zip2` on NEON), which read as
+/// little-endian i16 are the pixels.
+#[cfg(all(
+    any(target_arch = "x86_64", target_arch = "aarch64"),
+    not(target_feature = "avx2")
+))]
+#[inline(always)]
+fn widen_halves(f: &[u8; 16]) -> (wide::i16x8, wide::i16x8) {
+    use wide::{bytemuck::cast, u8x16};
+    let (u, z) = (u8x16::from(*f), u8x16::ZERO);
+    (
+        cast(u8x16::unpack_low(u, z)),
+        cast(u8x16::unpack_high(u, z)),
+    )
 }
 
 /// Template chunks as 32 unaligned bytes (16 little-endian i16). With AVX2 a
@@ -148,11 +170,7 @@ impl Lanes for Bytes {
 
     #[inline(always)]
     fn widen(f: &[u8; 16]) -> Self::Px {
-        let u = wide::u8x16::from(*f);
-        (
-            wide::i16x8::from_u8x16_low(u),
-            wide::i16x8::from_u8x16_high(u),
-        )
+        widen_halves(f)
     }
 
     #[inline(always)]
@@ -161,7 +179,19 @@ impl Lanes for Bytes {
         reason = "vector lane addition wraps (wide's documented semantics); exact modulo 2^32 (numeric.md)"
     )]
     fn mac(acc: &mut wide::i32x4, t: &[u8; 32], f: Self::Px) {
-        let [lo, hi] = wide::bytemuck::cast::<[u8; 32], [wide::i16x8; 2]>(*t);
+        // Loaded as bytes, then reinterpreted: the chunk has byte alignment, and
+        // a target with strict alignment (aarch64-unknown-none) would otherwise
+        // assemble 16-bit lanes byte by byte.
+        let [lo, hi] =
+            t.as_chunks::<16>()
+                .0
+                .first_chunk::<2>()
+                .map_or([wide::i16x8::ZERO; 2], |[a, b]| {
+                    [
+                        wide::bytemuck::cast(wide::u8x16::from(*a)),
+                        wide::bytemuck::cast(wide::u8x16::from(*b)),
+                    ]
+                });
         *acc += lo.dot(f.0) + hi.dot(f.1);
     }
 
@@ -171,12 +201,18 @@ impl Lanes for Bytes {
     }
 }
 
-/// Template chunks as two aligned 8-lane vectors (SSE2): both products of a
-/// chunk go into one 128-bit accumulator.
-#[cfg(all(target_arch = "x86_64", not(target_feature = "avx")))]
+/// Template chunks as two aligned 8-lane vectors (SSE2, NEON): both products
+/// of a chunk go into one 128-bit accumulator.
+#[cfg(any(
+    target_arch = "aarch64",
+    all(target_arch = "x86_64", not(target_feature = "avx"))
+))]
 struct Aligned;
 
-#[cfg(all(target_arch = "x86_64", not(target_feature = "avx")))]
+#[cfg(any(
+    target_arch = "aarch64",
+    all(target_arch = "x86_64", not(target_feature = "avx"))
+))]
 impl Lanes for Aligned {
     type Chunk = [wide::i16x8; 2];
     type Px = (wide::i16x8, wide::i16x8);
@@ -185,11 +221,7 @@ impl Lanes for Aligned {
 
     #[inline(always)]
     fn widen(f: &[u8; 16]) -> Self::Px {
-        let u = wide::u8x16::from(*f);
-        (
-            wide::i16x8::from_u8x16_low(u),
-            wide::i16x8::from_u8x16_high(u),
-        )
+        widen_halves(f)
     }
 
     #[inline(always)]
