@@ -499,6 +499,10 @@ mod tests {
                     }
                 }
             }
+            // The i16 template at an aligned and at an odd address (the
+            // aligned and the byte-aligned paths of the column kernel).
+            let px16 = widened(&px);
+            let odd_buf = [&[0u8][..], &px16].concat();
             let tpl = |px| Tpl {
                 px,
                 runs: None,
@@ -508,10 +512,7 @@ mod tests {
                 st: 0,
                 var_t: 1,
             };
-            let odd_buf: Vec<u8>;
             let t8 = tpl(&px);
-            let px16 = widened(&px);
-            odd_buf = [&[0u8][..], &px16].concat();
             let w = Win {
                 px: &win,
                 w: ww,
@@ -539,8 +540,6 @@ mod tests {
                 assert_eq!(u64::from(one), want(0, 0), "case {case}");
                 #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
                 {
-                    // The template i16 bytes at an aligned and at an odd address
-                    // (the aligned and the unaligned paths on SSE2).
                     for t16 in [tpl(&px16), tpl(&odd_buf[1..])] {
                         let col = |got: &[u32]| {
                             for (j, &g) in got.iter().enumerate() {

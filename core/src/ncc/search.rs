@@ -606,7 +606,8 @@ impl TopK {
         // ones, from the slot after it (`c` adds one entry before them).
         let mut w = first_near.saturating_add(1);
         for i in first_near.saturating_add(1)..len {
-            if near & 1u64.wrapping_shl(i as u32) != 0 {
+            // i < len ≤ MAX_CANDIDATES = 64: the shift is in range.
+            if near & 1u64.wrapping_shl(u32::try_from(i).unwrap_or(u32::MAX)) != 0 {
                 continue;
             }
             self.move_entry(i, w);
@@ -667,7 +668,7 @@ impl TopK {
 /// Score every position of the coarsest level, keep the separated peaks, and
 /// refine each at every finer level; returns the full-resolution candidates,
 /// best first (the first is the winner).
-#[allow(clippy::too_many_lines)]
+#[allow(clippy::too_many_lines, clippy::too_many_arguments)]
 #[allow(
     clippy::cast_possible_truncation,
     reason = "a TopK holds at most MAX_CANDIDATES (< 256) entries"
