@@ -1,5 +1,6 @@
-//! The correlation kernel: exact Σ t·f of a template level at a block of
-//! neighbouring window positions.
+//! The correlation kernels: exact Σ t·f of a template level at a block of
+//! neighbouring window positions (a column of positions on x86-64 and AArch64,
+//! a row elsewhere).
 
 use super::pyramid::{Tpl, Win};
 
@@ -42,13 +43,13 @@ pub(super) const COL_BLOCK: usize = 8;
 /// The template level is stored as i16 ([`Tpl::px`], widened once per search),
 /// so only the window is widened here: each 16-pixel chunk of window row
 /// `py + yy` is widened once (`punpck{l,h}bw` on SSE2, `vpmovzxbw` with AVX2,
-/// `ushll` on NEON) and feeds one widening multiply-add (`pmaddwd`,
+/// `zip1`/`zip2` on NEON) and feeds one widening multiply-add (`pmaddwd`,
 /// `vpmaddwd`, `smull`/`addp`) for each of the `B` positions whose template row
 /// `yy − j` lies on it, into `B` vector accumulators that stay in registers;
 /// each position is reduced to a scalar once, at the end. Exact: u8 values in
 /// i16 lanes multiply into pair sums below 2¹⁸, and the accumulators wrap modulo
 /// 2³² like the portable kernel's (each true sum < 2³², numeric.md), so both
-/// kernels return the same bits (`column_kernel_equals_scalar_reference`).
+/// kernels return the same bits (`kernels_equal_scalar_reference`).
 /// Every position must be a valid top-left position (`px + t.w ≤ win.w`,
 /// `py + B − 1 + t.h ≤ win.h`); rows outside the window read nothing.
 #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
