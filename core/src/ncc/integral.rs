@@ -83,6 +83,56 @@ impl<'s> Integral<'s> {
             .wrapping_add(g(self.sq, i00));
         (s, q)
     }
+
+    /// `[Σf, Σf²]` over the `w × h` rectangles at region coordinates
+    /// `(x + i, y)`, `i < out.len()`, into `out[i]` (with `add`, added to it,
+    /// wrapping): four rows of each table combined entry by entry. Rectangles
+    /// outside the region (never, by the contract) give zeros, or add nothing.
+    #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+    pub(super) fn rect_row(
+        &self,
+        x: usize,
+        y: usize,
+        w: usize,
+        h: usize,
+        out: &mut [[u32; 2]],
+        add: bool,
+    ) {
+        let n = out.len();
+        // Wrapping: a rectangle inside the region (the contract) never wraps;
+        // otherwise `get` refuses the rows.
+        let i00 = y.wrapping_mul(self.w1).wrapping_add(x);
+        let i10 = y.wrapping_add(h).wrapping_mul(self.w1).wrapping_add(x);
+        let rows = |t: &'s [u32]| {
+            let row = |i: usize| t.get(i..).and_then(|r| r.get(..n));
+            Some((
+                row(i10.wrapping_add(w))?,
+                row(i10)?,
+                row(i00.wrapping_add(w))?,
+                row(i00)?,
+            ))
+        };
+        let (Some(s), Some(q)) = (rows(self.sum), rows(self.sq)) else {
+            if !add {
+                out.fill([0, 0]);
+            }
+            return;
+        };
+        let v = |(a, b, c, d): (&[u32], &[u32], &[u32], &[u32]), i: usize| {
+            let g = |t: &[u32]| t.get(i).copied().unwrap_or(0);
+            g(a).wrapping_sub(g(b))
+                .wrapping_sub(g(c))
+                .wrapping_add(g(d))
+        };
+        for (i, o) in out.iter_mut().enumerate() {
+            let r = [v(s, i), v(q, i)];
+            *o = if add {
+                [o[0].wrapping_add(r[0]), o[1].wrapping_add(r[1])]
+            } else {
+                r
+            };
+        }
+    }
 }
 
 /// The integral-table scratch of one search: either the tables of a whole window
@@ -132,8 +182,9 @@ impl<'b> Tables<'b> {
     }
 }
 
-/// Fill the sum and sum-of-squares tables (`(rw + 1) × (rh + 1)` each) in one
-/// pass over the window pixels.
+/// Fill the sum and sum-of-squares tables (`(rw + 1) × (rh + 1)` each), row by
+/// row in one pass: the running sums of the row's pixels plus the entries above
+/// (read from the previous row, not from what this pass has just stored).
 pub(super) fn fill_tables(
     win: &Win,
     x0: usize,
@@ -144,33 +195,27 @@ pub(super) fn fill_tables(
     sq: &mut [u32],
 ) {
     let w1 = rw.saturating_add(1);
-    for tab in [&mut *sum, &mut *sq] {
-        if let Some(first) = tab.get_mut(..w1) {
-            first.fill(0);
-        }
-    }
-    for r in 0..rh {
-        // Checked: tables or a window smaller than the contract end the fill.
-        let (Some(prev_at), Some(cur_at)) = (
-            r.checked_mul(w1),
-            r.checked_add(1).and_then(|r1| r1.checked_mul(w1)),
-        ) else {
-            return;
-        };
-        let (Some((sum_head, sum_tail)), Some((sq_head, sq_tail))) = (
-            sum.split_at_mut_checked(cur_at),
-            sq.split_at_mut_checked(cur_at),
-        ) else {
-            return;
-        };
-        let (Some(ps), Some(cs), Some(pq), Some(cq)) = (
-            sum_head.get(prev_at..),
-            sum_tail.get_mut(..w1),
-            sq_head.get(prev_at..),
-            sq_tail.get_mut(..w1),
-        ) else {
-            return;
-        };
+    let n = w1.saturating_mul(rh.saturating_add(1));
+    let (Some(sum), Some(sq)) = (sum.get_mut(..n), sq.get_mut(..n)) else {
+        return;
+    };
+    let (Some((s_top, s_rows)), Some((q_top, q_rows))) =
+        (sum.split_at_mut_checked(w1), sq.split_at_mut_checked(w1))
+    else {
+        return;
+    };
+    s_top.fill(0);
+    q_top.fill(0);
+    // The rows above, from column 1 (their column 0 is zero).
+    let (mut s_prev, mut q_prev): (&[u32], &[u32]) =
+        (s_top.get(1..).unwrap_or(&[]), q_top.get(1..).unwrap_or(&[]));
+    // `(0..rh).zip(…)` rather than `enumerate()`: the same pairs without the
+    // enumerate counter's overflow check.
+    let rows = s_rows
+        .chunks_exact_mut(w1.max(1))
+        .zip(q_rows.chunks_exact_mut(w1.max(1)));
+    for (r, (cs, cq)) in (0..rh).zip(rows) {
+        // Checked: a window smaller than the contract ends the fill.
         let Some(frow) = y0.checked_add(r).and_then(|y| win.span(x0, y, rw)) else {
             return;
         };
@@ -180,15 +225,19 @@ pub(super) fn fill_tables(
         };
         *cs0 = 0;
         *cq0 = 0;
+        // u32 wrapping throughout (see `Integral::build`).
         let (mut run_s, mut run_q) = (0u32, 0u32);
-        let prev = ps.iter().skip(1).zip(pq.iter().skip(1));
-        for (((s, q), (&p_s, &p_q)), &f) in cs.iter_mut().zip(cq.iter_mut()).zip(prev).zip(frow) {
+        let above = s_prev.iter().zip(q_prev);
+        for (((s, q), (&ps, &pq)), &f) in cs.iter_mut().zip(cq.iter_mut()).zip(above).zip(frow) {
             let v = u32::from(f);
             run_s = run_s.wrapping_add(v);
             run_q = run_q.wrapping_add(v.wrapping_mul(v));
-            *s = p_s.wrapping_add(run_s);
-            *q = p_q.wrapping_add(run_q);
+            *s = run_s.wrapping_add(ps);
+            *q = run_q.wrapping_add(pq);
         }
+        // The finished rows are the next one's "above".
+        s_prev = &*cs;
+        q_prev = &*cq;
     }
 }
 
@@ -207,7 +256,12 @@ mod tests {
         let mut rng = Rng::new(5);
         let (w, h) = (37usize, 29usize);
         let px = random_px(w * h, &mut rng);
-        let win = Win { px: &px, w, h };
+        let win = Win {
+            px: &px,
+            w,
+            h,
+            stride: w,
+        };
         let mut whole = vec![0u32; 2 * (w + 1) * (h + 1)];
         let mut region = vec![0u32; 2 * (w + 1) * (h + 1)];
         Integral::build(&win, 0, 0, w, h, &mut whole).unwrap();

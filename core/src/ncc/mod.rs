@@ -69,7 +69,7 @@ pub use pyramid::{peak_radius_px, pyramid_levels, pyramid_levels_min, search_lev
 
 use integral::Tables;
 use pyramid::{Tpl, Win};
-use search::TopK;
+use search::{Strip, TopK};
 
 /// Image domain in which template and window are correlated (paper §III-D).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -247,27 +247,32 @@ fn mul_wide(a: u128, b: u64) -> (u128, u64) {
     (p1 + (p0 >> 64), p0 as u64)
 }
 
-/// `num_a²·var_f_b` against `num_b²·var_f_a` in f64 where the two differ by far
-/// more than the rounding error, `None` where they are too close to tell (the
-/// caller then compares exactly). Every operand is an integer below 2⁵³ and so
-/// exact in f64; each product is rounded twice (relative error < 2.3·10⁻¹⁶), so a
-/// relative gap above 10⁻¹² decides the exact comparison: the result is the
-/// exact order whenever it is `Some`. Only where f64 is hardware (the 64-bit
-/// host and application targets); elsewhere every comparison is the integer one.
+/// `sign(num_a)·num_a²·var_f_b` against `sign(num_b)·num_b²·var_f_a` in f64
+/// where the two differ by far more than the rounding error, `None` where they
+/// are too close to tell (the caller then compares exactly). Every operand is an
+/// integer below 2⁵³ and so exact in f64 (signed conversions, one instruction
+/// each on x86-64); each product is rounded twice (relative error < 2.3·10⁻¹⁶),
+/// so a difference above 10⁻¹² of the products' magnitudes decides the exact
+/// comparison, signs included: the result is the exact order whenever it is
+/// `Some` (two zero numerators are left to the integers, which call them equal).
+/// Only where f64 is hardware (the 64-bit host and application targets);
+/// elsewhere every comparison is the integer one.
 #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
 #[inline]
 #[allow(
     clippy::cast_precision_loss,
-    reason = "|num|, var_f < 2^48 are exact in f64; the rounding of the products is bounded above"
+    clippy::arithmetic_side_effects,
+    reason = "|num|, var_f < 2^48 are exact in f64; the rounding of the products is bounded above (f64 arithmetic)"
 )]
-fn cmp_keys_f64(a: &Score, b: &Score) -> Option<Ordering> {
-    let (na, nb) = (a.num.unsigned_abs() as f64, b.num.unsigned_abs() as f64);
-    let la = na * na * b.var_f.unsigned_abs() as f64;
-    let lb = nb * nb * a.var_f.unsigned_abs() as f64;
+pub(crate) fn cmp_keys_f64(a: &Score, b: &Score) -> Option<Ordering> {
+    let (na, nb) = (a.num as f64, b.num as f64);
+    let la = na * na.abs() * (b.var_f as f64).abs();
+    let lb = nb * nb.abs() * (a.var_f as f64).abs();
     const GAP: f64 = 1e-12;
-    if la > lb + lb * GAP {
+    let g = GAP * (la.abs() + lb.abs());
+    if la - lb > g {
         Some(Ordering::Greater)
-    } else if lb > la + la * GAP {
+    } else if lb - la > g {
         Some(Ordering::Less)
     } else {
         None
@@ -277,29 +282,75 @@ fn cmp_keys_f64(a: &Score, b: &Score) -> Option<Ordering> {
 /// The integer comparison decides every pair on this target.
 #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
 #[inline]
-fn cmp_keys_f64(_: &Score, _: &Score) -> Option<Ordering> {
+pub(crate) fn cmp_keys_f64(_: &Score, _: &Score) -> Option<Ordering> {
     None
 }
 
 /// Exact order of two scores of the same template (same `var_t`), by
 /// `sign(num)·num²/var_f`, with no division and no square root.
-#[allow(
-    clippy::arithmetic_side_effects,
-    reason = "|num| < 2^48, so num² < 2^96 fits u128; the 192-bit product is mul_wide's"
-)]
 #[inline]
 pub fn cmp_scores(a: &Score, b: &Score) -> Ordering {
-    let (sa, sb) = (a.num.signum(), b.num.signum());
-    if sa != sb {
-        return sa.cmp(&sb);
-    }
-    if sa == 0 {
-        return Ordering::Equal;
-    }
     if let Some(o) = cmp_keys_f64(a, b) {
-        return if sa > 0 { o } else { o.reverse() };
+        return o;
     }
     cmp_scores_exact(a, b)
+}
+
+/// Order key of a score of a given template: `sign(num)·num²/var_f` in f64
+/// (three roundings: relative error below 3.4·10⁻¹⁶), NaN when `var_f ≤ 0`.
+/// [`key_beats`] orders two scores of one template by their keys where these
+/// are clearly apart and by [`cmp_scores_exact`] otherwise. Only where f64 is
+/// hardware; elsewhere every key is NaN, so every comparison is the integer one.
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+#[inline]
+#[allow(
+    clippy::cast_precision_loss,
+    clippy::arithmetic_side_effects,
+    reason = "|num|, var_f < 2^48 are exact in f64; the rounding is bounded above (f64 arithmetic)"
+)]
+pub(crate) fn order_key(s: &Score) -> f64 {
+    if s.var_f <= 0 {
+        return f64::NAN;
+    }
+    let n = s.num as f64;
+    n * n.abs() / s.var_f as f64
+}
+
+/// Order key where f64 is software: NaN, so every comparison is the integer one.
+#[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+#[inline]
+pub(crate) fn order_key(_: &Score) -> f64 {
+    f64::NAN
+}
+
+/// Whether `a` (order key `ka`) is strictly better than `b` (key `kb`), two
+/// scores of one template: the keys decide when they differ by more than 10⁻¹²
+/// of their magnitudes (far above their rounding error, so the order is the
+/// exact one), [`cmp_scores_exact`] otherwise (and for NaN keys, for which both
+/// comparisons are false). Always `cmp_scores(a, b) == Greater`.
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+#[inline]
+#[allow(
+    clippy::arithmetic_side_effects,
+    reason = "f64 arithmetic on finite keys or NaN (every comparison with NaN is false)"
+)]
+pub(crate) fn key_beats(ka: f64, a: &Score, kb: f64, b: &Score) -> bool {
+    const GAP: f64 = 1e-12;
+    let g = GAP * (ka.abs() + kb.abs());
+    if ka - kb > g {
+        return true;
+    }
+    if kb - ka > g {
+        return false;
+    }
+    cmp_scores_exact(a, b) == Ordering::Greater
+}
+
+/// [`key_beats`] where f64 is software: the integer comparison alone.
+#[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+#[inline]
+pub(crate) fn key_beats(_: f64, a: &Score, _: f64, b: &Score) -> bool {
+    cmp_scores_exact(a, b) == Ordering::Greater
 }
 
 /// [`cmp_scores`] by the integer products alone (the reference its f64 shortcut
@@ -308,7 +359,7 @@ pub fn cmp_scores(a: &Score, b: &Score) -> Ordering {
     clippy::arithmetic_side_effects,
     reason = "|num| < 2^48, so num² < 2^96 fits u128; the 192-bit product is mul_wide's"
 )]
-fn cmp_scores_exact(a: &Score, b: &Score) -> Ordering {
+pub(crate) fn cmp_scores_exact(a: &Score, b: &Score) -> Ordering {
     let (sa, sb) = (a.num.signum(), b.num.signum());
     if sa != sb {
         return sa.cmp(&sb);
@@ -539,6 +590,7 @@ pub fn match_template_with(
     };
     let radius0 = peak_radius_px(tw, th);
     let mut tables = Tables::new(integral);
+    let mut strip = Strip::new();
     let top = search::coarse_to_fine(
         &tpls,
         &wins,
@@ -546,6 +598,7 @@ pub fn match_template_with(
         (tw, th, ww, wh),
         &cfg,
         &mut tables,
+        &mut strip,
         &mut stats,
     )?;
 
@@ -559,7 +612,7 @@ pub fn match_template_with(
         .skip(1)
         .find(|c| !probe.near(c, &win))
         .map_or(-1.0, |c| c.s.to_f32());
-    let (dx, dy) = subpixel::offsets(&tpls, &wins, &win, &mut tables, &mut stats)?;
+    let (dx, dy) = subpixel::offsets(&tpls, &wins, &win, &mut tables, &mut strip, &mut stats)?;
 
     // The winner lies inside the window rectangle, itself inside the image
     // (≤ MAX_IMAGE_DIM), so these sums fit; wrapping keeps them total.
@@ -618,10 +671,10 @@ mod tests {
     extern crate std;
     use super::test_util::*;
 
-    /// The f64 shortcut of `cmp_scores` never changes an order: it agrees with
-    /// the integer comparison on random scores over the whole range, on exact
-    /// ties, and on pairs one unit apart at the top of the range (where the
-    /// shortcut must defer to the integers).
+    /// The f64 shortcuts of `cmp_scores` and `key_beats` never change an
+    /// order: they agree with the integer comparison on random scores over the
+    /// whole range, on exact ties, and on pairs one unit apart at the top of the
+    /// range (where the shortcuts must defer to the integers).
     #[test]
     fn cmp_scores_shortcut_equals_exact_comparison() {
         let mut rng = crate::rng::Rng::new(77);
@@ -658,6 +711,13 @@ mod tests {
             };
             assert_eq!(cmp_scores(&a, &b), cmp_scores_exact(&a, &b), "{a:?} {b:?}");
             assert_eq!(cmp_scores(&b, &a), cmp_scores_exact(&b, &a), "{b:?} {a:?}");
+            for (p, q) in [(&a, &b), (&b, &a)] {
+                assert_eq!(
+                    key_beats(order_key(p), p, order_key(q), q),
+                    cmp_scores_exact(p, q) == Ordering::Greater,
+                    "{p:?} {q:?}"
+                );
+            }
         }
         let a = Score {
             num: top,
@@ -670,6 +730,10 @@ mod tests {
             var_t: 1,
         };
         assert_eq!(cmp_scores(&a, &b), cmp_scores_exact(&a, &b));
+        assert_eq!(
+            key_beats(order_key(&a), &a, order_key(&b), &b),
+            cmp_scores_exact(&a, &b) == Ordering::Greater
+        );
     }
     use super::*;
     use crate::rng::Rng;

@@ -298,7 +298,8 @@ impl ScratchSizes {
 /// One pyramid level of the template.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Tpl<'s> {
-    /// Pixels, zero where the mask drops them.
+    /// Pixels, zero where the mask drops them, row-major, [`TPL_BYTES_PER_PX`]
+    /// bytes each (little-endian i16 on the vector targets, bytes elsewhere).
     pub(super) px: &'s [u8],
     /// Runs of kept pixels; `None` for an unmasked template.
     pub(super) runs: Option<&'s [Run]>,
@@ -312,9 +313,12 @@ pub(super) struct Tpl<'s> {
 /// One pyramid level of the window.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Win<'s> {
+    /// Pixels, row-major with `stride` pixels per row (at least
+    /// `(h − 1)·stride + w` of them).
     pub(super) px: &'s [u8],
     pub(super) w: usize,
     pub(super) h: usize,
+    pub(super) stride: usize,
 }
 
 impl<'s> Win<'s> {
@@ -323,19 +327,62 @@ impl<'s> Win<'s> {
         (self.w.saturating_sub(tw), self.h.saturating_sub(th))
     }
 
-    /// `len` pixels of row `y` from column `x` (row-major, stride `w`), or
-    /// `None` where they would leave the buffer: checked offsets, no panic path.
+    /// `len` pixels of row `y` from column `x`, or `None` where they would
+    /// leave the buffer: checked offsets, no panic path.
     #[inline]
     pub(super) fn span(&self, x: usize, y: usize, len: usize) -> Option<&'s [u8]> {
-        let start = y.checked_mul(self.w)?.checked_add(x)?;
+        let start = y.checked_mul(self.stride)?.checked_add(x)?;
         self.px.get(start..start.checked_add(len)?)
     }
 }
 
+/// Template bytes per pixel in [`Tpl::px`]: 2 (little-endian i16) where the
+/// vector kernel runs (x86-64, AArch64), 1 elsewhere.
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+pub(super) const TPL_BYTES_PER_PX: usize = 2;
+/// Template bytes per pixel in [`Tpl::px`] (the portable kernel's bytes).
+#[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+pub(super) const TPL_BYTES_PER_PX: usize = 1;
+
+/// Rewrite the first `n` bytes of `region` (pixels), in place, as `n`
+/// little-endian i16 over the first `2n` bytes (the level's pixel and mask
+/// bytes, the mask no longer being needed). Pixel `i` moves to `2i`, at or
+/// after where it was, so a descending pass reads each pixel before it is
+/// overwritten.
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+fn widen_in_place(region: &mut [u8], n: usize) {
+    for i in (0..n).rev() {
+        let v = region.get(i).copied().unwrap_or(0);
+        if let Some(pair) = region
+            .get_mut(i.saturating_mul(2)..)
+            .and_then(|r| r.first_chunk_mut::<2>())
+        {
+            *pair = [v, 0];
+        }
+    }
+}
+
+/// What a built template level knows besides its pixels.
+#[derive(Clone, Copy)]
+struct LevelTerms<'s> {
+    runs: Option<&'s [Run]>,
+    w: usize,
+    h: usize,
+    n: i64,
+    st: i64,
+    var_t: i64,
+}
+
 /// Build the template pyramid; returns the number of usable levels.
+///
+/// Each level takes `2·w·h` bytes of `tbuf`: its pixels (dropped ones zeroed)
+/// and its mask while the pyramid is built; once every level is built, the
+/// vector targets rewrite each level's two halves as i16 pixels
+/// ([`TPL_BYTES_PER_PX`]), the kernel's operand.
 #[allow(
     clippy::arithmetic_side_effects,
     clippy::cast_possible_truncation,
+    clippy::too_many_lines,
     reason = "template sides ≤ MAX_TEMPLATE_PX < 2^16 fit the u16 run fields; 255² fits u64"
 )]
 pub(super) fn build_template_levels<'s>(
@@ -348,18 +395,26 @@ pub(super) fn build_template_levels<'s>(
     levels: &mut [Option<Tpl<'s>>; MAX_LEVELS],
 ) -> Result<usize, FailureCode> {
     let (tw, th) = (template.width(), template.height());
-    let mut prev: Option<(&'s [u8], &'s [u8])> = None;
+    // Each level's `2·w·h` bytes (pixels, then mask) and its terms.
+    let mut regions: [Option<(&'s mut [u8], LevelTerms<'s>)>; MAX_LEVELS] =
+        [const { None }; MAX_LEVELS];
     let mut used = 0;
-    for (k, slot) in levels.iter_mut().enumerate().take(want) {
+    for k in 0..want.min(MAX_LEVELS) {
         let (w, h) = (shr(tw, k), shr(th, k));
         let n_px = w.saturating_mul(h);
-        let (px, rest) = core::mem::take(&mut tbuf)
-            .split_at_mut_checked(n_px)
-            .ok_or(FailureCode::NccScratchTooSmall)?;
-        let (mk, rest) = rest
-            .split_at_mut_checked(n_px)
+        let (region, rest) = core::mem::take(&mut tbuf)
+            .split_at_mut_checked(n_px.saturating_mul(2))
             .ok_or(FailureCode::NccScratchTooSmall)?;
         tbuf = rest;
+        // The level above: its pixels and mask (k ≥ 1).
+        let prev = k
+            .checked_sub(1)
+            .and_then(|p| regions.get(p))
+            .and_then(|r| r.as_ref())
+            .and_then(|(r, _)| r.split_at_checked(r.len() / 2));
+        let (px, mk) = region
+            .split_at_mut_checked(n_px)
+            .ok_or(FailureCode::NccScratchTooSmall)?;
         match prev {
             None => {
                 filter_region(template, template.rect(), filter, px)?;
@@ -483,26 +538,47 @@ pub(super) fn build_template_levels<'s>(
         } else {
             None
         };
-        let (px, mk): (&'s [u8], &'s [u8]) = (px, mk);
+        if let Some(slot) = regions.get_mut(k) {
+            *slot = Some((
+                region,
+                LevelTerms {
+                    runs,
+                    w,
+                    h,
+                    n,
+                    st,
+                    var_t,
+                },
+            ));
+        }
+        used = k.saturating_add(1);
+    }
+    for (slot, region) in levels.iter_mut().zip(regions) {
+        let Some((region, lt)) = region else {
+            break;
+        };
+        let n_px = lt.w.saturating_mul(lt.h);
+        #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+        widen_in_place(region, n_px);
+        let px: &'s [u8] = present(region.get(..n_px.saturating_mul(TPL_BYTES_PER_PX)));
         *slot = Some(Tpl {
             px,
-            runs,
-            w,
-            h,
-            n,
-            st,
-            var_t,
+            runs: lt.runs,
+            w: lt.w,
+            h: lt.h,
+            n: lt.n,
+            st: lt.st,
+            var_t: lt.var_t,
         });
-        prev = Some((px, mk));
-        used = k.saturating_add(1);
     }
     Ok(used)
 }
 
 /// Build the window pyramid of `levels` levels: level 0 is `wr` of `image` after
-/// `filter`, each further level the 2× box downsample of the one above.
+/// `filter` (for the gray domain, `wr` of `image` itself: no copy), each further
+/// level the 2× box downsample of the one above.
 pub(super) fn build_window_levels<'s>(
-    image: &GrayView,
+    image: &GrayView<'s>,
     wr: Rect,
     filter: Filter,
     levels: usize,
@@ -518,12 +594,35 @@ pub(super) fn build_window_levels<'s>(
             .split_at_mut_checked(w.saturating_mul(h))
             .ok_or(FailureCode::NccScratchTooSmall)?;
         wbuf = rest;
-        match prev {
-            None => filter_region(image, wr, filter, px)?,
-            Some(p) => downsample(&GrayView::new(p.px, p.w, p.h, p.w)?, px),
-        }
-        let px: &[u8] = px;
-        let win = Win { px, w, h };
+        let win = match prev {
+            None if filter == Filter::Gray => {
+                let v = image.sub(wr).ok_or(FailureCode::NccWindowOutsideImage)?;
+                Win {
+                    px: v.data(),
+                    w,
+                    h,
+                    stride: v.stride(),
+                }
+            }
+            None => {
+                filter_region(image, wr, filter, px)?;
+                Win {
+                    px,
+                    w,
+                    h,
+                    stride: w,
+                }
+            }
+            Some(p) => {
+                downsample(&GrayView::new(p.px, p.w, p.h, p.stride)?, px);
+                Win {
+                    px,
+                    w,
+                    h,
+                    stride: w,
+                }
+            }
+        };
         *slot = Some(win);
         prev = Some(win);
     }

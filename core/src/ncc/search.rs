@@ -3,108 +3,401 @@
 use crate::fmt::present;
 use core::cmp::Ordering;
 
-use super::integral::Tables;
+use super::integral::{Integral, Tables};
+#[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
 use super::kernel::{dot_block, KERNEL_BLOCK};
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+use super::kernel::{dot_col, COL_BLOCK};
 use super::pyramid::{refine_plan, whole_level_tables, Tpl, Win};
 use super::{
-    cmp_scores, peak_radius_px, FailureCode, MatchStats, Score, SearchConfig, MAX_CANDIDATES,
-    MAX_CLIMB_STEPS, MAX_LEVELS,
+    cmp_keys_f64, cmp_scores, key_beats, order_key, peak_radius_px, FailureCode, MatchStats, Score,
+    SearchConfig, MAX_CANDIDATES, MAX_CLIMB_STEPS, MAX_LEVELS,
 };
 
+/// Receiver of the scored positions of [`eval_positions`], in raster order.
+pub(super) trait Sink {
+    /// A score such that offering any score not strictly better than it
+    /// changes nothing (`None`: any offer may count). Read again after every
+    /// offer; positions clearly below it are not offered.
+    fn floor(&self) -> Option<Score>;
+    /// Take the score of position `(x, y)`.
+    fn offer(&mut self, x: usize, y: usize, s: Score);
+}
+
+impl Sink for TopK {
+    #[inline]
+    fn floor(&self) -> Option<Score> {
+        // Only a full list rejects by its last entry (a list shortened by
+        // near entries leaving takes any offer that is not near a better one).
+        (self.len == self.cap)
+            .then(|| self.as_slice().last().map(|c| c.s))
+            .flatten()
+    }
+
+    #[inline]
+    fn offer(&mut self, x: usize, y: usize, s: Score) {
+        TopK::offer(self, Cand { x, y, s });
+    }
+}
+
+/// The argmax of the offered positions (ties keep the first offered).
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct ArgMax(pub(super) Option<Cand>);
+
+impl Sink for ArgMax {
+    #[inline]
+    fn floor(&self) -> Option<Score> {
+        self.0.map(|b| b.s)
+    }
+
+    #[inline]
+    fn offer(&mut self, x: usize, y: usize, s: Score) {
+        if self.0.as_ref().is_none_or(|b| beats(&s, &b.s)) {
+            self.0 = Some(Cand { x, y, s });
+        }
+    }
+}
+
+/// Whether `s` is clearly below `floor` (by the f64 shortcut of
+/// [`cmp_scores`]; never where that defers to the integers).
+#[inline]
+fn below(s: &Score, floor: Option<&Score>) -> bool {
+    floor.is_some_and(|f| cmp_keys_f64(s, f) == Some(Ordering::Less))
+}
+
+/// Positions per row a [`Strip`] holds: a region wider than this is scored one
+/// row at a time (exhaustive searches of wide windows).
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+pub(super) const STRIP_W: usize = 128;
+
+/// Working memory of [`eval_positions`] on the vector targets: a strip of up
+/// to [`COL_BLOCK`] rows of positions, its window sums (computed a row at a
+/// time from the integral tables) and Σ t·f (column by column, [`dot_col`]),
+/// handed on row by row, in raster order. One per search.
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+pub(super) struct Strip {
+    /// Window sums `[Σf, Σf²]`.
+    sums: [[[u32; 2]; STRIP_W]; COL_BLOCK],
+    dots: [[u32; STRIP_W]; COL_BLOCK],
+}
+
+/// Working memory of [`eval_positions`]: none with the portable kernel.
+#[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+pub(super) struct Strip;
+
+impl Strip {
+    #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+    pub(super) fn new() -> Self {
+        Self {
+            sums: [[[0; 2]; STRIP_W]; COL_BLOCK],
+            dots: [[0; STRIP_W]; COL_BLOCK],
+        }
+    }
+
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+    pub(super) fn new() -> Self {
+        Self
+    }
+}
+
+/// The template terms `eval_positions` turns window sums and Σ t·f into scores with.
+#[derive(Clone, Copy)]
+struct Terms {
+    n: i64,
+    st: i64,
+    var_t: i64,
+}
+
+impl Terms {
+    /// (Σf, var_f) from the window sums: N·Σf² − (Σf)² < 2⁴⁸ (numeric.md), no
+    /// wrap for templates within the caps.
+    #[inline]
+    fn var_f(&self, sf: u32, sff: u32) -> (i64, i64) {
+        let (sf, sff) = (i64::from(sf), i64::from(sff));
+        (
+            sf,
+            self.n.wrapping_mul(sff).wrapping_sub(sf.wrapping_mul(sf)),
+        )
+    }
+
+    /// The score from Σf, var_f and Σ t·f: N·Σft − Σf·Σt < 2⁴⁸ (numeric.md).
+    #[inline]
+    fn score(&self, sf: i64, var_f: i64, dot: u32) -> Score {
+        Score {
+            num: self
+                .n
+                .wrapping_mul(i64::from(dot))
+                .wrapping_sub(sf.wrapping_mul(self.st)),
+            var_f,
+            var_t: self.var_t,
+        }
+    }
+}
+
 /// Score every position `(x, y)` with `x0 ≤ x ≤ x1`, `y0 ≤ y ≤ y1` (all valid
-/// top-left positions) and hand each non-flat one to `sink`.
-#[allow(clippy::too_many_arguments)]
+/// top-left positions) and hand each non-flat one that is not clearly below
+/// the sink's floor to `sink`, in raster order; every non-flat position counts
+/// as scored.
 #[allow(
     clippy::arithmetic_side_effects,
     reason = "x1 ≥ x0 and y1 ≥ y0 are checked at entry"
 )]
-pub(super) fn eval_positions<F: FnMut(usize, usize, Score)>(
+pub(super) fn eval_positions<S: Sink>(
     t: &Tpl,
     (k, win): (usize, &Win),
     (x0, y0, x1, y1): (usize, usize, usize, usize),
     tables: &mut Tables,
+    strip: &mut Strip,
     stats: &mut MatchStats,
-    mut sink: F,
+    sink: &mut S,
 ) -> Result<(), FailureCode> {
     if x1 < x0 || y1 < y0 {
         return Ok(());
     }
     // Wrapping index arithmetic below: positions lie in `[x0, x1] × [y0, y1]`
     // of a window that holds the template there (the contract), so nothing
-    // wraps; `Integral::rect` and `dot_block` read through `get` in any case.
+    // wraps; the integral tables and the kernels read through `get` in any case.
     let rw = (x1 - x0).saturating_add(t.w);
     let rh = (y1 - y0).saturating_add(t.h);
     let integ = tables.region(k, win, (x0, y0, rw, rh))?;
-    // (Σf, var_f) of the window at window-level coordinates (x, y).
-    let window_terms = |x: usize, y: usize| -> (i64, i64) {
-        let (rx, ry) = (x.wrapping_sub(integ.x0), y.wrapping_sub(integ.y0));
-        let (sf, sff) = match t.runs {
-            None => integ.rect(rx, ry, t.w, t.h),
-            Some(runs) => runs.iter().fold((0u32, 0u32), |(s, q), run| {
-                let (a, b) = integ.rect(
-                    rx.wrapping_add(usize::from(run.x0)),
-                    ry.wrapping_add(usize::from(run.row)),
-                    usize::from(run.x1.wrapping_sub(run.x0)),
-                    usize::from(run.rows),
-                );
-                (s.wrapping_add(a), q.wrapping_add(b))
-            }),
-        };
-        let (sf, sff) = (i64::from(sf), i64::from(sff));
-        // N·Σf² − (Σf)² < 2⁴⁸ (numeric.md): no wrap for templates within the caps.
-        (sf, t.n.wrapping_mul(sff).wrapping_sub(sf.wrapping_mul(sf)))
+    let terms = Terms {
+        n: t.n,
+        st: t.st,
+        var_t: t.var_t,
     };
+    let (scored, flat) = scan(t, win, &integ, (x0, y0, x1, y1), strip, terms, sink);
+    stats.positions_scored = stats.positions_scored.saturating_add(scored);
+    stats.flat_positions = stats.flat_positions.saturating_add(flat);
+    let per = t.w.saturating_mul(t.h) as u64;
+    stats.macs = stats.macs.saturating_add(scored.saturating_mul(per));
+    Ok(())
+}
+
+/// (Σf, Σf²) of the window under the template's kept pixels at window-level
+/// coordinates (x, y).
+#[inline]
+fn window_sums(t: &Tpl, integ: &Integral, x: usize, y: usize) -> (u32, u32) {
+    let (rx, ry) = (x.wrapping_sub(integ.x0), y.wrapping_sub(integ.y0));
+    match t.runs {
+        None => integ.rect(rx, ry, t.w, t.h),
+        Some(runs) => runs.iter().fold((0u32, 0u32), |(s, q), run| {
+            let (a, b) = integ.rect(
+                rx.wrapping_add(usize::from(run.x0)),
+                ry.wrapping_add(usize::from(run.row)),
+                usize::from(run.x1.wrapping_sub(run.x0)),
+                usize::from(run.rows),
+            );
+            (s.wrapping_add(a), q.wrapping_add(b))
+        }),
+    }
+}
+
+/// Hand one position (its Σf, var_f and Σ t·f) to `sink` unless flat or
+/// clearly below `floor` (which is read again after an offer); counts it in
+/// `(scored, flat)`.
+#[inline]
+#[allow(clippy::too_many_arguments)]
+fn deliver<S: Sink>(
+    terms: &Terms,
+    sink: &mut S,
+    floor: &mut Option<Score>,
+    counts: &mut (u64, u64),
+    x: usize,
+    y: usize,
+    (sf, var_f): (i64, i64),
+    dot: u32,
+) {
+    if var_f <= 0 {
+        counts.1 = counts.1.wrapping_add(1);
+        return;
+    }
+    counts.0 = counts.0.wrapping_add(1);
+    let s = terms.score(sf, var_f, dot);
+    if below(&s, floor.as_ref()) {
+        return;
+    }
+    sink.offer(x, y, s);
+    *floor = sink.floor();
+}
+
+/// The vector targets' scan: strips of up to [`COL_BLOCK`] rows, their window
+/// sums a row at a time, their Σ t·f column by column with [`dot_col`] (one
+/// pass over the window rows per column of positions), handed on row by row.
+/// A column whose positions are all flat skips the kernel. Regions wider than
+/// [`STRIP_W`] go one position at a time. Returns (scored, flat) counts.
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+fn scan<S: Sink>(
+    t: &Tpl,
+    win: &Win,
+    integ: &Integral,
+    (x0, y0, x1, y1): (usize, usize, usize, usize),
+    strip: &mut Strip,
+    terms: Terms,
+    sink: &mut S,
+) -> (u64, u64) {
+    let mut counts = (0u64, 0u64);
+    let mut floor = sink.floor();
+    let width = x1.wrapping_sub(x0).wrapping_add(1);
+    if width > STRIP_W {
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let (sf, sff) = window_sums(t, integ, x, y);
+                let v = terms.var_f(sf, sff);
+                let dot = if v.1 > 0 {
+                    let [d] = dot_col::<1>(t, win, x, y);
+                    d
+                } else {
+                    0
+                };
+                deliver(&terms, sink, &mut floor, &mut counts, x, y, v, dot);
+            }
+        }
+        return counts;
+    }
+    let (rx0, ry0) = (x0.wrapping_sub(integ.x0), y0.wrapping_sub(integ.y0));
+    let mut ys = y0;
+    loop {
+        let hs = y1.wrapping_sub(ys).wrapping_add(1).min(COL_BLOCK);
+        let ry = ry0.wrapping_add(ys.wrapping_sub(y0));
+        // Window sums, a row of positions at a time.
+        for (j, sums) in (0..hs).zip(strip.sums.iter_mut()) {
+            let Some(sums) = sums.get_mut(..width) else {
+                continue;
+            };
+            let ry = ry.wrapping_add(j);
+            match t.runs {
+                None => integ.rect_row(rx0, ry, t.w, t.h, sums, false),
+                Some(runs) => {
+                    sums.fill([0, 0]);
+                    for run in runs {
+                        integ.rect_row(
+                            rx0.wrapping_add(usize::from(run.x0)),
+                            ry.wrapping_add(usize::from(run.row)),
+                            usize::from(run.x1.wrapping_sub(run.x0)),
+                            usize::from(run.rows),
+                            sums,
+                            true,
+                        );
+                    }
+                }
+            }
+        }
+        // Σ t·f, a column of positions at a time.
+        for (i, x) in (0..width).zip(x0..=x1) {
+            let live = (0..hs).any(|j| {
+                let [sf, sff] = strip
+                    .sums
+                    .get(j)
+                    .and_then(|r| r.get(i))
+                    .copied()
+                    .unwrap_or([0, 0]);
+                terms.var_f(sf, sff).1 > 0
+            });
+            if !live {
+                continue;
+            }
+            // Column blocks of 8, 5, 4, 3, 2 and 1 positions, each result
+            // written straight into its strip rows.
+            let mut j = 0usize;
+            while j < hs {
+                let y = ys.wrapping_add(j);
+                let Some(rows) = strip.dots.get_mut(j..) else {
+                    break;
+                };
+                let mut put = |v: &[u32]| {
+                    for (row, &d) in rows.iter_mut().zip(v) {
+                        if let Some(o) = row.get_mut(i) {
+                            *o = d;
+                        }
+                    }
+                    v.len()
+                };
+                let done = match hs.wrapping_sub(j) {
+                    8.. => put(&dot_col::<8>(t, win, x, y)),
+                    5..=7 => put(&dot_col::<5>(t, win, x, y)),
+                    4 => put(&dot_col::<4>(t, win, x, y)),
+                    3 => put(&dot_col::<3>(t, win, x, y)),
+                    2 => put(&dot_col::<2>(t, win, x, y)),
+                    _ => put(&dot_col::<1>(t, win, x, y)),
+                };
+                j = j.wrapping_add(done);
+            }
+        }
+        // Hand the positions on, row by row.
+        for (j, (sums, dots)) in (0..hs).zip(strip.sums.iter().zip(&strip.dots)) {
+            let y = ys.wrapping_add(j);
+            for (x, (&[a, b], &d)) in (x0..=x1).zip(sums.iter().zip(dots)) {
+                let v = terms.var_f(a, b);
+                deliver(&terms, sink, &mut floor, &mut counts, x, y, v, d);
+            }
+        }
+        ys = ys.wrapping_add(hs);
+        if ys > y1 {
+            break;
+        }
+    }
+    counts
+}
+
+/// The portable scan: row by row, runs of [`KERNEL_BLOCK`] consecutive x
+/// sharing one pass over the template rows ([`dot_block`]); a run whose
+/// positions are all flat skips the kernel. Returns (scored, flat) counts.
+#[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+fn scan<S: Sink>(
+    t: &Tpl,
+    win: &Win,
+    integ: &Integral,
+    (x0, y0, x1, y1): (usize, usize, usize, usize),
+    _strip: &mut Strip,
+    terms: Terms,
+    sink: &mut S,
+) -> (u64, u64) {
+    let mut counts = (0u64, 0u64);
+    let mut floor = sink.floor();
     for y in y0..=y1 {
-        // Runs of KERNEL_BLOCK consecutive x share one pass over the template; the
-        // positions are still handed to `sink` (and counted) one by one in raster
-        // order, exactly as a position-by-position scan does.
         // `x0, x0 + KERNEL_BLOCK, … ≤ x1` without `step_by` over an inclusive
         // range, whose `nth` has an overflow panic path.
         let mut next_xb = Some(x0);
         while let Some(xb) = next_xb {
             next_xb = xb.checked_add(KERNEL_BLOCK).filter(|&n| n <= x1);
             let n = x1.wrapping_sub(xb).saturating_add(1).min(KERNEL_BLOCK);
-            let mut terms = [(0i64, 0i64); KERNEL_BLOCK];
+            let mut vs = [(0i64, 0i64); KERNEL_BLOCK];
+            let mut live = [false; KERNEL_BLOCK];
             // `(0..n).zip(…)` rather than `enumerate().take(n)`: the same
             // pairs without the enumerate counter's overflow check.
-            for (i, v) in (0..n).zip(terms.iter_mut()) {
-                *v = window_terms(xb.wrapping_add(i), y);
+            for ((i, v), l) in (0..n).zip(vs.iter_mut()).zip(live.iter_mut()) {
+                let (sf, sff) = window_sums(t, integ, xb.wrapping_add(i), y);
+                *v = terms.var_f(sf, sff);
+                *l = v.1 > 0;
             }
             let mut dots = [0u32; KERNEL_BLOCK];
             if n == KERNEL_BLOCK {
-                if terms.iter().any(|&(_, var_f)| var_f > 0) {
+                if live.iter().any(|&l| l) {
                     dots = dot_block::<KERNEL_BLOCK>(t, win, xb, y);
                 }
             } else {
-                for (i, (d, &(_, var_f))) in (0..n).zip(dots.iter_mut().zip(&terms)) {
-                    if var_f > 0 {
+                for ((i, d), &l) in (0..n).zip(dots.iter_mut()).zip(&live) {
+                    if l {
                         let [v] = dot_block::<1>(t, win, xb.wrapping_add(i), y);
                         *d = v;
                     }
                 }
             }
-            for (i, (&(sf, var_f), &dot)) in (0..n).zip(terms.iter().zip(&dots)) {
-                if var_f <= 0 {
-                    stats.flat_positions = stats.flat_positions.saturating_add(1);
-                    continue;
-                }
-                let sft = i64::from(dot);
-                stats.positions_scored = stats.positions_scored.saturating_add(1);
-                stats.macs = stats.macs.saturating_add(t.w.saturating_mul(t.h) as u64);
-                sink(
+            for ((i, &s), &d) in (0..n).zip(&vs).zip(&dots) {
+                deliver(
+                    &terms,
+                    sink,
+                    &mut floor,
+                    &mut counts,
                     xb.wrapping_add(i),
                     y,
-                    Score {
-                        // N·Σft − Σf·Σt < 2⁴⁸ (numeric.md).
-                        num: t.n.wrapping_mul(sft).wrapping_sub(sf.wrapping_mul(t.st)),
-                        var_f,
-                        var_t: t.var_t,
-                    },
+                    s,
+                    d,
                 );
             }
         }
     }
-    Ok(())
+    counts
 }
 
 #[derive(Clone, Copy, Debug, Default)]
@@ -120,18 +413,119 @@ pub(super) struct Cand {
 #[derive(Clone, Copy, Debug)]
 pub(super) struct TopK {
     pub(super) items: [Cand; MAX_CANDIDATES],
+    /// [`order_key`] of each entry.
+    keys: [f64; MAX_CANDIDATES],
+    /// Each entry's position (`x`, `y` as u32: positions lie in a window of at
+    /// most `MAX_SEARCH_PX` pixels), for the near test over the whole list.
+    xs: [u32; MAX_CANDIDATES],
+    ys: [u32; MAX_CANDIDATES],
     pub(super) len: usize,
     pub(super) cap: usize,
     pub(super) radius: usize,
+    /// Index of the entry that rejected the last offer for being near and at
+    /// least as good, or of the last entry inserted: neighbouring offers in
+    /// raster order are usually rejected by the same entry, so [`TopK::offer`]
+    /// tries it before scanning the list. Any index is correct (the scan
+    /// decides whenever the hint does not reject).
+    hint: usize,
+}
+
+/// The first index `i` of `cur` (with its key) for which `pred` is false, `pred`
+/// being true up to some index and false from there on (a binary search: few
+/// comparisons, which on targets without hardware f64 are the exact integer
+/// ones).
+fn pairs_partition_point(cur: &[Cand], keys: &[f64], pred: impl Fn(&Cand, f64) -> bool) -> usize {
+    let (mut lo, mut hi) = (0usize, cur.len().min(keys.len()));
+    while lo < hi {
+        // lo < hi ≤ MAX_CANDIDATES: no overflow.
+        let mid = lo.wrapping_add(hi.wrapping_sub(lo) / 2);
+        let (Some(e), Some(&k)) = (cur.get(mid), keys.get(mid)) else {
+            break;
+        };
+        if pred(e, k) {
+            lo = mid.wrapping_add(1);
+        } else {
+            hi = mid;
+        }
+    }
+    lo
+}
+
+/// Bit `i` set for each entry `i < len` whose position (`xs[i]`, `ys[i]`) is
+/// within `r` of `(cx, cy)` on both axes (`e − c + r ≤ span = 2r`, wrapping).
+/// On the vector targets eight entries at a time, branch-free (vectorized);
+/// elsewhere entry by entry, touching the 64-bit mask only for near entries
+/// (rare; 64-bit shifts are several instructions on a 32-bit core).
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+#[inline]
+fn near_mask(
+    xs: &[u32; MAX_CANDIDATES],
+    ys: &[u32; MAX_CANDIDATES],
+    len: usize,
+    (cx, cy): (u32, u32),
+    (r, span): (u32, u32),
+) -> u64 {
+    let mut near = 0u64;
+    let blocks = xs.as_chunks::<8>().0.iter().zip(ys.as_chunks::<8>().0);
+    for (b, (xb, yb)) in (0u32..).zip(blocks).take(len.div_ceil(8)) {
+        let mut m = 0u64;
+        for (i, (&x, &y)) in (0u32..).zip(xb.iter().zip(yb)) {
+            let n = (x.wrapping_sub(cx).wrapping_add(r) <= span)
+                & (y.wrapping_sub(cy).wrapping_add(r) <= span);
+            m |= u64::from(n).wrapping_shl(i);
+        }
+        near |= m.wrapping_shl(b.wrapping_mul(8));
+    }
+    // Slots past `len` hold stale positions.
+    near & u64::MAX
+        .checked_shr(64u32.saturating_sub(u32::try_from(len).unwrap_or(64)))
+        .unwrap_or(0)
+}
+
+/// [`near_mask`] entry by entry.
+#[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+#[inline]
+fn near_mask(
+    xs: &[u32; MAX_CANDIDATES],
+    ys: &[u32; MAX_CANDIDATES],
+    len: usize,
+    (cx, cy): (u32, u32),
+    (r, span): (u32, u32),
+) -> u64 {
+    let mut near = 0u64;
+    for (i, (&x, &y)) in (0u32..64).zip(xs.iter().zip(ys)).take(len) {
+        if x.wrapping_sub(cx).wrapping_add(r) <= span && y.wrapping_sub(cy).wrapping_add(r) <= span
+        {
+            near |= 1u64.wrapping_shl(i);
+        }
+    }
+    near
+}
+
+/// A position as u32 (positions lie in a window of at most `MAX_SEARCH_PX`
+/// pixels; saturating, so nothing wraps).
+#[inline]
+fn pos_u32(v: usize) -> u32 {
+    u32::try_from(v).unwrap_or(u32::MAX)
+}
+
+/// `a` strictly better than `b` (scores of one template).
+#[inline]
+fn beats(a: &Score, b: &Score) -> bool {
+    cmp_scores(a, b) == Ordering::Greater
 }
 
 impl TopK {
     pub(super) fn new(cap: usize, radius: usize) -> Self {
         Self {
             items: [Cand::default(); MAX_CANDIDATES],
+            keys: [0.0; MAX_CANDIDATES],
+            xs: [0; MAX_CANDIDATES],
+            ys: [0; MAX_CANDIDATES],
             len: 0,
             cap: cap.clamp(1, MAX_CANDIDATES),
             radius,
+            hint: 0,
         }
     }
 
@@ -143,77 +537,138 @@ impl TopK {
         a.x.abs_diff(b.x) <= self.radius && a.y.abs_diff(b.y) <= self.radius
     }
 
+    /// Offer `c`: rejected when the list is full and `c` is not better than its
+    /// last entry, or when an entry near `c` is at least as good; otherwise the
+    /// entries near `c` (all worse) leave, `c` goes in after every entry at
+    /// least as good as it, and the list is cut to `cap`.
+    ///
+    /// The two cheap rejections (the last entry, the hinted entry) are tried
+    /// here; whatever they let through goes to [`TopK::offer_scan`].
+    #[inline]
     pub(super) fn offer(&mut self, c: Cand) {
         let cur = self.as_slice();
         if self.len == self.cap {
-            if let Some(worst) = cur.last() {
-                if cmp_scores(&c.s, &worst.s) != Ordering::Greater {
+            if let Some(last) = cur.last() {
+                if !beats(&c.s, &last.s) {
                     return;
                 }
             }
         }
-        let mut any_near = false;
-        for e in cur {
-            if self.near(e, &c) {
-                if cmp_scores(&c.s, &e.s) != Ordering::Greater {
-                    return;
-                }
-                any_near = true;
+        if let Some(h) = cur.get(self.hint) {
+            if self.near(h, &c) && !beats(&c.s, &h.s) {
+                return;
             }
         }
-        // Drop the entries near `c` (all worse than it), keeping the order, then
-        // insert `c` before the first remaining entry it beats; in place, over
-        // the `len` used entries only.
-        let (radius, len) = (self.radius, self.len.min(MAX_CANDIDATES));
-        let near = |e: &Cand| e.x.abs_diff(c.x) <= radius && e.y.abs_diff(c.y) <= radius;
-        let mut n = if any_near { 0 } else { len };
-        for i in (0..len).take(if any_near { len } else { 0 }) {
-            let Some(e) = self.items.get(i).copied() else {
-                break;
-            };
-            if near(&e) {
+        self.offer_scan(c);
+    }
+
+    /// [`TopK::offer`] past its cheap rejections: the entries near `c` (one
+    /// branch-free pass) reject it if any is at least as good; otherwise `c`
+    /// goes in before the first entry it beats (the near ones all lie after it:
+    /// `c` beats them), the entries from there to the first near one move one
+    /// place right, and those after it move left over the near ones, all in place.
+    /// Comparisons go through the entries' cached order keys ([`key_beats`]).
+    #[inline(never)]
+    fn offer_scan(&mut self, c: Cand) {
+        let len = self.len.min(self.cap).min(MAX_CANDIDATES);
+        let (Some(cur), Some(keys)) = (self.items.get(..len), self.keys.get(..len)) else {
+            return;
+        };
+        // |e − c| ≤ r as `e − c + r ≤ 2r` in wrapping u32 arithmetic (positions
+        // are far below 2³¹; a radius of 2³⁰ or more makes everything near, as
+        // it is), eight entries at a time.
+        let r = u32::try_from(self.radius).unwrap_or(u32::MAX).min(1 << 30);
+        let span = r.wrapping_mul(2);
+        let (cx, cy) = (pos_u32(c.x), pos_u32(c.y));
+        let near = near_mask(&self.xs, &self.ys, len, (cx, cy), (r, span));
+        let kc = order_key(&c.s);
+        let mut m = near;
+        while m != 0 {
+            let i = m.trailing_zeros() as usize;
+            m &= m.wrapping_sub(1);
+            if let (Some(e), Some(&ke)) = (cur.get(i), keys.get(i)) {
+                if !key_beats(kc, &c.s, ke, &e.s) {
+                    self.hint = i;
+                    return;
+                }
+            }
+        }
+        // Sorted best first: "c beats e" is false up to some index and true
+        // from there on.
+        let pos = pairs_partition_point(cur, keys, |e, ke| !key_beats(kc, &c.s, ke, &e.s));
+        // The first near entry (every near one lies at or after `pos`), or `len`.
+        let first_near = if near == 0 {
+            len
+        } else {
+            near.trailing_zeros() as usize
+        };
+        // The kept entries after the first near one close up over the near
+        // ones, from the slot after it (`c` adds one entry before them).
+        let mut w = first_near.saturating_add(1);
+        for i in first_near.saturating_add(1)..len {
+            // i < len ≤ MAX_CANDIDATES = 64: the shift is in range.
+            if near & 1u64.wrapping_shl(u32::try_from(i).unwrap_or(u32::MAX)) != 0 {
                 continue;
             }
-            if n != i {
-                if let Some(o) = self.items.get_mut(n) {
-                    *o = e;
-                }
-            }
-            // n ≤ i < len ≤ MAX_CANDIDATES.
-            n = n.wrapping_add(1);
+            self.move_entry(i, w);
+            // w ≤ i < len ≤ MAX_CANDIDATES.
+            w = w.wrapping_add(1);
         }
-        let kept = present(self.items.get(..n));
-        // The list is sorted best first, so "c beats e" is false up to some index
-        // and true from there on: a binary search finds the first entry c beats.
-        let pos = kept.partition_point(|e| cmp_scores(&c.s, &e.s) != Ordering::Greater);
-        if pos >= self.cap {
-            self.len = n.min(self.cap);
-            return;
+        // Entries `pos..first_near` move one right (the last falls off a full
+        // list without near entries), and `c` takes `pos`.
+        let end = if near == 0 {
+            len.saturating_add(1).min(self.cap)
+        } else {
+            w
+        };
+        let mut i = first_near.min(self.cap.saturating_sub(1));
+        while i > pos {
+            self.move_entry(i.wrapping_sub(1), i);
+            i = i.wrapping_sub(1);
         }
-        // Shift `pos..` one to the right, losing the last entry when full.
-        // n ≤ MAX_CANDIDATES and pos < n + 1: none of these wrap.
-        let end = n.wrapping_add(1).min(self.cap);
-        for i in (pos.wrapping_add(1)..end).rev() {
-            if let (Some(prev), Some(_)) = (
-                self.items.get(i.wrapping_sub(1)).copied(),
-                self.items.get(i),
-            ) {
-                if let Some(d) = self.items.get_mut(i) {
-                    *d = prev;
-                }
-            }
-        }
-        if let Some(slot) = self.items.get_mut(pos) {
-            *slot = c;
+        if let (Some(d), Some(dk), Some(dx), Some(dy)) = (
+            self.items.get_mut(pos),
+            self.keys.get_mut(pos),
+            self.xs.get_mut(pos),
+            self.ys.get_mut(pos),
+        ) {
+            *d = c;
+            *dk = kc;
+            *dx = pos_u32(c.x);
+            *dy = pos_u32(c.y);
         }
         self.len = end;
+        self.hint = pos;
+    }
+
+    /// Copy entry `from` (and its key) to slot `to`.
+    #[inline]
+    fn move_entry(&mut self, from: usize, to: usize) {
+        if let (Some(&e), Some(&k), Some(&x), Some(&y)) = (
+            self.items.get(from),
+            self.keys.get(from),
+            self.xs.get(from),
+            self.ys.get(from),
+        ) {
+            if let (Some(d), Some(dk), Some(dx), Some(dy)) = (
+                self.items.get_mut(to),
+                self.keys.get_mut(to),
+                self.xs.get_mut(to),
+                self.ys.get_mut(to),
+            ) {
+                *d = e;
+                *dk = k;
+                *dx = x;
+                *dy = y;
+            }
+        }
     }
 }
 
 /// Score every position of the coarsest level, keep the separated peaks, and
 /// refine each at every finer level; returns the full-resolution candidates,
 /// best first (the first is the winner).
-#[allow(clippy::too_many_lines)]
+#[allow(clippy::too_many_lines, clippy::too_many_arguments)]
 #[allow(
     clippy::cast_possible_truncation,
     reason = "a TopK holds at most MAX_CANDIDATES (< 256) entries"
@@ -225,6 +680,7 @@ pub(super) fn coarse_to_fine(
     (tw, th, ww, wh): (usize, usize, usize, usize),
     cfg: &SearchConfig,
     tables: &mut Tables,
+    strip: &mut Strip,
     stats: &mut MatchStats,
 ) -> Result<TopK, FailureCode> {
     let radius0 = peak_radius_px(tw, th);
@@ -242,9 +698,15 @@ pub(super) fn coarse_to_fine(
     } else {
         TopK::new(cfg.candidates, cfg.nms_radius_px)
     };
-    eval_positions(&tc, (lc, &wc), (0, 0, lx, ly), tables, stats, |x, y, s| {
-        top.offer(Cand { x, y, s });
-    })?;
+    eval_positions(
+        &tc,
+        (lc, &wc),
+        (0, 0, lx, ly),
+        tables,
+        strip,
+        stats,
+        &mut top,
+    )?;
     stats.candidates = top.len as u8;
 
     for k in (0..lc).rev() {
@@ -265,9 +727,8 @@ pub(super) fn coarse_to_fine(
         let mut n_visited = 0;
         for c in top.as_slice().iter().take(keep) {
             let mut center = (c.x.saturating_mul(2).min(lx), c.y.saturating_mul(2).min(ly));
-            // The region's argmax (ties keep the first offered): `TopK` with one
-            // entry and radius 0, without its 64-entry array.
-            let mut best: Option<Cand> = None;
+            // The region's argmax (ties keep the first offered).
+            let mut best = ArgMax::default();
             for _ in 0..=MAX_CLIMB_STEPS {
                 let seen = present(visited.get(..n_visited));
                 if seen.contains(&center) {
@@ -285,15 +746,8 @@ pub(super) fn coarse_to_fine(
                     cx.saturating_add(r).min(lx),
                     cy.saturating_add(r).min(ly),
                 );
-                eval_positions(&t, (k, &w), bounds, tables, stats, |x, y, s| {
-                    let better = best
-                        .as_ref()
-                        .is_none_or(|b| cmp_scores(&s, &b.s) == Ordering::Greater);
-                    if better {
-                        best = Some(Cand { x, y, s });
-                    }
-                })?;
-                let Some(b) = best.as_ref() else {
+                eval_positions(&t, (k, &w), bounds, tables, strip, stats, &mut best)?;
+                let Some(b) = best.0.as_ref() else {
                     break;
                 };
                 // Stop unless the peak sits on a border that is not the window's edge.
@@ -306,7 +760,7 @@ pub(super) fn coarse_to_fine(
                 }
                 center = (b.x, b.y);
             }
-            if let Some(b) = best {
+            if let Some(b) = best.0 {
                 next.offer(b);
             }
         }

@@ -3,8 +3,8 @@
 
 use super::integral::Tables;
 use super::pyramid::{Tpl, Win};
-use super::search::{eval_positions, Cand};
-use super::{FailureCode, MatchStats, MAX_LEVELS};
+use super::search::{eval_positions, Cand, Sink, Strip};
+use super::{FailureCode, MatchStats, Score, MAX_LEVELS};
 
 /// Vertex offset of a parabola through `(−1, m)`, `(0, c)`, `(1, p)`, in [−0.5, 0.5];
 /// 0 when the three points are not a strict maximum.
@@ -16,6 +16,32 @@ pub(super) fn parabola(m: f64, c: f64, p: f64) -> f64 {
     (0.5 * (m - p) / den).clamp(-0.5, 0.5)
 }
 
+/// The exact scores of the four neighbours (left, right, up, down) of `at`.
+struct Probe {
+    at: (usize, usize),
+    nb: [Option<f64>; 4],
+}
+
+impl Sink for Probe {
+    fn floor(&self) -> Option<Score> {
+        None
+    }
+
+    fn offer(&mut self, x: usize, y: usize, s: Score) {
+        let d = |p: usize, q: usize| (p as isize).wrapping_sub(q as isize);
+        let slot = match (d(x, self.at.0), d(y, self.at.1)) {
+            (-1, 0) => self.nb.get_mut(0),
+            (1, 0) => self.nb.get_mut(1),
+            (0, -1) => self.nb.get_mut(2),
+            (0, 1) => self.nb.get_mut(3),
+            _ => None,
+        };
+        if let Some(v) = slot {
+            *v = Some(s.to_f64());
+        }
+    }
+}
+
 /// Sub-pixel offsets `(dx, dy)` of the winner `win` (full-resolution position),
 /// each in [−0.5, 0.5]; the probe's positions are added to `stats`.
 pub(super) fn offsets(
@@ -23,6 +49,7 @@ pub(super) fn offsets(
     wins: &[Option<Win>; MAX_LEVELS],
     win: &Cand,
     tables: &mut Tables,
+    strip: &mut Strip,
     stats: &mut MatchStats,
 ) -> Result<(f64, f64), FailureCode> {
     // Sub-pixel: exact scores of the four neighbours at full resolution.
@@ -33,27 +60,27 @@ pub(super) fn offsets(
         return Err(FailureCode::NccScratchTooSmall);
     };
     let (lx, ly) = w0.last_pos(t0.w, t0.h);
-    let mut nb = [None::<f64>; 4]; // left, right, up, down
     let bounds = (
         win.x.saturating_sub(1),
         win.y.saturating_sub(1),
         win.x.saturating_add(1).min(lx),
         win.y.saturating_add(1).min(ly),
     );
+    let mut probe = Probe {
+        at: (win.x, win.y),
+        nb: [None; 4],
+    };
     let mut sub_stats = MatchStats::default();
-    eval_positions(&t0, (0, &w0), bounds, tables, &mut sub_stats, |x, y, s| {
-        let d = |p: usize, q: usize| (p as isize).wrapping_sub(q as isize);
-        let slot = match (d(x, win.x), d(y, win.y)) {
-            (-1, 0) => nb.get_mut(0),
-            (1, 0) => nb.get_mut(1),
-            (0, -1) => nb.get_mut(2),
-            (0, 1) => nb.get_mut(3),
-            _ => None,
-        };
-        if let Some(v) = slot {
-            *v = Some(s.to_f64());
-        }
-    })?;
+    eval_positions(
+        &t0,
+        (0, &w0),
+        bounds,
+        tables,
+        strip,
+        &mut sub_stats,
+        &mut probe,
+    )?;
+    let nb = probe.nb;
     stats.positions_scored = stats
         .positions_scored
         .saturating_add(sub_stats.positions_scored);
