@@ -85,7 +85,10 @@ fn args(dir: &Path, prior: &str, out: Option<PathBuf>) -> Args {
         out,
         force: false,
         tile_size_m: DEFAULT_TILE_SIZE_M,
-        origin: None,
+        // The simulator's frame is the exported files' frame: origin 0 keeps
+        // the local vertices those of the in-memory scene, bit for bit (the
+        // default, the box centre, moves the local frame by it).
+        origin: Some("0,0,0".to_string()),
     }
 }
 
@@ -101,7 +104,7 @@ fn bits(p: &Pose) -> ([u32; 3], [u32; 4]) {
 fn exported_files_read_back_bit_for_bit() {
     let e = exported();
     let inputs = load_inputs(&args(&e.dir, "prior.json", None)).unwrap();
-    let m = mesh::load_mesh(&e.dir.join("map.obj")).unwrap();
+    let m = mesh::load_mesh_at(&e.dir.join("map.obj"), Some([0.0; 3])).unwrap();
     assert_eq!(m.vertices.len(), e.map.vertices.len());
     for (a, b) in m.vertices.iter().zip(&e.map.vertices) {
         assert_eq!(
