@@ -14,11 +14,18 @@
 //!
 //! [`MapModel`] is the per-pixel lookup of `cv2.initUndistortRectifyMap`
 //! (`CV_32FC1` maps; stored by [`RectifyMap`] for comparison, computed on the
-//! fly by [`MapModel::remap`]), and the remap samples
-//! it bilinearly with exact weights and a constant 0 border, like `cv2.remap`
-//! with `INTER_LINEAR` and `BORDER_CONSTANT` (OpenCV 5 gives the same pixels;
-//! OpenCV 4 quantises positions to 1/32 pixel). Pixel coordinates use the
-//! pixel-centre convention of design §3, which is OpenCV's.
+//! fly by [`MapModel::remap`]), and the remap samples it with a constant 0
+//! border (`BORDER_CONSTANT`) by one of three kernels ([`Interp`]), those of
+//! `cv2.remap`: `INTER_LINEAR` (bilinear with exact weights: OpenCV 5 gives the
+//! same pixels, OpenCV 4 quantises positions to 1/32 pixel), `INTER_CUBIC`
+//! (Keys' cubic, a = −0.75, 4 × 4 taps) and `INTER_LANCZOS4` (8 × 8 taps), the
+//! last two with exact f32 weights where OpenCV quantises positions to 1/32
+//! pixel and weights to 15 bits. Bilinear resampling is a low-pass filter
+//! whose strength changes with the fractional position, so it blurs each
+//! template-sized patch of the rectified pair differently from the rendered
+//! templates; the default, [`Interp::Lanczos4`], keeps the pair's detail (the
+//! measured comparison is in `fsw-docs/eval/physical.md`). Pixel coordinates
+//! use the pixel-centre convention of design §3, which is OpenCV's.
 //!
 //! [`Rectifier`] bundles both and converts poses: the rectified left camera has
 //! the physical left camera's centre and the orientation `R1` (OpenCV's: it maps
@@ -322,9 +329,9 @@ impl MapModel {
         )
     }
 
-    /// Rectify `src` into a `size` image without storing the map (rows in
-    /// parallel; the same pixels as [`RectifyMap::remap`]).
-    pub fn remap(&self, src: &Gray8, size: (u32, u32)) -> Gray8 {
+    /// Rectify `src` into a `size` image by `interp` without storing the map
+    /// (rows in parallel; the same pixels as [`RectifyMap::remap`]).
+    pub fn remap(&self, src: &Gray8, size: (u32, u32), interp: Interp) -> Gray8 {
         let w = size.0 as usize;
         let mut pixels = vec![0u8; w * size.1 as usize];
         pixels
@@ -333,7 +340,7 @@ impl MapModel {
             .for_each(|(v, row)| {
                 for (u, px) in row.iter_mut().enumerate() {
                     let (sx, sy) = self.at(u as u32, v as u32);
-                    *px = sample(src, sx, sy);
+                    *px = sample(src, sx, sy, interp);
                 }
             });
         Gray8 {
@@ -344,12 +351,138 @@ impl MapModel {
     }
 }
 
-/// Bilinear sample of `src` at `(sx, sy)`; neighbours outside `src` count as 0
-/// (OpenCV's `BORDER_CONSTANT`), so a position wholly outside gives 0.
-fn sample(src: &Gray8, sx: f32, sy: f32) -> u8 {
-    if !(sx.is_finite() && sy.is_finite()) {
+/// The interpolation kernel of a remap, as `cv2.remap`'s flag of that name.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Interp {
+    /// `INTER_LINEAR`: 2 × 2 taps, bilinear.
+    Linear,
+    /// `INTER_CUBIC`: 4 × 4 taps, Keys' cubic convolution with a = −0.75.
+    Cubic,
+    /// `INTER_LANCZOS4`: 8 × 8 taps, the Lanczos window of order 4,
+    /// normalised to unit sum.
+    #[default]
+    Lanczos4,
+}
+
+impl Interp {
+    /// Every kernel, cheapest first.
+    pub const ALL: [Self; 3] = [Self::Linear, Self::Cubic, Self::Lanczos4];
+
+    /// The name used on the command line and in result files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Linear => "linear",
+            Self::Cubic => "cubic",
+            Self::Lanczos4 => "lanczos4",
+        }
+    }
+
+    /// The kernel called `s` ([`Self::name`]).
+    ///
+    /// # Errors
+    /// A message naming the accepted names.
+    pub fn parse(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|i| i.name() == s)
+            .ok_or_else(|| {
+                format!("unknown interpolation {s:?}: expected linear, cubic or lanczos4")
+            })
+    }
+}
+
+/// Keys' cubic convolution weights (a = −0.75, OpenCV's `interpolateCubic`)
+/// of the taps at offsets −1, 0, 1, 2 for the fraction `x` in `[0, 1)`.
+pub fn cubic_weights(x: f32) -> [f32; 4] {
+    const A: f32 = -0.75;
+    let w0 = ((A * (x + 1.0) - 5.0 * A) * (x + 1.0) + 8.0 * A) * (x + 1.0) - 4.0 * A;
+    let w1 = ((A + 2.0) * x - (A + 3.0)) * x * x + 1.0;
+    let w2 = ((A + 2.0) * (1.0 - x) - (A + 3.0)) * (1.0 - x) * (1.0 - x) + 1.0;
+    [w0, w1, w2, 1.0 - w0 - w1 - w2]
+}
+
+/// Lanczos-4 weights (OpenCV's `interpolateLanczos4`) of the taps at offsets
+/// −3 … 4 for the fraction `x` in `[0, 1)`, normalised to unit sum; `x = 0`
+/// gives the unit impulse at offset 0.
+pub fn lanczos4_weights(x: f32) -> [f32; 8] {
+    let mut w = [0.0f32; 8];
+    if x < f32::EPSILON {
+        w[3] = 1.0;
+        return w;
+    }
+    let x = f64::from(x);
+    let mut sum = 0.0f64;
+    for (i, wi) in w.iter_mut().enumerate() {
+        // sinc(d) · sinc(d / 4) at the tap's distance d, π-scaled.
+        let d = (x + 3.0 - i as f64) * core::f64::consts::PI;
+        let v = 4.0 * (d).sin() * (d / 4.0).sin() / (d * d);
+        *wi = v as f32;
+        sum += v;
+    }
+    let inv = (1.0 / sum) as f32;
+    for wi in &mut w {
+        *wi *= inv;
+    }
+    w
+}
+
+/// Sample of `src` at `(sx, sy)` by `interp`; taps outside `src` count as 0
+/// (OpenCV's `BORDER_CONSTANT`), so a position wholly outside gives 0, and the
+/// result is rounded to the nearest gray level and saturated.
+fn sample(src: &Gray8, sx: f32, sy: f32, interp: Interp) -> u8 {
+    // Beyond 8 pixels outside the image every kernel reads only the border
+    // (and the integer tap positions below stay far from overflow); this
+    // also catches NaN.
+    let inside = |p: f32, n: u32| p > -8.0 && p < n as f32 + 8.0;
+    if !(inside(sx, src.width) && inside(sy, src.height)) {
         return 0;
     }
+    match interp {
+        Interp::Linear => sample_linear(src, sx, sy),
+        Interp::Cubic => {
+            let (fx, fy) = (sx.floor(), sy.floor());
+            let (wx, wy) = (cubic_weights(sx - fx), cubic_weights(sy - fy));
+            sample_separable(src, fx as i64 - 1, fy as i64 - 1, &wx, &wy)
+        }
+        Interp::Lanczos4 => {
+            let (fx, fy) = (sx.floor(), sy.floor());
+            let (wx, wy) = (lanczos4_weights(sx - fx), lanczos4_weights(sy - fy));
+            sample_separable(src, fx as i64 - 3, fy as i64 - 3, &wx, &wy)
+        }
+    }
+}
+
+/// `Σ_j wy[j] Σ_i wx[i] src(x0 + i, y0 + j)` over the taps inside `src`,
+/// rounded and saturated to a gray level.
+fn sample_separable<const N: usize>(
+    src: &Gray8,
+    x0: i64,
+    y0: i64,
+    wx: &[f32; N],
+    wy: &[f32; N],
+) -> u8 {
+    let (sw, sh) = (i64::from(src.width), i64::from(src.height));
+    let mut acc = 0.0f32;
+    for (j, &wyj) in wy.iter().enumerate() {
+        let y = y0.saturating_add(j as i64);
+        if y < 0 || y >= sh {
+            continue;
+        }
+        let row = &src.pixels[(y * sw) as usize..][..sw as usize];
+        let mut r = 0.0f32;
+        for (i, &wxi) in wx.iter().enumerate() {
+            let x = x0.saturating_add(i as i64);
+            if x >= 0 && x < sw {
+                r += wxi * f32::from(row[x as usize]);
+            }
+        }
+        acc += wyj * r;
+    }
+    (acc + 0.5).floor().clamp(0.0, 255.0) as u8
+}
+
+/// Bilinear sample of `src` at finite `(sx, sy)` (exact weights).
+fn sample_linear(src: &Gray8, sx: f32, sy: f32) -> u8 {
     let (sw, sh) = (i64::from(src.width), i64::from(src.height));
     let px = |x: i64, y: i64| -> f32 {
         if x < 0 || y < 0 || x >= sw || y >= sh {
@@ -401,13 +534,13 @@ impl RectifyMap {
         }
     }
 
-    /// Sample `src` through the map, bilinearly, with a 0 border.
-    pub fn remap(&self, src: &Gray8) -> Gray8 {
+    /// Sample `src` through the map by `interp`, with a 0 border.
+    pub fn remap(&self, src: &Gray8, interp: Interp) -> Gray8 {
         let pixels = self
             .map_x
             .iter()
             .zip(&self.map_y)
-            .map(|(&sx, &sy)| sample(src, sx, sy))
+            .map(|(&sx, &sy)| sample(src, sx, sy, interp))
             .collect();
         Gray8 {
             width: self.width,
@@ -432,6 +565,8 @@ pub struct Rectifier {
     pub right: MapModel,
     /// Physical-left from rectified-left (`R1ᵀ`), as a core pose (no translation).
     pub phys_from_rect: Pose,
+    /// Kernel of the image remap ([`Interp::default`] unless chosen).
+    pub interp: Interp,
 }
 
 impl Rectifier {
@@ -466,7 +601,13 @@ impl Rectifier {
             left,
             right,
             phys_from_rect: Pose::new(q32, Vec3::zeros()),
+            interp: Interp::default(),
         })
+    }
+
+    /// The same rectifier remapping images by `interp`.
+    pub fn with_interp(self, interp: Interp) -> Self {
+        Self { interp, ..self }
     }
 
     /// The stored maps of both cameras (as `cv2.initUndistortRectifyMap`).
@@ -495,8 +636,8 @@ impl Rectifier {
     /// Rectify a physical pair (each image of the calibration's size).
     pub fn rectify_pair(&self, left: &Gray8, right: &Gray8) -> (Gray8, Gray8) {
         (
-            self.left.remap(left, self.rect.size),
-            self.right.remap(right, self.rect.size),
+            self.left.remap(left, self.rect.size, self.interp),
+            self.right.remap(right, self.rect.size, self.interp),
         )
     }
 

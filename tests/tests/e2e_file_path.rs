@@ -85,6 +85,7 @@ fn args(dir: &Path, prior: &str, out: Option<PathBuf>) -> Args {
         out,
         force: false,
         tile_size_m: DEFAULT_TILE_SIZE_M,
+        interp: "lanczos4".into(),
         // The simulator's frame is the exported files' frame: origin 0 keeps
         // the local vertices those of the in-memory scene, bit for bit (the
         // default, the box centre, moves the local frame by it).

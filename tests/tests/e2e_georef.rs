@@ -99,6 +99,7 @@ fn args(dir: &Path, prior: &str, origin: Option<&str>) -> Args {
         out: None,
         force: false,
         tile_size_m: DEFAULT_TILE_SIZE_M,
+        interp: "lanczos4".into(),
         origin: origin.map(str::to_string),
     }
 }

@@ -37,6 +37,7 @@ fn args(dir: &Path) -> Args {
         out: None,
         force: false,
         tile_size_m: DEFAULT_TILE_SIZE_M,
+        interp: "lanczos4".into(),
         origin: None,
     }
 }
@@ -153,6 +154,7 @@ fn eval_physical_relocalizes_like_the_rectified_run() {
         origin: None,
         verify: Default::default(),
         physical: false,
+        interp: "lanczos4".into(),
     };
     let rect_cfg: SuiteConfig = config_from_args(&args).unwrap();
     assert!(!rect_cfg.physical);

@@ -92,6 +92,7 @@ fn args(dir: &Path, prior: Option<&str>, out: Option<PathBuf>) -> Args {
         out,
         force: false,
         tile_size_m: DEFAULT_TILE_SIZE_M,
+        interp: "lanczos4".into(),
         origin: None,
         verify: Default::default(),
     }

@@ -59,7 +59,7 @@ use crate::io::calib_opencv::OpenCvCalib;
 use crate::io::image::Gray8;
 use crate::io::mesh::MeshData;
 use crate::locate::{self, Request};
-use crate::rectify::Rectifier;
+use crate::rectify::{Interp, Rectifier};
 use crate::render::Lighting;
 use crate::scene::physical::capture_physical;
 use crate::scene::{
@@ -165,6 +165,15 @@ pub struct Args {
     /// left camera.
     #[arg(long)]
     pub physical: bool,
+    /// Kernel of the host rectification of `--physical` pairs: linear, cubic
+    /// or lanczos4 (`cv2.remap`'s INTER_* of those names).
+    #[arg(
+        long,
+        value_name = "KERNEL",
+        default_value = "lanczos4",
+        requires = "physical"
+    )]
+    pub interp: String,
 }
 
 /// A relocalizer evaluated on the suite's trials.
@@ -263,6 +272,8 @@ pub struct SuiteConfig {
     pub verify: VerifyChecks,
     /// Live pairs in the physical form, rectified on the host (`--physical`).
     pub physical: bool,
+    /// Kernel of that rectification (`--interp`).
+    pub interp: Interp,
 }
 
 impl SuiteConfig {
@@ -287,6 +298,7 @@ impl SuiteConfig {
             origin: None,
             verify: VerifyChecks::OFF,
             physical: false,
+            interp: Interp::default(),
         }
     }
 }
@@ -589,6 +601,7 @@ pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
         .transpose()?;
     cfg.verify = args.verify.checks();
     cfg.physical = args.physical;
+    cfg.interp = Interp::parse(&args.interp).map_err(Error::msg)?;
     Ok(cfg)
 }
 
@@ -869,6 +882,7 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
             "prior_max_deg": PRIOR_MAX_DEG,
             "map_view_range_m": MAP_VIEW_RANGE_M,
             "tile_m": TILE_M,
+            "rectify_interp": if cfg.physical { Some(cfg.interp.name()) } else { None },
             "baseline": cfg.baseline.map(Method::name),
             "origin": cfg.origin,
             "verify": {
@@ -1022,7 +1036,11 @@ fn run_trial(
     // A physical pair goes through `vtsm relocalize`'s path for an OpenCV
     // calibration: rectified on the host, the prior turned to the rectified
     // left camera, the estimate turned back to the physical one.
-    let rectifier = match calib.as_ref().map(Rectifier::new).transpose() {
+    let rectifier = match calib
+        .as_ref()
+        .map(|c| Rectifier::new(c).map(|r| r.with_interp(cfg.interp)))
+        .transpose()
+    {
         Ok(r) => r,
         Err(e) => {
             o.failure = Some(format!("rectification: {e}"));
@@ -1818,6 +1836,7 @@ mod tests {
             origin: None,
             verify: crate::cli::VerifyArg::default(),
             physical: false,
+            interp: "lanczos4".into(),
         };
         assert!(config_from_args(&args).is_err());
         args.suite = "baseline".into();

@@ -18,7 +18,7 @@ use crate::io::calib_opencv::{self, CalibFile};
 use crate::io::image::{self as img, Gray8};
 use crate::io::json::{self, Calib, ResultFile, Verified};
 use crate::io::{self, mesh};
-use crate::rectify::Rectifier;
+use crate::rectify::{Interp, Rectifier};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use vtsm_core::config::PriorUncertainty;
@@ -89,6 +89,10 @@ pub struct Args {
         allow_hyphen_values = true
     )]
     pub origin: Option<String>,
+    /// Kernel of the host rectification when calib.json is the OpenCV stereo
+    /// form: linear, cubic or lanczos4 (`cv2.remap`'s INTER_* of those names).
+    #[arg(long, value_name = "KERNEL", default_value = "lanczos4")]
+    pub interp: String,
 }
 
 /// Every input of one relocalization, loaded and checked.
@@ -180,7 +184,10 @@ pub fn load_inputs_with_map(args: &Args, map: Vec<u8>) -> Result<Inputs> {
     let (calib, physical) = match calib_opencv::read_calib_any(&args.calib)? {
         CalibFile::Rectified(c) => (c, None),
         CalibFile::OpenCv(c) => {
-            let r = Rectifier::new(&c).map_err(|why| Error::file(&args.calib, why))?;
+            let interp = Interp::parse(&args.interp).map_err(Error::msg)?;
+            let r = Rectifier::new(&c)
+                .map_err(|why| Error::file(&args.calib, why))?
+                .with_interp(interp);
             (r.calib(), Some((r, c.size())))
         }
     };

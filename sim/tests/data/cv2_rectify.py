@@ -4,9 +4,10 @@ usage: python3 cv2_rectify.py calib.json left.png right.png OUTDIR
 
 Reads the OpenCV form of calib.json, runs cv2.stereoRectify (default flags,
 i.e. CALIB_ZERO_DISPARITY, alpha=-1), cv2.initUndistortRectifyMap (CV_32FC1)
-and cv2.remap (INTER_LINEAR, BORDER_CONSTANT 0), and writes OUTDIR/rect.json
-({"R1","R2","P1","P2","version"}), OUTDIR/left_rect.png, OUTDIR/right_rect.png and the
-maps as raw little-endian f32 (OUTDIR/{left,right}_map{x,y}.f32).
+and cv2.remap (BORDER_CONSTANT 0) with INTER_LINEAR, INTER_CUBIC and INTER_LANCZOS4,
+and writes OUTDIR/rect.json ({"R1","R2","P1","P2","version"}),
+OUTDIR/{left,right}_rect_{linear,cubic,lanczos4}.png and the maps as raw
+little-endian f32 (OUTDIR/{left,right}_map{x,y}.f32).
 """
 import json
 import sys
@@ -39,8 +40,10 @@ def main():
         mx.astype("<f4").tofile(f"{out}/{name}_mapx.f32")
         my.astype("<f4").tofile(f"{out}/{name}_mapy.f32")
         img = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
-        rect = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-        cv2.imwrite(f"{out}/{name}_rect.png", rect)
+        for kernel, flag in (("linear", cv2.INTER_LINEAR), ("cubic", cv2.INTER_CUBIC),
+                             ("lanczos4", cv2.INTER_LANCZOS4)):
+            rect = cv2.remap(img, mx, my, flag, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+            cv2.imwrite(f"{out}/{name}_rect_{kernel}.png", rect)
 
 
 if __name__ == "__main__":
