@@ -3,23 +3,27 @@
 # OpenCV-calibrated, rectified on the host: `vtsm eval --physical`), same trials, side by
 # side per group. Runs `vtsm eval` into OUT/rect and OUT/phys unless their summary.json
 # is already there (then it must be of the same profile and trials), and prints the table.
-# Usage: bash fsw-docs/eval/physical.sh [VTSM] [OUT] [PROFILE] [TRIALS]
+# The physical run is OUT/phys-INTERP (INTERP: the rectification kernel, `--interp`).
+# Usage: bash fsw-docs/eval/physical.sh [VTSM] [OUT] [PROFILE] [TRIALS] [INTERP]
 set -euo pipefail
 VTSM=${1:-target/release/vtsm}
 OUT=${2:-/tmp/phys}
 PROFILE=${3:-demo}
 TRIALS=${4:-6}
-for form in rect phys; do
-  flag=""; [ "$form" = phys ] && flag="--physical"
+INTERP=${5:-lanczos4}
+for form in rect "phys-$INTERP"; do
+  flag=""; [ "$form" != rect ] && flag="--physical --interp $INTERP"
   if [ ! -e "$OUT/$form/summary.json" ]; then
     "$VTSM" eval --suite paper --profile "$PROFILE" --trials "$TRIALS" --quiet $flag \
       --out "$OUT/$form" > /dev/null
   fi
 done
-python3 - "$OUT/rect/summary.json" "$OUT/phys/summary.json" "$PROFILE" "$TRIALS" <<'PY'
+python3 - "$OUT/rect/summary.json" "$OUT/phys-$INTERP/summary.json" "$PROFILE" "$TRIALS" "$INTERP" <<'PY'
 import json, sys
 rect, phys = (json.load(open(p)) for p in sys.argv[1:3])
-profile, trials = sys.argv[3], int(sys.argv[4])
+profile, trials, interp = sys.argv[3], int(sys.argv[4]), sys.argv[5]
+if phys["meta"]["params"].get("rectify_interp", "linear") != interp:
+    sys.exit("%s: rectified by %s, not %s" % (sys.argv[2], phys["meta"]["params"].get("rectify_interp"), interp))
 for run, physical in ((rect, False), (phys, True)):
     m = run["meta"]
     if (m["suite"], m["profile"], m["trials"], m.get("physical")) != ("paper", profile, trials, physical):
