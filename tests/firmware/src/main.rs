@@ -11,7 +11,7 @@
 //! - `print(args)`: console output (semihosting or UART);
 //! - `exit(ok)`: ends the QEMU run with a pass or fail status;
 //! - `ticks()`: a monotonic counter that advances with executed instructions
-//!   under `-icount shift=0` (SysTick, `minstret`, `PMCCNTR_EL0`, `PMCCNTR`);
+//!   under `-icount shift=0` (SysTick, `minstret`, `PMCCNTR_EL0`, `CNTPCT`);
 //! - `calibration_loop(n)`: exactly `2 * n` instructions, to find instructions
 //!   per tick;
 //! - `stack_bounds()`: lowest and one-past-highest address of the stack;
