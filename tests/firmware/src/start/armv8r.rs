@@ -169,7 +169,11 @@ pub fn exit(ok: bool) -> ! {
     unsafe {
         core::arch::asm!("hlt #0xf000", in("r0") 0x18u32, in("r1") reason, options(nostack));
     }
-    loop {}
+    // Not reached under QEMU; without a semihosting host, wait here.
+    loop {
+        // SAFETY: waits for an event; touches no memory.
+        unsafe { core::arch::asm!("wfe", options(nomem, nostack)) };
+    }
 }
 
 pub fn stack_bounds() -> (usize, usize) {
