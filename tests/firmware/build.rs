@@ -2,13 +2,19 @@
 //! - Cortex-M (`arm`): `memory-m7.x` (or `memory-flight.x`) copied to OUT_DIR as
 //!   `memory.x`, on the search path for cortex-m-rt's `link.x`;
 //! - RISC-V 64: `memory-riscv64.x` (regions) before riscv-rt's `link.x`;
-//! - AArch64: `link-aarch64.x`, the whole layout (the start-up is in the crate).
+//! - AArch64: `link-aarch64.x`, the whole layout (the start-up is in the crate);
+//! - Armv8-R (`armv8r-none-eabihf`, also `target_arch = "arm"`): `link-armv8r.x`,
+//!   the whole layout, and the `vtsm_armv8r` cfg that selects its start-up.
 use std::{env, fs, path::PathBuf};
 
 fn main() {
     let out = PathBuf::from(env::var_os("OUT_DIR").unwrap_or_default());
     let dir = PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").unwrap_or_default());
     let arch = env::var("CARGO_CFG_TARGET_ARCH").unwrap_or_default();
+    // Cortex-M and Cortex-R share `target_arch = "arm"`, and stable Rust
+    // exposes no target feature that tells them apart: the triple does.
+    let armv8r = env::var("TARGET").is_ok_and(|t| t.starts_with("armv8r-"));
+    println!("cargo::rustc-check-cfg=cfg(vtsm_armv8r)");
     // A flight-profile bundle (tests/src/bin/flight_bundle.rs) turns the image
     // into the flight run; its map and pair need the larger memory layouts.
     println!("cargo::rustc-check-cfg=cfg(vtsm_flight)");
@@ -23,6 +29,13 @@ fn main() {
         }
     }
     match arch.as_str() {
+        "arm" if armv8r => {
+            println!("cargo:rustc-cfg=vtsm_armv8r");
+            println!(
+                "cargo:rustc-link-arg-bins=-T{}",
+                dir.join("link-armv8r.x").display()
+            );
+        }
         "arm" => {
             let memory = if flight.is_some() {
                 "memory-flight.x"
@@ -57,4 +70,5 @@ fn main() {
     println!("cargo:rerun-if-changed=memory-riscv64-flight.x");
     println!("cargo:rerun-if-changed=memory-riscv64.x");
     println!("cargo:rerun-if-changed=link-aarch64.x");
+    println!("cargo:rerun-if-changed=link-armv8r.x");
 }

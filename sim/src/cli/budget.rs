@@ -53,8 +53,9 @@ pub struct Args {
 }
 
 /// The firmware targets whose images `--firmware` looks for.
-pub const FIRMWARE_TARGETS: [&str; 3] = [
+pub const FIRMWARE_TARGETS: [&str; 4] = [
     "thumbv7em-none-eabihf",
+    "armv8r-none-eabihf",
     "riscv64gc-unknown-none-elf",
     "aarch64-unknown-none",
 ];

@@ -11,7 +11,7 @@
 //! - `print(args)`: console output (semihosting or UART);
 //! - `exit(ok)`: ends the QEMU run with a pass or fail status;
 //! - `ticks()`: a monotonic counter that advances with executed instructions
-//!   under `-icount shift=0` (SysTick, `minstret`, `PMCCNTR_EL0`);
+//!   under `-icount shift=0` (SysTick, `minstret`, `PMCCNTR_EL0`, `CNTPCT`);
 //! - `calibration_loop(n)`: exactly `2 * n` instructions, to find instructions
 //!   per tick;
 //! - `stack_bounds()`: lowest and one-past-highest address of the stack;
@@ -24,7 +24,8 @@
 #![no_std]
 #![no_main]
 
-#[cfg_attr(target_arch = "arm", path = "start/arm.rs")]
+#[cfg_attr(all(target_arch = "arm", not(vtsm_armv8r)), path = "start/arm.rs")]
+#[cfg_attr(vtsm_armv8r, path = "start/armv8r.rs")]
 #[cfg_attr(target_arch = "riscv64", path = "start/riscv64.rs")]
 #[cfg_attr(target_arch = "aarch64", path = "start/aarch64.rs")]
 mod start;
