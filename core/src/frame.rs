@@ -205,7 +205,7 @@ mod tests {
     use std::vec;
     use std::vec::Vec;
 
-    /// Verifies: VTSM-IMAGE-005
+    /// Verifies: VTSM-IMG-004
     #[test]
     fn halo_copy_holds_the_window_and_its_clipped_ring() {
         let (w, h) = (40usize, 30usize);
@@ -244,5 +244,90 @@ mod tests {
             .read_window(Eye::Left, Rect::new(0, 0, 41, 1), &mut buf)
             .err();
         assert_eq!(e, Some(FailureCode::ImageSizeMismatch));
+    }
+
+    /// Matching in a halo copy of the search window gives the match over the
+    /// whole frame bit for bit (position, sub-pixel position, scores), in
+    /// every domain and search mode, for windows inside the frame and at its
+    /// borders and corners.
+    ///
+    /// Verifies: VTSM-IMG-004, VTSM-RELOC-037
+    #[test]
+    fn matching_in_a_window_copy_equals_matching_in_the_frame() {
+        use crate::ncc::{self, Filter, Run, Scratch, ScratchSizes, Search};
+        use crate::rng::Rng;
+        let (w, h) = (160usize, 120usize);
+        let mut rng = Rng::new(3);
+        // Smooth texture plus noise: every domain has structure to match.
+        let img: Vec<u8> = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
+                let v = 128.0 + 60.0 * libm::sinf(x * 0.21) * libm::cosf(y * 0.17);
+                (v as u32 + rng.below(24)).min(255) as u8
+            })
+            .collect();
+        let frame = GrayView::new(&img, w, h, w).unwrap();
+        let mut pair = StereoPair::new(frame, frame);
+        let t = 24usize;
+        let sizes = ScratchSizes::new(t, t, 72, 72, Search::CoarseToFine);
+        let (mut sw, mut st, mut si, mut sr) = (
+            vec![0u8; sizes.window],
+            vec![0u8; sizes.template],
+            vec![0u32; sizes.integral],
+            vec![Run::default(); sizes.runs],
+        );
+        let mut buf = vec![0u8; halo_bytes(72)];
+        let mut checked = 0;
+        for k in 0..40u32 {
+            let (tx, ty) = (
+                rng.below((w - t) as u32) as usize,
+                rng.below((h - t) as u32) as usize,
+            );
+            let tpl: Vec<u8> = (0..t * t)
+                .map(|i| img[(ty + i / t) * w + tx + i % t])
+                .collect();
+            let tpl = GrayView::new(&tpl, t, t, t).unwrap();
+            // Windows of 40..=72 px around the template, pushed against the
+            // frame's edges every fourth draw.
+            let side = 40 + rng.below(33) as i32;
+            let mut x0 = tx as i32 - rng.below((side - t as i32) as u32) as i32;
+            let mut y0 = ty as i32 - rng.below((side - t as i32) as u32) as i32;
+            if k % 4 == 0 {
+                x0 = 0;
+            }
+            if k % 4 == 1 {
+                y0 = h as i32 - side;
+            }
+            let search = Rect::new(x0, y0, side as u32, side as u32)
+                .intersect(&frame.rect())
+                .unwrap();
+            for filter in [Filter::Gray, Filter::Sobel, Filter::Laplacian] {
+                for mode in [Search::CoarseToFine, Search::Exhaustive] {
+                    let mut scratch = Scratch {
+                        window: &mut sw,
+                        template: &mut st,
+                        integral: &mut si,
+                        runs: &mut sr,
+                    };
+                    let whole =
+                        ncc::match_template(tpl, None, frame, search, filter, mode, &mut scratch);
+                    let win = read_with_halo(&mut pair, Eye::Left, search, &mut buf).unwrap();
+                    let copy =
+                        ncc::match_in_window(tpl, None, &win, search, filter, mode, &mut scratch);
+                    match (whole, copy) {
+                        (Ok((a, sa)), Ok((b, sb))) => {
+                            assert_eq!((a.x, a.y, a.exact), (b.x, b.y, b.exact));
+                            assert_eq!(a.sub_x.to_bits(), b.sub_x.to_bits());
+                            assert_eq!(a.sub_y.to_bits(), b.sub_y.to_bits());
+                            assert_eq!(a.runner_up.to_bits(), b.runner_up.to_bits());
+                            assert_eq!(sa, sb);
+                            checked += 1;
+                        }
+                        (a, b) => assert_eq!(a.err(), b.err()),
+                    }
+                }
+            }
+        }
+        assert!(checked > 200, "{checked}");
     }
 }

@@ -1095,4 +1095,71 @@ mod tests {
             "confident wrong pose, error {et} m"
         );
     }
+
+    /// A source that serves `good` reads and then fails every read.
+    struct FailAfter<'a> {
+        pair: StereoPair<'a>,
+        good: u32,
+        reads: u32,
+    }
+
+    impl FrameSource for FailAfter<'_> {
+        fn size(&self) -> (usize, usize) {
+            self.pair.size()
+        }
+        fn read_window(&mut self, eye: Eye, r: Rect, out: &mut [u8]) -> Result<(), FailureCode> {
+            self.reads += 1;
+            if self.reads > self.good {
+                return Err(FailureCode::HalFrameStoreRead);
+            }
+            self.pair.read_window(eye, r, out)
+        }
+    }
+
+    /// A frame source that stops serving reads part-way through the run ends
+    /// the relocalization at that attempt with `RELOC_FRAME_READ_FAILED`; one
+    /// that serves every read gives the in-memory pair's outcome.
+    ///
+    /// Verifies: VTSM-RELOC-037
+    #[test]
+    fn a_frame_source_that_fails_ends_the_run_with_its_code() {
+        let (bytes, truth) = scene();
+        let map = MapView::new_checked(&bytes).unwrap();
+        let rig = rig();
+        let left = render_full(&map, &rig.cam, &truth, 0.85, 20.0);
+        let right = render_full(&map, &rig.cam, &rig.world_from_right(&truth), 0.85, 20.0);
+        let lv = GrayView::new(&left, 640, 480, 640).unwrap();
+        let rv = GrayView::new(&right, 640, 480, 640).unwrap();
+        let prior = perturb(&truth, &mut Rng::new(31), 0.15, 1.2);
+        let run = |good: u32| {
+            let src = FailAfter {
+                pair: StereoPair::new(lv, rv),
+                good,
+                reads: 0,
+            };
+            let mut setup = Setup::with_frames(&map, src, &rig, &test_params(), &prior, 41);
+            setup.options.min_inliers = 15;
+            let (mut b, mut w, mut r) = workspace_buffers(&setup.sizes());
+            let ws = Workspace::new(setup.sizes(), &mut b, &mut w, &mut r).unwrap();
+            let mut engine = setup.build(ws).unwrap();
+            let out = engine.run_to_completion(0);
+            (out, engine.attempt_ref().frames().reads)
+        };
+        let (all, reads) = run(u32::MAX);
+        let whole = relocalize(&map, &left, &right, &prior, 41);
+        assert_eq!(
+            all.pose.t().map(f32::to_bits),
+            whole.pose.t().map(f32::to_bits)
+        );
+        assert_eq!(all.stats, whole.stats);
+        assert_eq!(all.failure, None);
+        // 2 × 64 preflight reads, then windows.
+        assert!(reads > 128, "{reads}");
+        let (cut, _) = run(128 + 40);
+        assert_eq!(cut.failure, Some(FailureCode::RelocFrameReadFailed));
+        assert!(cut.stats.attempts > 0 && cut.stats.attempts < all.stats.attempts);
+        let (early, _) = run(3);
+        assert_eq!(early.failure, Some(FailureCode::RelocFrameReadFailed));
+        assert_eq!(early.stats.attempts, 0);
+    }
 }

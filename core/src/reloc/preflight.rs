@@ -218,7 +218,7 @@ mod tests {
         }
     }
 
-    /// Verifies: VTSM-RELOC-021
+    /// Verifies: VTSM-RELOC-021, VTSM-RELOC-037
     #[test]
     fn hopeless_inputs_get_their_own_code_and_good_ones_pass() {
         let bytes = build_map(1);
