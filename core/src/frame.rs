@@ -102,10 +102,15 @@ pub fn copy_rect(src: &GrayView, rect: Rect, out: &mut [u8]) -> Result<(), Failu
     let out = out
         .get_mut(..w.saturating_mul(sub.height()))
         .ok_or(FailureCode::ImageBufferTooShort)?;
-    for (y, dst) in (0..sub.height()).zip(out.chunks_exact_mut(w)) {
+    // `max(1)`: `chunks_exact_mut(0)` panics (a checked view is never empty).
+    for (y, dst) in (0..sub.height()).zip(out.chunks_exact_mut(w.max(1))) {
         // Rows of a checked sub-view are present and `w` long.
+        // A zip, not `copy_from_slice`: no length check to fail (a memcpy
+        // all the same once optimized).
         if let Some(row) = sub.row(y) {
-            dst.copy_from_slice(row);
+            for (d, p) in dst.iter_mut().zip(row) {
+                *d = *p;
+            }
         }
     }
     Ok(())

@@ -30,12 +30,12 @@ pub trait FrameStore: ErrorType {
     /// * On `Ok(info)` the store holds both images of the layout of `info`
     ///   (8-bit gray, rectified, taken at the same instant) and serves them
     ///   through [`FrameStore::read_window`] unchanged until the next
-    ///   `capture`; `info.sequence` is larger than that of every earlier `Ok`.
+    ///   `capture_in_place`; `info.sequence` is larger than that of every earlier `Ok`.
     /// * A transfer into the store that ended early is kind
     ///   [`Truncated`](crate::ErrorKind::Truncated), detected damage kind
     ///   [`Corrupted`](crate::ErrorKind::Corrupted). After any error no pair
-    ///   is available (reads fail) until a `capture` succeeds.
-    fn capture(&mut self, timeout_ticks: u64) -> Result<FrameInfo, Self::Error>;
+    ///   is available (reads fail) until a `capture_in_place` succeeds.
+    fn capture_in_place(&mut self, timeout_ticks: u64) -> Result<FrameInfo, Self::Error>;
 
     /// Read `rect` of `eye`'s image of the last captured pair into `out`,
     /// row-major with `rect.w` bytes per row.
@@ -59,8 +59,8 @@ pub trait FrameStore: ErrorType {
 }
 
 impl<T: FrameStore + ?Sized> FrameStore for &mut T {
-    fn capture(&mut self, timeout_ticks: u64) -> Result<FrameInfo, Self::Error> {
-        T::capture(self, timeout_ticks)
+    fn capture_in_place(&mut self, timeout_ticks: u64) -> Result<FrameInfo, Self::Error> {
+        T::capture_in_place(self, timeout_ticks)
     }
     fn read_window(&mut self, eye: Eye, rect: Rect, out: &mut [u8]) -> Result<(), Self::Error> {
         T::read_window(self, eye, rect, out)
@@ -169,7 +169,7 @@ mod tests {
     }
 
     impl FrameStore for Flaky {
-        fn capture(&mut self, _: u64) -> Result<FrameInfo, ErrorKind> {
+        fn capture_in_place(&mut self, _: u64) -> Result<FrameInfo, ErrorKind> {
             Err(ErrorKind::Other)
         }
         fn read_window(&mut self, _: Eye, r: Rect, out: &mut [u8]) -> Result<(), ErrorKind> {

@@ -214,7 +214,7 @@ pub fn capture_to_store<F: FrameStore>(
     let mut rep = CaptureReport::default();
     for attempt in 0..cfg.attempts {
         rep.attempts = attempt + 1;
-        match store.capture(cfg.capture_timeout_ticks) {
+        match store.capture_in_place(cfg.capture_timeout_ticks) {
             Ok(info) => {
                 let (w, h) = cfg.image_size;
                 if (info.width, info.height) != (w, h) || info.image_len().is_none() {

@@ -460,7 +460,7 @@ pub struct FixedCamera {
     /// Fault source of [`FrameStore::read_window`], one draw per read.
     pub window_faults: FaultInjector,
     /// Whether a pair is held for [`FrameStore::read_window`] (the last
-    /// [`FrameStore::capture`] succeeded).
+    /// [`FrameStore::capture_in_place`] succeeded).
     latched: bool,
 }
 
@@ -572,14 +572,14 @@ impl StereoCamera for FixedCamera {
     }
 }
 
-/// The camera's frame memory read in place: `capture` latches the pair (a
+/// The camera's frame memory read in place: `capture_in_place` latches the pair (a
 /// drawn timeout blocks the attached clock for the timeout; a truncation or
 /// corruption of the transfer into the memory is reported as that kind), and
 /// `read_window` copies a rectangle out of it with one draw of
 /// `window_faults` per read: a timeout, a truncated copy (part of the
 /// rectangle, then kind `Truncated`) or a silently damaged copy.
 impl FrameStore for FixedCamera {
-    fn capture(&mut self, timeout_ticks: u64) -> Result<FrameInfo, ErrorKind> {
+    fn capture_in_place(&mut self, timeout_ticks: u64) -> Result<FrameInfo, ErrorKind> {
         self.latched = false;
         match self.faults.draw() {
             Some(Fault::Timeout) => {

@@ -66,7 +66,8 @@ fn sampled_rows(h: usize) -> impl Iterator<Item = usize> {
 /// on the last row of the image).
 fn textured_pixels(row: &[u8], below: &[u8]) -> u64 {
     let mut textured = 0u64;
-    for (x, &p) in row.iter().enumerate() {
+    // A range, not `enumerate`: its counter carries an overflow check.
+    for (x, &p) in (0..row.len()).zip(row) {
         if p == 0 || p == 255 {
             continue;
         }

@@ -395,7 +395,7 @@ pub mod devices {
     /// The same frame memory read in place: a capture latches the pair, and
     /// the engine reads its windows straight from it (no copy of the pair).
     impl FrameStore for FrameCamera<'_> {
-        fn capture(&mut self, _timeout_ticks: u64) -> Result<FrameInfo, ErrorKind> {
+        fn capture_in_place(&mut self, _timeout_ticks: u64) -> Result<FrameInfo, ErrorKind> {
             let n = (self.width as usize).saturating_mul(self.height as usize);
             if n == 0 || self.left.len() != n || self.right.len() != n {
                 return Err(ErrorKind::Other);
