@@ -206,6 +206,8 @@ failure_codes! {
         "The map product failed its re-check before the result was returned (Options::verify.recheck_map) although it passed at load: it changed in memory; the pose is not trusted, reload the map.";
     RelocNoConsensus = 0x0812, Fatal, NewInput, "RELOC_NO_CONSENSUS",
         "The first Options::first_fix_rounds rounds from the prior all ended without a consensus of Options::min_inliers (no pose update yet); the frames do not show the map as seen from near the prior, and the run stops early.";
+    RelocFrameReadFailed = 0x0813, Fatal, NewInput, "RELOC_FRAME_READ_FAILED",
+        "A search window or a preflight row could not be read from the frame source (the frame store failed after its retries, or refused the range); the relocalization ends with this code at once, capture a new pair.";
     // 0x09xx hardware
     HalCameraTimeout = 0x0901, Degraded, Same, "HAL_CAMERA_TIMEOUT",
         "The stereo camera did not deliver a frame within its timeout; capture again.";
@@ -233,6 +235,8 @@ failure_codes! {
         "The clock could not be read or went backwards; the step is not timed.";
     HalPriorInvalid = 0x090D, Degraded, NewInput, "HAL_PRIOR_INVALID",
         "The pose prior has a non-finite pose, a covariance that is not symmetric non-negative, or stated half-widths (t̃₀, r̃₀) outside the engine's ranges; it is rejected.";
+    HalFrameStoreRead = 0x090E, Degraded, Same, "HAL_FRAME_STORE_READ",
+        "The frame store failed to read a window of the stereo pair (timeout, short read, detected corruption or device fault); the runner reads it again within its retry cap.";
 }
 
 impl FailureCode {
@@ -330,6 +334,21 @@ impl FailureLog {
             .map(|(c, n)| (*c, *n))
     }
 
+    /// Add `other`'s counters to this log's (saturating) and record its
+    /// ring's events after this log's, oldest first. Bounded: O(codes + ring).
+    pub fn absorb(&mut self, other: &FailureLog) {
+        for (c, n) in self.counts.iter_mut().zip(other.counts.iter()) {
+            *c = c.saturating_add(*n);
+        }
+        self.total = self.total.saturating_add(other.total);
+        for e in other.recent() {
+            if let Some(slot) = self.ring.get_mut(self.next) {
+                *slot = Some(e);
+            }
+            self.next = self.next.wrapping_add(1) % FAILURE_RING_LEN;
+        }
+    }
+
     /// Forget everything.
     pub fn clear(&mut self) {
         *self = Self::new();
@@ -372,5 +391,17 @@ mod tests {
             70_000 - FAILURE_RING_LEN as u32
         );
         assert_eq!(log.total(), 70_000);
+
+        let mut a = FailureLog::new();
+        a.record(FailureCode::MapTruncated, 1, 1);
+        let mut b = FailureLog::new();
+        b.record(FailureCode::HalFrameStoreRead, 2, 2);
+        b.record(FailureCode::MapTruncated, 3, 3);
+        a.absorb(&b);
+        assert_eq!(a.count(FailureCode::MapTruncated), 2);
+        assert_eq!(a.count(FailureCode::HalFrameStoreRead), 1);
+        assert_eq!(a.total(), 3);
+        let ticks: heapless::Vec<u64, 4> = a.recent().map(|e| e.tick).collect();
+        assert_eq!(ticks.as_slice(), &[1, 2, 3]);
     }
 }

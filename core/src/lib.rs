@@ -45,6 +45,7 @@ pub(crate) mod testkit;
 
 pub mod config;
 pub mod failure;
+pub mod frame;
 pub mod geom;
 pub mod image;
 // Integer arithmetic and narrowing casts in the modules that handle raw bytes and

@@ -88,16 +88,19 @@ pub enum Device {
     PosePrior,
     /// [`crate::Telemetry`].
     Telemetry,
+    /// [`crate::FrameStore`].
+    FrameStore,
 }
 
 impl Device {
     /// Every device.
-    pub const ALL: [Device; 5] = [
+    pub const ALL: [Device; 6] = [
         Device::Camera,
         Device::Clock,
         Device::MapStore,
         Device::PosePrior,
         Device::Telemetry,
+        Device::FrameStore,
     ];
 }
 
@@ -113,6 +116,7 @@ pub const fn failure_code(device: Device, kind: ErrorKind) -> FailureCode {
         (Device::MapStore, _) => FailureCode::HalStorageRead,
         (Device::PosePrior, _) => FailureCode::HalPriorUnavailable,
         (Device::Telemetry, _) => FailureCode::HalTelemetryWrite,
+        (Device::FrameStore, _) => FailureCode::HalFrameStoreRead,
     }
 }
 

@@ -9,6 +9,7 @@
 //! | [`camera`] | [`StereoCamera`], [`FrameInfo`] |
 //! | [`clock`] | [`Clock`]: monotonic ticks, optional cycle counter |
 //! | [`store`] | [`MapStore`]: ranged reads of the map product |
+//! | [`frames`] | [`FrameStore`]: the stereo pair in the camera's memory, read a window at a time; [`StoreFrames`], the core's frame source over it |
 //! | [`prior`] | [`PosePrior`], [`PriorEstimate`], [`Covariance`], [`PriorUncertainty`] |
 //! | [`telemetry`] | [`Telemetry`], the frame format, [`FramedTelemetry`] over `embedded_io::Write` |
 //! | [`runner`] | bounded capture / map read with retries, the step driver |
@@ -27,6 +28,7 @@
 pub mod camera;
 pub mod clock;
 pub mod error;
+pub mod frames;
 pub mod prior;
 pub mod runner;
 pub mod store;
@@ -35,6 +37,7 @@ pub mod telemetry;
 pub use camera::{FrameInfo, StereoCamera};
 pub use clock::Clock;
 pub use error::{failure_code, Device, Error, ErrorKind, ErrorType};
+pub use frames::{FrameStore, StoreFrames};
 pub use prior::{Covariance, PosePrior, PriorEstimate, PriorUncertainty};
 pub use store::MapStore;
 pub use telemetry::{FramedTelemetry, Telemetry};

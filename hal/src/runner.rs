@@ -27,6 +27,7 @@
 use crate::camera::{FrameInfo, StereoCamera};
 use crate::clock::Clock;
 use crate::error::{failure_code, Device, Error, ErrorKind};
+use crate::frames::{FrameStore, StoreFrames, WindowReport};
 use crate::prior::{PosePrior, PriorEstimate, PriorUncertainty};
 use crate::store::MapStore;
 use crate::telemetry::{
@@ -173,6 +174,51 @@ pub fn capture_pair<C: StereoCamera>(
             Ok(info) => {
                 if let Err(code) = info.views(cfg.image_size, left, right) {
                     log.record(code, now_ticks, info.sequence);
+                    return Err(FailureCode::HalFrameInfoInvalid);
+                }
+                return Ok((info, rep));
+            }
+            Err(e) => {
+                let kind = e.kind();
+                let code = failure_code(Device::Camera, kind);
+                log.record(code, now_ticks, u32::from(attempt));
+                match kind {
+                    ErrorKind::Timeout => rep.timeouts += 1,
+                    ErrorKind::Truncated => rep.truncated += 1,
+                    _ => rep.faults += 1,
+                }
+                if !kind.is_transient() {
+                    return Err(code);
+                }
+            }
+        }
+    }
+    log.record(
+        FailureCode::HalCameraRetriesExhausted,
+        now_ticks,
+        u32::from(rep.attempts),
+    );
+    Err(FailureCode::HalCameraRetriesExhausted)
+}
+
+/// Capture one stereo pair into a [`FrameStore`]'s own memory, with the
+/// retries, logging and frame-info check of [`capture_pair`] (the codes are
+/// the camera's: the store is the camera's frame memory).
+pub fn capture_to_store<F: FrameStore>(
+    store: &mut F,
+    cfg: &RunnerConfig,
+    now_ticks: u64,
+    log: &mut FailureLog,
+) -> Result<(FrameInfo, CaptureReport), FailureCode> {
+    cfg.validate()?;
+    let mut rep = CaptureReport::default();
+    for attempt in 0..cfg.attempts {
+        rep.attempts = attempt + 1;
+        match store.capture_in_place(cfg.capture_timeout_ticks) {
+            Ok(info) => {
+                let (w, h) = cfg.image_size;
+                if (info.width, info.height) != (w, h) || info.image_len().is_none() {
+                    log.record(FailureCode::HalFrameInfoInvalid, now_ticks, info.sequence);
                     return Err(FailureCode::HalFrameInfoInvalid);
                 }
                 return Ok((info, rep));
@@ -405,6 +451,9 @@ pub struct RelocReport {
     /// stated one ([`PriorEstimate::uncertainty`]) or, without it, the
     /// caller's parameters'.
     pub prior_uncertainty: PriorUncertainty,
+    /// Window reads from the frame store ([`Runner::relocalize_from_store`];
+    /// zero when the pair was captured into RAM).
+    pub windows: WindowReport,
 }
 
 /// The devices and the failure log of one relocalization run.
@@ -428,9 +477,59 @@ pub struct Runner<C, K, S, P, T> {
     pub telemetry_dropped: u32,
 }
 
+/// [`Runner::drive`] over the runner's clock and log, borrowed apart from
+/// the devices (the engine of a frame-store run borrows the camera).
+fn drive_steps<K: Clock, F: FnMut(u64) -> Result<StepStatus, FailureCode>>(
+    clock: &mut K,
+    log: &mut FailureLog,
+    max_steps: u32,
+    budget_ticks: u64,
+    mut step: F,
+) -> (DriveReport, Result<(), FailureCode>) {
+    let start = time_or_zero(clock, log);
+    let c0 = clock.cycles();
+    let mut rep = DriveReport {
+        steps: 0,
+        elapsed_ticks: 0,
+        cycles: None,
+        done: false,
+    };
+    let mut result = Err(FailureCode::RelocBudgetExhausted);
+    let mut now = start;
+    for _ in 0..max_steps {
+        if now.saturating_sub(start) >= budget_ticks {
+            break;
+        }
+        rep.steps += 1;
+        let status = step(now);
+        now = time_or_zero(clock, log).max(now);
+        match status {
+            Ok(StepStatus::Continue) => {}
+            Ok(StepStatus::Done) => {
+                rep.done = true;
+                result = Ok(());
+                break;
+            }
+            Err(code) => {
+                log.record(code, now, rep.steps);
+                result = Err(code);
+                break;
+            }
+        }
+    }
+    rep.elapsed_ticks = now.saturating_sub(start);
+    rep.cycles = match (c0, clock.cycles()) {
+        (Some(a), Some(b)) => Some(b.wrapping_sub(a)),
+        _ => None,
+    };
+    if !rep.done && result == Err(FailureCode::RelocBudgetExhausted) {
+        log.record(FailureCode::RelocBudgetExhausted, now, rep.steps);
+    }
+    (rep, result)
+}
+
 impl<C, K, S, P, T> Runner<C, K, S, P, T>
 where
-    C: StereoCamera,
     K: Clock,
     S: MapStore,
     P: PosePrior,
@@ -455,22 +554,42 @@ where
         time_or_zero(&mut self.clock, &mut self.log)
     }
 
-    /// Gather everything one relocalization needs: the map product (checked
-    /// with `verify_map`), a stereo pair and the pose prior.
+    /// Call `step(now)` until it returns [`StepStatus::Done`], at most
+    /// `max_steps` times and while fewer than `budget_ticks` have elapsed.
     ///
-    /// Order: map first (slowest, and useless to capture without it), then the
-    /// prior, then the images, so the pair is as close as possible in time to
-    /// the prior it is matched against.
-    pub fn acquire<'b, V: FnMut(&[u8]) -> Result<(), FailureCode>>(
+    /// Running out of steps or ticks records and returns
+    /// [`FailureCode::RelocBudgetExhausted`] together with the report; an
+    /// error from `step` is returned as is. INTEGRATION POINT: `step` is
+    /// `|now| relocalizer.step(now)` mapped to [`StepStatus`].
+    pub fn drive<F: FnMut(u64) -> Result<StepStatus, FailureCode>>(
         &mut self,
-        bufs: Buffers<'b>,
+        max_steps: u32,
+        budget_ticks: u64,
+        step: F,
+    ) -> (DriveReport, Result<(), FailureCode>) {
+        drive_steps(
+            &mut self.clock,
+            &mut self.log,
+            max_steps,
+            budget_ticks,
+            step,
+        )
+    }
+
+    /// The map product (read into `map` and checked with `verify_map`) and
+    /// the checked pose prior: the first two steps of every acquisition.
+    /// Returns the product bytes, the read report, the prior and the clock
+    /// time when acquisition started.
+    fn acquire_map_and_prior<'b, V: FnMut(&[u8]) -> Result<(), FailureCode>>(
+        &mut self,
+        map: &'b mut [u8],
         verify_map: V,
-    ) -> Result<Inputs<'b>, FailureCode> {
+    ) -> Result<(&'b [u8], ReadReport, PriorEstimate, u64), FailureCode> {
         self.cfg.validate()?;
         let start = self.now();
         let (len, map_read) = read_map_verified(
             &mut self.store,
-            bufs.map,
+            map,
             &self.cfg,
             start,
             &mut self.log,
@@ -488,6 +607,68 @@ where
             self.log.record(code, start, 0);
             return Err(code);
         }
+        let map: &'b [u8] = map;
+        let map = map.get(..len).ok_or(FailureCode::HalMapTooLarge)?;
+        Ok((map, map_read, prior, start))
+    }
+
+    /// Send one frame; a failure is counted and logged, never retried.
+    pub fn send(&mut self, kind: u8, payload: &[u8]) {
+        if payload.len() > MAX_PAYLOAD {
+            // The frame format cannot carry it: dropped before the device sees it.
+            self.telemetry_dropped = self.telemetry_dropped.saturating_add(1);
+            let now = self.now();
+            self.log.record(
+                FailureCode::HalTelemetryPayloadTooLong,
+                now,
+                u32::from(kind),
+            );
+            return;
+        }
+        if self.telemetry.send(kind, payload).is_err() {
+            self.telemetry_dropped = self.telemetry_dropped.saturating_add(1);
+            let now = self.now();
+            self.log
+                .record(FailureCode::HalTelemetryWrite, now, u32::from(kind));
+        }
+    }
+
+    /// Downlink the failure log: one counters frame, then the recent events
+    /// oldest first (at most the ring length of frames).
+    pub fn send_failure_log(&mut self) {
+        let mut payload = [0u8; MAX_PAYLOAD];
+        let n = failure_counters_payload(&self.log, &mut payload);
+        let log = self.log.clone();
+        self.send(
+            FrameKind::FailureCounters as u8,
+            payload.get(..n).unwrap_or(&[]),
+        );
+        for e in log.recent() {
+            self.send(FrameKind::FailureEvent as u8, &failure_event_payload(&e));
+        }
+    }
+}
+
+impl<C, K, S, P, T> Runner<C, K, S, P, T>
+where
+    C: StereoCamera,
+    K: Clock,
+    S: MapStore,
+    P: PosePrior,
+    T: Telemetry,
+{
+    /// Gather everything one relocalization needs: the map product (checked
+    /// with `verify_map`), a stereo pair and the pose prior.
+    ///
+    /// Order: map first (slowest, and useless to capture without it), then the
+    /// prior, then the images, so the pair is as close as possible in time to
+    /// the prior it is matched against.
+    pub fn acquire<'b, V: FnMut(&[u8]) -> Result<(), FailureCode>>(
+        &mut self,
+        bufs: Buffers<'b>,
+        verify_map: V,
+    ) -> Result<Inputs<'b>, FailureCode> {
+        let (map, map_read, prior, start) = self.acquire_map_and_prior(bufs.map, verify_map)?;
         let now = self.now();
         let (frame, capture) = capture_pair(
             &mut self.camera,
@@ -499,74 +680,17 @@ where
         )?;
         let left: &'b [u8] = bufs.left;
         let right: &'b [u8] = bufs.right;
-        let map: &'b [u8] = bufs.map;
         let (left, right) = frame.views(self.cfg.image_size, left, right)?;
         Ok(Inputs {
             left,
             right,
             frame,
-            map: map.get(..len).ok_or(FailureCode::HalMapTooLarge)?,
+            map,
             prior,
             start_ticks: start,
             capture,
             map_read,
         })
-    }
-
-    /// Call `step(now)` until it returns [`StepStatus::Done`], at most
-    /// `max_steps` times and while fewer than `budget_ticks` have elapsed.
-    ///
-    /// Running out of steps or ticks records and returns
-    /// [`FailureCode::RelocBudgetExhausted`] together with the report; an
-    /// error from `step` is returned as is. INTEGRATION POINT: `step` is
-    /// `|now| relocalizer.step(now)` mapped to [`StepStatus`].
-    pub fn drive<F: FnMut(u64) -> Result<StepStatus, FailureCode>>(
-        &mut self,
-        max_steps: u32,
-        budget_ticks: u64,
-        mut step: F,
-    ) -> (DriveReport, Result<(), FailureCode>) {
-        let start = self.now();
-        let c0 = self.clock.cycles();
-        let mut rep = DriveReport {
-            steps: 0,
-            elapsed_ticks: 0,
-            cycles: None,
-            done: false,
-        };
-        let mut result = Err(FailureCode::RelocBudgetExhausted);
-        let mut now = start;
-        for _ in 0..max_steps {
-            if now.saturating_sub(start) >= budget_ticks {
-                break;
-            }
-            rep.steps += 1;
-            let status = step(now);
-            now = self.now().max(now);
-            match status {
-                Ok(StepStatus::Continue) => {}
-                Ok(StepStatus::Done) => {
-                    rep.done = true;
-                    result = Ok(());
-                    break;
-                }
-                Err(code) => {
-                    self.log.record(code, now, rep.steps);
-                    result = Err(code);
-                    break;
-                }
-            }
-        }
-        rep.elapsed_ticks = now.saturating_sub(start);
-        rep.cycles = match (c0, self.clock.cycles()) {
-            (Some(a), Some(b)) => Some(b.wrapping_sub(a)),
-            _ => None,
-        };
-        if !rep.done && result == Err(FailureCode::RelocBudgetExhausted) {
-            self.log
-                .record(FailureCode::RelocBudgetExhausted, now, rep.steps);
-        }
-        (rep, result)
     }
 
     /// One relocalization on the flight path: [`Runner::acquire`] the map,
@@ -749,43 +873,106 @@ where
                 map_read: inputs.map_read,
                 drive,
                 prior_uncertainty: params.uncertainty(),
+                windows: WindowReport::default(),
             },
         ))
     }
+}
 
-    /// Send one frame; a failure is counted and logged, never retried.
-    pub fn send(&mut self, kind: u8, payload: &[u8]) {
-        if payload.len() > MAX_PAYLOAD {
-            // The frame format cannot carry it: dropped before the device sees it.
-            self.telemetry_dropped = self.telemetry_dropped.saturating_add(1);
-            let now = self.now();
-            self.log.record(
-                FailureCode::HalTelemetryPayloadTooLong,
-                now,
-                u32::from(kind),
-            );
-            return;
+impl<C, K, S, P, T> Runner<C, K, S, P, T>
+where
+    C: FrameStore,
+    K: Clock,
+    S: MapStore,
+    P: PosePrior,
+    T: Telemetry,
+{
+    /// [`Runner::relocalize`] with the pair left in the camera's frame memory:
+    /// read and check the map into `map`, get the prior, capture the pair
+    /// into the store ([`capture_to_store`]), build the engine with
+    /// [`Setup::with_frames`] over a [`StoreFrames`] of the camera, and drive
+    /// it. The engine reads each search window (and the preflight's rows)
+    /// from the store when it needs it, each read retried on transient
+    /// faults at most [`RunnerConfig::attempts`] times, so RAM holds the map,
+    /// the workspace and no frame. A read that still fails ends the
+    /// relocalization with [`FailureCode::RelocFrameReadFailed`] in the
+    /// outcome; every failed read is in [`Runner::log`] with
+    /// [`FailureCode::HalFrameStoreRead`]. With the same pixels the outcome
+    /// is bit-identical to [`Runner::relocalize`]'s.
+    ///
+    /// # Errors
+    /// As [`Runner::relocalize`].
+    pub fn relocalize_from_store<'w>(
+        &mut self,
+        map: &mut [u8],
+        rig: &StereoRig,
+        params: &Params,
+        ws: Workspace<'w>,
+        seed: u64,
+        limits: &DriveLimits,
+    ) -> Result<(Outcome, RelocReport), FailureCode> {
+        let result = self.run_from_store(map, rig, params, ws, seed, limits);
+        if let Ok((o, _)) = &result {
+            let summary = outcome_payload(&OutcomeSummary::of(o));
+            self.send(FrameKind::Outcome as u8, &summary);
         }
-        if self.telemetry.send(kind, payload).is_err() {
-            self.telemetry_dropped = self.telemetry_dropped.saturating_add(1);
-            let now = self.now();
-            self.log
-                .record(FailureCode::HalTelemetryWrite, now, u32::from(kind));
-        }
+        self.send_failure_log();
+        result
     }
 
-    /// Downlink the failure log: one counters frame, then the recent events
-    /// oldest first (at most the ring length of frames).
-    pub fn send_failure_log(&mut self) {
-        let mut payload = [0u8; MAX_PAYLOAD];
-        let n = failure_counters_payload(&self.log, &mut payload);
-        let log = self.log.clone();
-        self.send(
-            FrameKind::FailureCounters as u8,
-            payload.get(..n).unwrap_or(&[]),
+    fn run_from_store<'w>(
+        &mut self,
+        map: &mut [u8],
+        rig: &StereoRig,
+        params: &Params,
+        ws: Workspace<'w>,
+        seed: u64,
+        limits: &DriveLimits,
+    ) -> Result<(Outcome, RelocReport), FailureCode> {
+        let (product, map_read, prior, start) =
+            self.acquire_map_and_prior(map, |b| MapView::new_checked(b).map(|_| ()))?;
+        let now = self.now();
+        let (frame, capture) = capture_to_store(&mut self.camera, &self.cfg, now, &mut self.log)?;
+        let view = MapView::new_checked(product).inspect_err(|&c| self.log.record(c, start, 0))?;
+        let params = match prior.uncertainty {
+            Some(u) => params.with_uncertainty(u),
+            None => *params,
+        };
+        let frames = StoreFrames::new(&mut self.camera, &frame, self.cfg.attempts, now);
+        let pose = prior.world_from_left;
+        let mut setup = Setup::with_frames(&view, frames, rig, &params, &pose, seed);
+        setup.options.verify.repeat_solve = self.cfg.verify.repeat_solve;
+        setup.options.verify.recheck_map = self.cfg.verify.recheck_map;
+        let mut engine = setup
+            .build(ws)
+            .inspect_err(|&c| self.log.record(c, start, 0))?;
+        let units = limits.units_per_step.max(1);
+        let (drive, _) = drive_steps(
+            &mut self.clock,
+            &mut self.log,
+            limits.max_steps,
+            limits.budget_ticks,
+            |now| {
+                Ok(match engine.step_n(now, units) {
+                    StepResult::Running => StepStatus::Continue,
+                    StepResult::Done(_) => StepStatus::Done,
+                })
+            },
         );
-        for e in log.recent() {
-            self.send(FrameKind::FailureEvent as u8, &failure_event_payload(&e));
-        }
+        let now = time_or_zero(&mut self.clock, &mut self.log);
+        let outcome = engine.stop(now).clone();
+        let frames = engine.attempt_ref().frames();
+        self.log.absorb(&frames.log);
+        Ok((
+            outcome,
+            RelocReport {
+                frame,
+                capture,
+                map_read,
+                drive,
+                prior_uncertainty: params.uncertainty(),
+                windows: frames.report,
+            },
+        ))
     }
 }

@@ -5,7 +5,9 @@
 //! * [`RecordingSink`]: an `embedded_io::Write` that records bytes; with
 //!   [`vtsm_hal::FramedTelemetry`] it is the telemetry downlink, and
 //!   [`RecordingSink::frames`] decodes the stream back.
-//! * [`FixedCamera`]: serves the same stereo pair on every capture.
+//! * [`FixedCamera`]: serves the same stereo pair on every capture, into the
+//!   caller's buffers ([`StereoCamera`]) or kept in its own memory and read a
+//!   window at a time ([`FrameStore`], with its own window-read faults).
 //! * [`FixedPrior`]: serves one pose prior.
 //!
 //! Faults ([`FaultConfig`]): each operation draws once from a [`vtsm_core::rng::Rng`]
@@ -15,10 +17,12 @@
 
 use std::cell::Cell;
 use std::rc::Rc;
+use vtsm_core::frame::Eye;
+use vtsm_core::image::Rect;
 use vtsm_core::rng::Rng;
 use vtsm_hal::camera::{FrameInfo, StereoCamera};
 use vtsm_hal::telemetry::{decode_prefix, FrameError, SYNC};
-use vtsm_hal::{Clock, ErrorKind, ErrorType, MapStore, PosePrior, PriorEstimate};
+use vtsm_hal::{Clock, ErrorKind, ErrorType, FrameStore, MapStore, PosePrior, PriorEstimate};
 
 /// Largest number of bytes one corruption fault damages.
 pub const MAX_CORRUPT_BYTES: u32 = 4;
@@ -453,6 +457,11 @@ pub struct FixedCamera {
     /// Fault source, one draw per capture. A timeout advances the attached
     /// clock by the timeout (the capture blocked that long).
     pub faults: FaultInjector,
+    /// Fault source of [`FrameStore::read_window`], one draw per read.
+    pub window_faults: FaultInjector,
+    /// Whether a pair is held for [`FrameStore::read_window`] (the last
+    /// [`FrameStore::capture_in_place`] succeeded).
+    latched: bool,
 }
 
 impl FixedCamera {
@@ -479,7 +488,15 @@ impl FixedCamera {
             sequence: 0,
             clock: None,
             faults: FaultInjector::none(),
+            window_faults: FaultInjector::none(),
+            latched: false,
         })
+    }
+
+    /// The same camera with seeded faults of its window reads.
+    pub fn with_window_faults(mut self, faults: FaultInjector) -> Self {
+        self.window_faults = faults;
+        self
     }
 
     /// Stamp frames with (and block on) this clock.
@@ -552,6 +569,87 @@ impl StereoCamera for FixedCamera {
             timestamp_ticks: self.clock.as_ref().map_or(0, ManualClock::ticks),
             exposure_us: self.exposure_us,
         })
+    }
+}
+
+/// The camera's frame memory read in place: `capture_in_place` latches the pair (a
+/// drawn timeout blocks the attached clock for the timeout; a truncation or
+/// corruption of the transfer into the memory is reported as that kind), and
+/// `read_window` copies a rectangle out of it with one draw of
+/// `window_faults` per read: a timeout, a truncated copy (part of the
+/// rectangle, then kind `Truncated`) or a silently damaged copy.
+impl FrameStore for FixedCamera {
+    fn capture_in_place(&mut self, timeout_ticks: u64) -> Result<FrameInfo, ErrorKind> {
+        self.latched = false;
+        match self.faults.draw() {
+            Some(Fault::Timeout) => {
+                if let Some(c) = &self.clock {
+                    c.advance(timeout_ticks);
+                }
+                return Err(ErrorKind::Timeout);
+            }
+            Some(Fault::Truncate) => return Err(ErrorKind::Truncated),
+            Some(Fault::Corrupt) => return Err(ErrorKind::Corrupted),
+            None => {}
+        }
+        self.latched = true;
+        self.sequence = self.sequence.wrapping_add(1);
+        Ok(FrameInfo {
+            width: self.width,
+            height: self.height,
+            stride: self.stride,
+            sequence: self.sequence,
+            timestamp_ticks: self.clock.as_ref().map_or(0, ManualClock::ticks),
+            exposure_us: self.exposure_us,
+        })
+    }
+
+    fn read_window(&mut self, eye: Eye, rect: Rect, out: &mut [u8]) -> Result<(), ErrorKind> {
+        if !self.latched {
+            return Err(ErrorKind::Unavailable);
+        }
+        let frame = Rect::new(0, 0, self.width, self.height);
+        if rect.w == 0 || rect.h == 0 || !frame.contains(&rect) {
+            return Err(ErrorKind::Other);
+        }
+        let (x, y, w, h) = (
+            rect.x as usize,
+            rect.y as usize,
+            rect.w as usize,
+            rect.h as usize,
+        );
+        let n = w * h;
+        let Some(out) = out.get_mut(..n) else {
+            return Err(ErrorKind::Other);
+        };
+        let src = match eye {
+            Eye::Left => &self.left,
+            Eye::Right => &self.right,
+        };
+        let stride = self.stride as usize;
+        let copy = |out: &mut [u8], rows: usize| {
+            for (k, dst) in out.chunks_exact_mut(w).take(rows).enumerate() {
+                let at = (y + k) * stride + x;
+                dst.copy_from_slice(&src[at..at + w]);
+            }
+        };
+        match self.window_faults.draw() {
+            Some(Fault::Timeout) => Err(ErrorKind::Timeout),
+            Some(Fault::Truncate) => {
+                let rows = self.window_faults.truncated_len(h);
+                copy(out, rows);
+                Err(ErrorKind::Truncated)
+            }
+            Some(Fault::Corrupt) => {
+                copy(out, h);
+                self.window_faults.corrupt(out);
+                Ok(())
+            }
+            None => {
+                copy(out, h);
+                Ok(())
+            }
+        }
     }
 }
 

@@ -249,6 +249,76 @@ where
     let mut runs = vec![Run::default(); sizes.runs];
     let ws = Workspace::new(sizes, &mut bytes, &mut words, &mut runs)?;
 
+    let (mut runner, probe) = devices_for(req, faults)?;
+    let (mut left, mut right, mut map) = (vec![0u8; n], vec![0u8; n], vec![0u8; req.map.len()]);
+    let bufs = Buffers {
+        left: &mut left,
+        right: &mut right,
+        map: &mut map,
+    };
+    let start = Instant::now();
+    let result = match observe {
+        None => runner.relocalize_with(bufs, &req.rig, &req.params, ws, req.seed, limits, between),
+        Some(observe) => {
+            runner.relocalize_by_stage(bufs, &req.rig, &req.params, ws, req.seed, limits, observe)
+        }
+    };
+    let elapsed = start.elapsed();
+    Ok(DeviceRun {
+        result,
+        log: runner.log.clone(),
+        telemetry: runner.telemetry.writer().frames().frames,
+        elapsed,
+        workspace_bytes: sizes.total_bytes(),
+        ticks: probe.ticks(),
+    })
+}
+
+/// [`run_on_devices`] on the frame-store path ([`Runner::relocalize_from_store`]):
+/// the camera keeps the pair in its own memory and the engine reads each
+/// search window from it, with `window_faults` drawn once per window read
+/// (seeded from `faults.seed`); no RAM copy of the pair is made.
+///
+/// # Errors
+/// As [`run_on_devices`].
+pub fn run_from_store(
+    req: &Request<'_>,
+    faults: &DeviceFaults,
+    window_faults: FaultConfig,
+    limits: &DriveLimits,
+) -> Result<DeviceRun> {
+    let (w, h) = (req.rig.cam().width(), req.rig.cam().height());
+    let n = (w as usize) * (h as usize);
+    if req.left.len() != n || req.right.len() != n {
+        return Err(Error::from(FailureCode::ImageSizeMismatch));
+    }
+    req.params.validate().map_err(FailureCode::from)?;
+    let sizes = workspace_sizes(&req.params);
+    let mut bytes = vec![0u8; sizes.bytes];
+    let mut words = vec![0u32; sizes.words];
+    let mut runs = vec![Run::default(); sizes.runs];
+    let ws = Workspace::new(sizes, &mut bytes, &mut words, &mut runs)?;
+    let (mut runner, probe) = devices_for(req, faults)?;
+    runner.camera.window_faults = FaultInjector::new(window_faults, faults.seed ^ 0xf4a3e)?;
+    let mut map = vec![0u8; req.map.len()];
+    let start = Instant::now();
+    let result =
+        runner.relocalize_from_store(&mut map, &req.rig, &req.params, ws, req.seed, limits);
+    let elapsed = start.elapsed();
+    Ok(DeviceRun {
+        result,
+        log: runner.log.clone(),
+        telemetry: runner.telemetry.writer().frames().frames,
+        elapsed,
+        workspace_bytes: sizes.total_bytes(),
+        ticks: probe.ticks(),
+    })
+}
+
+/// The simulated runner of `req` (camera, clock, map store, prior,
+/// telemetry, with `faults`) and a probe of its clock.
+fn devices_for(req: &Request<'_>, faults: &DeviceFaults) -> Result<(SimRunner, ManualClock)> {
+    let (w, h) = (req.rig.cam().width(), req.rig.cam().height());
     let clock = ManualClock::new(1_000);
     let camera = FixedCamera::new(req.left.to_vec(), req.right.to_vec(), w, h)?
         .with_clock(clock.clone())
@@ -273,30 +343,15 @@ where
         verify: req.verify,
         ..runner_config(w, h)
     };
-    let mut runner = Runner::new(camera, clock, store, prior, telemetry, cfg);
-    let (mut left, mut right, mut map) = (vec![0u8; n], vec![0u8; n], vec![0u8; req.map.len()]);
-    let bufs = Buffers {
-        left: &mut left,
-        right: &mut right,
-        map: &mut map,
-    };
-    let start = Instant::now();
-    let result = match observe {
-        None => runner.relocalize_with(bufs, &req.rig, &req.params, ws, req.seed, limits, between),
-        Some(observe) => {
-            runner.relocalize_by_stage(bufs, &req.rig, &req.params, ws, req.seed, limits, observe)
-        }
-    };
-    let elapsed = start.elapsed();
-    Ok(DeviceRun {
-        result,
-        log: runner.log.clone(),
-        telemetry: runner.telemetry.writer().frames().frames,
-        elapsed,
-        workspace_bytes: sizes.total_bytes(),
-        ticks: probe.ticks(),
-    })
+    Ok((
+        Runner::new(camera, clock, store, prior, telemetry, cfg),
+        probe,
+    ))
 }
+
+/// The runner over the simulated devices.
+type SimRunner =
+    Runner<FixedCamera, ManualClock, MemMapStore, FixedPrior, FramedTelemetry<RecordingSink>>;
 
 /// An ℓ×ℓ synthetic template with its depth and §III-C mask, row-major.
 pub struct Template {

@@ -251,7 +251,7 @@ pub fn engine_run(
     let ws = Workspace::new(sizes, &mut bytes, &mut words, &mut runs)?;
     let setup = Setup::new(&view, left, right, &rig, &params, &scene.prior, RELOC_SEED);
     let mut engine = setup.build(ws)?;
-    let cap = vtsm_core::reloc::Engine::max_work_units(&params);
+    let cap = <vtsm_core::reloc::Engine>::max_work_units(&params);
     let mut flipped = None;
     for unit in 0..=cap {
         if let Some((region, at)) = upset {

@@ -63,7 +63,7 @@ fn engine_upset_hook_reaches_every_region() {
         let (o, flipped) = engine_run(&scene, Some((region, late)), &mut Rng::new(3)).unwrap();
         let (unit, _) = flipped.unwrap_or_else(|| panic!("{region:?} stayed empty"));
         assert!(unit >= late);
-        let cap = vtsm_core::reloc::Engine::max_work_units(&params());
+        let cap = <vtsm_core::reloc::Engine>::max_work_units(&params());
         assert!(o.stats.work_units <= cap, "{region:?}");
     }
 }

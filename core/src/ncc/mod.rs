@@ -521,11 +521,7 @@ pub fn match_template(
 ///
 /// # Errors
 /// As [`match_template`].
-#[allow(clippy::too_many_lines, clippy::too_many_arguments)]
-#[allow(
-    clippy::cast_possible_truncation,
-    reason = "levels ≤ MAX_LEVELS fits u8; positions lie in a window of ≤ MAX_IMAGE_DIM pixels (fit i32); sub-pixel coordinates are pixel positions, rounded once to f32"
-)]
+#[allow(clippy::too_many_arguments)]
 pub fn match_template_with(
     template: GrayView,
     mask: Option<GrayView>,
@@ -536,7 +532,71 @@ pub fn match_template_with(
     cfg: &SearchConfig,
     scratch: &mut Scratch,
 ) -> Result<(Match, MatchStats), FailureCode> {
-    let cfg = cfg.clamped();
+    match_at(
+        template,
+        mask,
+        image,
+        (0, 0),
+        search,
+        filter,
+        mode,
+        &cfg.clamped(),
+        scratch,
+    )
+}
+
+/// [`match_template`] inside a window copied out of a larger frame
+/// ([`crate::frame::read_with_halo`]): `search` and the returned positions
+/// are in frame coordinates, `window.origin` is where the copy's pixel (0, 0)
+/// lies in the frame. When the copy holds `search` and the one-pixel ring the
+/// filters read (clipped to the frame), the result is bit-identical to
+/// [`match_template`] over the whole frame.
+///
+/// # Errors
+/// As [`match_template`].
+pub fn match_in_window(
+    template: GrayView,
+    mask: Option<GrayView>,
+    window: &crate::frame::Window,
+    search: Rect,
+    filter: Filter,
+    mode: Search,
+    scratch: &mut Scratch,
+) -> Result<(Match, MatchStats), FailureCode> {
+    match_at(
+        template,
+        mask,
+        window.view,
+        window.origin,
+        window.local(search),
+        filter,
+        mode,
+        &SearchConfig::for_filter(filter).clamped(),
+        scratch,
+    )
+}
+
+/// The search of [`match_template_with`] over `image` whose pixel (0, 0) is
+/// pixel `origin` of the frame the caller works in; `search` is in `image`'s
+/// coordinates and the result in the frame's, so the sub-pixel position is
+/// rounded once, from frame coordinates, wherever the image was cut from.
+#[allow(clippy::too_many_lines, clippy::too_many_arguments)]
+#[allow(
+    clippy::cast_possible_truncation,
+    reason = "levels ≤ MAX_LEVELS fits u8; positions lie in a window of ≤ MAX_IMAGE_DIM pixels (fit i32); sub-pixel coordinates are pixel positions, rounded once to f32"
+)]
+fn match_at(
+    template: GrayView,
+    mask: Option<GrayView>,
+    image: GrayView,
+    origin: (i32, i32),
+    search: Rect,
+    filter: Filter,
+    mode: Search,
+    cfg: &SearchConfig,
+    scratch: &mut Scratch,
+) -> Result<(Match, MatchStats), FailureCode> {
+    let cfg = *cfg;
     let (tw, th) = (template.width(), template.height());
     let side_ok = |s: usize| (MIN_TEMPLATE_PX..=MAX_TEMPLATE_PX).contains(&s);
     if !side_ok(tw) || !side_ok(th) {
@@ -616,8 +676,8 @@ pub fn match_template_with(
 
     // The winner lies inside the window rectangle, itself inside the image
     // (≤ MAX_IMAGE_DIM), so these sums fit; wrapping keeps them total.
-    let x = wr.x.wrapping_add(win.x as i32);
-    let y = wr.y.wrapping_add(win.y as i32);
+    let x = origin.0.wrapping_add(wr.x).wrapping_add(win.x as i32);
+    let y = origin.1.wrapping_add(wr.y).wrapping_add(win.y as i32);
     Ok((
         Match {
             x,

@@ -395,6 +395,11 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
                     self.stats.correspondences = self.stats.correspondences.saturating_add(1);
                 }
             }
+            // The frames cannot be read: no later attempt can match either.
+            Err(FailureCode::RelocFrameReadFailed) => {
+                self.finish(Some(FailureCode::RelocFrameReadFailed), now);
+                return;
+            }
             Err(code) => self.log.record(code, now, index),
         }
         let cap = self.opts.no_evidence_attempts;

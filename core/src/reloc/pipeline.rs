@@ -1,7 +1,8 @@
 //! The real per-attempt pipeline: SamplePoint → Synthesize → Match → Valid →
 //! Stereo (paper §III-C, §III-D), implementing [`super::Attempt`].
 //!
-//! Inputs: the map, the real left/right images, the rig, a [`MatchPolicy`] and a
+//! Inputs: the map, the real left/right images (a [`FrameSource`], read one
+//! search window at a time into the workspace), the rig, a [`MatchPolicy`] and a
 //! [`Workspace`] of caller-provided buffers sized by [`WorkspaceSizes`](super::WorkspaceSizes),
 //! all checked once by [`super::Setup::build`], the only constructor. Output:
 //! one [`Correspondence`] (map vertex in world, triangulated point in the left
@@ -24,6 +25,7 @@ use super::{
 };
 use crate::config::Params;
 use crate::failure::FailureCode;
+use crate::frame::{self, Eye, FrameSource, StereoPair, Window};
 use crate::geom::{Pose, StereoRig, Vec3};
 use crate::image::{GrayView, Rect};
 use crate::map::MapView;
@@ -40,10 +42,13 @@ pub const OCCLUSION_ABS_M: f32 = 0.03;
 pub const OCCLUSION_REL: f32 = 0.02;
 
 /// The real [`Attempt`]: renders, matches and triangulates one map vertex.
-pub struct Pipeline<'a, 'w> {
+///
+/// `F` is where the real pair's pixels come from: each Match stage copies its
+/// left search window (and, once a left match is accepted, the right one)
+/// into the workspace and matches there; the in-memory pair by default.
+pub struct Pipeline<'a, 'w, F = StereoPair<'a>> {
     map: &'a MapView<'a>,
-    left: GrayView<'a>,
-    right: GrayView<'a>,
+    frames: F,
     rig: StereoRig,
     template_px: usize,
     search_px: usize,
@@ -102,7 +107,13 @@ fn search_rect(px: [f32; 2], l: usize, r: i32, cap: usize, w: usize, h: usize) -
     )
 }
 
-impl<'a, 'w> Pipeline<'a, 'w> {
+impl<'a, 'w, F: FrameSource> Pipeline<'a, 'w, F> {
+    /// The frame source the pipeline reads its windows from (a device
+    /// adapter's read counters and fault log, after the run).
+    pub fn frames(&self) -> &F {
+        &self.frames
+    }
+
     /// The workspace, for upset injection.
     #[cfg(feature = "upset-injection")]
     pub(super) fn workspace(&self) -> &Workspace<'w> {
@@ -125,8 +136,7 @@ impl<'a, 'w> Pipeline<'a, 'w> {
     /// [`super::Setup::build`] has checked (params, policy, image sizes, workspace, mask).
     pub(super) fn from_checked(
         map: &'a MapView<'a>,
-        left: GrayView<'a>,
-        right: GrayView<'a>,
+        frames: F,
         rig: &StereoRig,
         params: &Params,
         policy: &MatchPolicy,
@@ -134,8 +144,7 @@ impl<'a, 'w> Pipeline<'a, 'w> {
     ) -> Self {
         Self {
             map,
-            left,
-            right,
+            frames,
             rig: *rig,
             template_px: usize::from(params.template_px),
             search_px: usize::from(params.search_px),
@@ -179,6 +188,25 @@ impl<'a, 'w> Pipeline<'a, 'w> {
         }
         Err(FailureCode::RelocSampleOutOfView)
     }
+}
+
+/// `rect` of `eye` copied into `buf` with its filter ring, `None` for an
+/// empty rectangle.
+///
+/// # Errors
+/// [`FailureCode::RelocFrameReadFailed`] when the source cannot serve it.
+fn read_window<'b, F: FrameSource>(
+    frames: &mut F,
+    eye: Eye,
+    rect: Rect,
+    buf: &'b mut [u8],
+) -> Result<Option<Window<'b>>, FailureCode> {
+    if rect.w == 0 || rect.h == 0 {
+        return Ok(None);
+    }
+    frame::read_with_halo(frames, eye, rect, buf)
+        .map(Some)
+        .map_err(|_| FailureCode::RelocFrameReadFailed)
 }
 
 /// Window of side ℓ whose centre pixel holds `px`.
@@ -264,7 +292,7 @@ fn epipolar_band(
         .filter(|r| r.w as usize >= tw && r.h as usize >= th)
 }
 
-impl Pipeline<'_, '_> {
+impl<F: FrameSource> Pipeline<'_, '_, F> {
     /// Synthesize (§III-C): render the ℓ×ℓ left and right templates centred
     /// on the vertex's projections, reject a vertex hidden in the virtual
     /// view, and form both template masks.
@@ -388,6 +416,13 @@ impl Pipeline<'_, '_> {
             view(ws.inten_r, l)?,
             view(ws.mask_r, l)?,
         );
+        // The left window is read once per attempt, the right one at the
+        // first accepted left match (an attempt rejected on the left reads
+        // nothing more); an empty window reads nothing and matches nothing,
+        // as a search outside the image does.
+        let left_win = read_window(&mut self.frames, Eye::Left, win.left, ws.frame_l)?;
+        let mut right_buf = Some(&mut *ws.frame_r);
+        let mut right_win: Option<Window<'_>> = None;
         let mut last = FailureCode::NccLowScore;
         for v in self.policy.variants.iter().flatten() {
             fn crop(t: GrayView<'_>, half: bool) -> Option<GrayView<'_>> {
@@ -413,18 +448,24 @@ impl Pipeline<'_, '_> {
             };
             let idx = v.index();
             let policy = &self.policy;
-            let mut one = |t, m, img, search, mode| -> Result<ncc::Match, FailureCode> {
+            let mut one = |t,
+                           m,
+                           img: Option<&Window<'_>>,
+                           search,
+                           mode|
+             -> Result<ncc::Match, FailureCode> {
                 if let Some(c) = stats.matches.get_mut(idx) {
                     *c = c.saturating_add(1);
                 }
+                let img = img.ok_or(FailureCode::NccWindowOutsideImage)?;
                 let (m, ms) =
-                    ncc::match_template(t, Some(m), img, search, v.filter, mode, &mut ws.scratch)?;
+                    ncc::match_in_window(t, Some(m), img, search, v.filter, mode, &mut ws.scratch)?;
                 stats.ncc_positions = stats.ncc_positions.saturating_add(ms.positions_scored);
                 stats.ncc_macs = stats.ncc_macs.saturating_add(ms.macs);
                 accept(&m, policy)?;
                 Ok(m)
             };
-            let ml = match one(tl, tml, self.left, win.left, policy.search) {
+            let ml = match one(tl, tml, left_win.as_ref(), win.left, policy.search) {
                 Ok(m) => m,
                 Err(e) => {
                     last = e;
@@ -474,7 +515,10 @@ impl Pipeline<'_, '_> {
             } else {
                 (win.right, policy.search)
             };
-            let mr = match one(tr, tmr, self.right, band, mode) {
+            if let Some(buf) = right_buf.take() {
+                right_win = read_window(&mut self.frames, Eye::Right, win.right, buf)?;
+            }
+            let mr = match one(tr, tmr, right_win.as_ref(), band, mode) {
                 Ok(m) => m,
                 Err(e) => {
                     last = e;
@@ -515,7 +559,7 @@ impl Pipeline<'_, '_> {
     }
 }
 
-impl Attempt for Pipeline<'_, '_> {
+impl<F: FrameSource> Attempt for Pipeline<'_, '_, F> {
     /// SamplePoint → Synthesize → search window → Match → Valid + Stereo:
     /// the stages of [`Attempt::begin`] and [`Attempt::resume`] back to back.
     fn attempt(
@@ -829,7 +873,10 @@ mod tests {
             s.build(ws).err()
         };
         assert_eq!(build(&good, TEST_WORKSPACE), None);
-        let mismatched = Setup { right: sv, ..good };
+        let mismatched = Setup {
+            frames: StereoPair::new(lv, sv),
+            ..good
+        };
         assert_eq!(
             build(&mismatched, TEST_WORKSPACE),
             Some(FailureCode::ImageSizeMismatch)
@@ -1047,5 +1094,72 @@ mod tests {
             out.failure.is_some() || et < 0.05,
             "confident wrong pose, error {et} m"
         );
+    }
+
+    /// A source that serves `good` reads and then fails every read.
+    struct FailAfter<'a> {
+        pair: StereoPair<'a>,
+        good: u32,
+        reads: u32,
+    }
+
+    impl FrameSource for FailAfter<'_> {
+        fn size(&self) -> (usize, usize) {
+            self.pair.size()
+        }
+        fn read_window(&mut self, eye: Eye, r: Rect, out: &mut [u8]) -> Result<(), FailureCode> {
+            self.reads += 1;
+            if self.reads > self.good {
+                return Err(FailureCode::HalFrameStoreRead);
+            }
+            self.pair.read_window(eye, r, out)
+        }
+    }
+
+    /// A frame source that stops serving reads part-way through the run ends
+    /// the relocalization at that attempt with `RELOC_FRAME_READ_FAILED`; one
+    /// that serves every read gives the in-memory pair's outcome.
+    ///
+    /// Verifies: VTSM-RELOC-037
+    #[test]
+    fn a_frame_source_that_fails_ends_the_run_with_its_code() {
+        let (bytes, truth) = scene();
+        let map = MapView::new_checked(&bytes).unwrap();
+        let rig = rig();
+        let left = render_full(&map, &rig.cam, &truth, 0.85, 20.0);
+        let right = render_full(&map, &rig.cam, &rig.world_from_right(&truth), 0.85, 20.0);
+        let lv = GrayView::new(&left, 640, 480, 640).unwrap();
+        let rv = GrayView::new(&right, 640, 480, 640).unwrap();
+        let prior = perturb(&truth, &mut Rng::new(31), 0.15, 1.2);
+        let run = |good: u32| {
+            let src = FailAfter {
+                pair: StereoPair::new(lv, rv),
+                good,
+                reads: 0,
+            };
+            let mut setup = Setup::with_frames(&map, src, &rig, &test_params(), &prior, 41);
+            setup.options.min_inliers = 15;
+            let (mut b, mut w, mut r) = workspace_buffers(&setup.sizes());
+            let ws = Workspace::new(setup.sizes(), &mut b, &mut w, &mut r).unwrap();
+            let mut engine = setup.build(ws).unwrap();
+            let out = engine.run_to_completion(0);
+            (out, engine.attempt_ref().frames().reads)
+        };
+        let (all, reads) = run(u32::MAX);
+        let whole = relocalize(&map, &left, &right, &prior, 41);
+        assert_eq!(
+            all.pose.t().map(f32::to_bits),
+            whole.pose.t().map(f32::to_bits)
+        );
+        assert_eq!(all.stats, whole.stats);
+        assert_eq!(all.failure, None);
+        // 2 × 64 preflight reads, then windows.
+        assert!(reads > 128, "{reads}");
+        let (cut, _) = run(128 + 40);
+        assert_eq!(cut.failure, Some(FailureCode::RelocFrameReadFailed));
+        assert!(cut.stats.attempts > 0 && cut.stats.attempts < all.stats.attempts);
+        let (early, _) = run(3);
+        assert_eq!(early.failure, Some(FailureCode::RelocFrameReadFailed));
+        assert_eq!(early.stats.attempts, 0);
     }
 }

@@ -1,7 +1,8 @@
 //! The one constructor of the relocalization engine.
 //!
 //! [`Setup`] gathers everything one relocalization needs — the checked map,
-//! the real stereo pair, the rig, validated [`Params`], the Match policy, the
+//! the real stereo pair (a [`FrameSource`]: the in-memory [`StereoPair`] by
+//! default, or a frame store the engine reads search windows from), the rig, validated [`Params`], the Match policy, the
 //! engine [`Options`], the prior and the seed — and [`Setup::build`] checks it
 //! all once and wires the real [`Pipeline`], the [`RansacSolver`] and the
 //! [`Relocalizer`] over a caller-owned [`Workspace`] (carved from a typed
@@ -19,24 +20,25 @@ use super::workspace::{Workspace, WorkspaceSizes};
 use super::{Options, Relocalizer};
 use crate::config::Params;
 use crate::failure::FailureCode;
+use crate::frame::{FrameSource, StereoPair};
 use crate::geom::{Pose, StereoRig};
 use crate::image::GrayView;
 use crate::map::MapView;
 
-/// The engine as built by [`Setup::build`]: the real pipeline and RANSAC.
-pub type Engine<'a, 'w> = Relocalizer<Pipeline<'a, 'w>, RansacSolver>;
+/// The engine as built by [`Setup::build`]: the real pipeline over the frame
+/// source `F` (the in-memory pair by default) and RANSAC.
+pub type Engine<'a, 'w, F = StereoPair<'a>> = Relocalizer<Pipeline<'a, 'w, F>, RansacSolver>;
 
 /// The inputs of one relocalization. Fill it with [`Setup::new`] (defaults for
 /// the policy and options from the params), adjust the public fields if
 /// needed, size the workspace with [`Setup::sizes`] and call [`Setup::build`].
 #[derive(Clone, Copy, Debug)]
-pub struct Setup<'a> {
+pub struct Setup<'a, F = StereoPair<'a>> {
     /// The checked map product.
     pub map: &'a MapView<'a>,
-    /// Left (reference) image of the rectified pair, `rig.cam` sized.
-    pub left: GrayView<'a>,
-    /// Right image, same size.
-    pub right: GrayView<'a>,
+    /// The rectified pair, `rig.cam` sized: where the engine reads its
+    /// search windows and preflight rows from.
+    pub frames: F,
     /// Calibrated rectified rig.
     pub rig: StereoRig,
     /// Relocalization parameters.
@@ -52,8 +54,9 @@ pub struct Setup<'a> {
 }
 
 impl<'a> Setup<'a> {
-    /// A setup with the default policy ([`MatchPolicy::for_params`]) and
-    /// options ([`Options::for_params`]) for `params`. Nothing is checked yet.
+    /// A setup over the in-memory pair `left`, `right` with the default policy
+    /// ([`MatchPolicy::for_params`]) and options ([`Options::for_params`]) for
+    /// `params`. Nothing is checked yet.
     pub fn new(
         map: &'a MapView<'a>,
         left: GrayView<'a>,
@@ -63,10 +66,24 @@ impl<'a> Setup<'a> {
         prior: &Pose,
         seed: u64,
     ) -> Self {
+        Self::with_frames(map, StereoPair::new(left, right), rig, params, prior, seed)
+    }
+}
+
+impl<'a, F: FrameSource> Setup<'a, F> {
+    /// [`Setup::new`] over any frame source: the engine reads each search
+    /// window from `frames` when it needs it.
+    pub fn with_frames(
+        map: &'a MapView<'a>,
+        frames: F,
+        rig: &StereoRig,
+        params: &Params,
+        prior: &Pose,
+        seed: u64,
+    ) -> Self {
         Self {
             map,
-            left,
-            right,
+            frames,
             rig: *rig,
             params: *params,
             policy: MatchPolicy::for_params(params),
@@ -97,8 +114,7 @@ impl<'a> Setup<'a> {
             return Err(FailureCode::RelocPriorInvalid);
         }
         let (w, h) = (self.rig.cam.width as usize, self.rig.cam.height as usize);
-        let same = |v: &GrayView| v.width() == w && v.height() == h;
-        if !same(&self.left) || !same(&self.right) {
+        if self.frames.size() != (w, h) {
             return Err(FailureCode::ImageSizeMismatch);
         }
         if self.map.mask_vertex_count() == 0 {
@@ -108,16 +124,20 @@ impl<'a> Setup<'a> {
     }
 
     /// The [`preflight`](super::preflight) of these inputs: texture in both
-    /// images, two different images, a mask vertex in view from the prior.
+    /// images, two different images, a mask vertex in view from the prior;
+    /// the rows are read into `ws`'s frame windows.
     ///
     /// # Errors
     /// [`FailureCode::RelocFrameNoTexture`], [`FailureCode::RelocStereoIdentical`],
-    /// [`FailureCode::RelocNoVisibleMaskVertex`].
-    pub fn preflight(&self) -> Result<super::preflight::Preflight, FailureCode> {
+    /// [`FailureCode::RelocNoVisibleMaskVertex`], [`FailureCode::RelocFrameReadFailed`].
+    pub fn preflight(
+        &mut self,
+        ws: &mut Workspace<'_>,
+    ) -> Result<super::preflight::Preflight, FailureCode> {
         super::preflight::check(
             self.map,
-            &self.left,
-            &self.right,
+            &mut self.frames,
+            (&mut *ws.frame_l, &mut *ws.frame_r),
             &self.rig,
             &self.prior,
             usize::from(self.params.template_px),
@@ -131,15 +151,15 @@ impl<'a> Setup<'a> {
     /// # Errors
     /// As [`Setup::validate`], and [`FailureCode::ConfigCapacityTooSmall`] if
     /// `ws` was carved for smaller sizes than [`Setup::sizes`].
-    pub fn build<'w>(&self, ws: Workspace<'w>) -> Result<Engine<'a, 'w>, FailureCode> {
+    pub fn build<'w>(mut self, mut ws: Workspace<'w>) -> Result<Engine<'a, 'w, F>, FailureCode> {
         self.validate()?;
         if !ws.sizes().covers(&self.sizes()) {
             return Err(FailureCode::ConfigCapacityTooSmall);
         }
+        let preflight = self.preflight(&mut ws);
         let pipeline = Pipeline::from_checked(
             self.map,
-            self.left,
-            self.right,
+            self.frames,
             &self.rig,
             &self.params,
             &self.policy,
@@ -158,7 +178,7 @@ impl<'a> Setup<'a> {
         );
         // A hopeless frame is a relocalization that fails (an outcome with its
         // code, after no work), not bad input.
-        if let Err(code) = self.preflight() {
+        if let Err(code) = preflight {
             engine.end_early(code);
         }
         Ok(engine)

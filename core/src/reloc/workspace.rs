@@ -1,6 +1,8 @@
 //! The pipeline's preallocated workspace: left/right templates, depth and
-//! mask-depth buffers, template masks and the NCC scratch, carved from three
-//! caller slices whose lengths are a `const fn` of (ℓ, search side).
+//! mask-depth buffers, template masks, the NCC scratch and the two frame
+//! windows (the left and right search windows copied out of the
+//! [`FrameSource`](crate::frame::FrameSource)), carved from three caller
+//! slices whose lengths are a `const fn` of (ℓ, search side).
 //!
 //! Nothing here allocates; the paper-scale buffers (several MB) are meant to be
 //! static or heap memory of the caller, never a by-value stack object.
@@ -9,8 +11,9 @@
 //! object of the caller); a caller with run-time sizes borrows three slices
 //! into [`Workspace::new`] instead.
 
-use crate::config::{Params, MAX_SEARCH_PX, MAX_TEMPLATE_PX};
+use crate::config::{Params, MAX_IMAGE_DIM, MAX_SEARCH_PX, MAX_TEMPLATE_PX};
 use crate::failure::FailureCode;
+use crate::frame::halo_bytes;
 use crate::ncc::{Filter, Run, Scratch, ScratchSizes, Search, SearchConfig};
 
 /// Most bytes the workspace spends on NCC integral tables shared by a whole
@@ -21,6 +24,10 @@ use crate::ncc::{Filter, Run, Scratch, ScratchSizes, Search, SearchConfig};
 /// builds per-region tables, with the same results
 /// (`fsw-docs/budgets/ncc.md`).
 pub const NCC_SHARED_TABLES_MAX_BYTES: usize = 1 << 20;
+
+/// Bytes the preflight reads at once from each frame: two rows of the widest
+/// image (a sampled row and the one below it).
+pub const PREFLIGHT_ROW_BYTES: usize = 2 * MAX_IMAGE_DIM;
 
 /// Integral elements every filter's default search needs at least (per-region tables).
 const fn ncc_minimum_integral(t: usize, w: usize, mode: Search) -> usize {
@@ -52,12 +59,16 @@ pub struct WorkspaceSizes {
     pub template_px: usize,
     /// Search-window side W.
     pub search_px: usize,
-    /// `u8` elements: left/right intensity and mask (4·ℓ²) + NCC window and template scratch.
+    /// `u8` elements: left/right intensity and mask (4·ℓ²) + NCC window and
+    /// template scratch + the two frame windows (2 · [`Self::frame`]).
     pub bytes: usize,
     /// `u32` elements: left/right depth and mask depth (4·ℓ²) + NCC integral images.
     pub words: usize,
     /// [`Run`] elements.
     pub runs: usize,
+    /// Bytes of each frame window: a search window of side W with its
+    /// one-pixel ring, (W + 2)², and at least [`PREFLIGHT_ROW_BYTES`].
+    pub frame: usize,
     /// The NCC part (covers both ℓ and ℓ/2 templates).
     pub ncc: ScratchSizes,
     /// Integral elements the NCC searches require at least (per-region
@@ -90,12 +101,17 @@ impl WorkspaceSizes {
         };
         // Saturating: sizes beyond any storage are refused when it is checked.
         let t4 = template_px.saturating_mul(template_px).saturating_mul(4);
+        let frame = max(halo_bytes(search_px), PREFLIGHT_ROW_BYTES);
         Self {
             template_px,
             search_px,
-            bytes: t4.saturating_add(ncc.window).saturating_add(ncc.template),
+            bytes: t4
+                .saturating_add(ncc.window)
+                .saturating_add(ncc.template)
+                .saturating_add(frame.saturating_mul(2)),
             words: t4.saturating_add(ncc.integral),
             runs: ncc.runs,
+            frame,
             ncc,
             ncc_min_integral: minimum,
         }
@@ -114,6 +130,7 @@ impl WorkspaceSizes {
             && self.search_px >= need.search_px
             && self.bytes >= need.bytes
             && self.runs >= need.runs
+            && self.frame >= need.frame
             && self.ncc.window >= need.ncc.window
             && self.ncc.template >= need.ncc.template
             && self.ncc.integral >= need.ncc_min_integral
@@ -197,6 +214,11 @@ pub struct Workspace<'w> {
     pub(super) mdepth_l: &'w mut [u32],
     pub(super) mdepth_r: &'w mut [u32],
     pub(super) scratch: Scratch<'w>,
+    /// The left search window copied from the frame source (and the
+    /// preflight's left rows).
+    pub(super) frame_l: &'w mut [u8],
+    /// The right search window (and the preflight's right rows).
+    pub(super) frame_r: &'w mut [u8],
 }
 
 fn take<'w, T>(s: &mut &'w mut [T], n: usize) -> Result<&'w mut [T], FailureCode> {
@@ -231,6 +253,8 @@ impl<'w> Workspace<'w> {
         let mask_r = take(&mut bytes, t2)?;
         let window = take(&mut bytes, sizes.ncc.window)?;
         let template = take(&mut bytes, sizes.ncc.template)?;
+        let frame_l = take(&mut bytes, sizes.frame)?;
+        let frame_r = take(&mut bytes, sizes.frame)?;
         let depth_l = take(&mut words, t2)?;
         let depth_r = take(&mut words, t2)?;
         let mdepth_l = take(&mut words, t2)?;
@@ -254,6 +278,8 @@ impl<'w> Workspace<'w> {
                 integral,
                 runs,
             },
+            frame_l,
+            frame_r,
         })
     }
 }
@@ -279,7 +305,11 @@ mod tests {
                 let extra = n.integral.saturating_sub(s.ncc.integral) * 4;
                 assert!(extra == 0 || n.integral * 4 > NCC_SHARED_TABLES_MAX_BYTES);
             }
-            assert_eq!(s.bytes, 4 * l * l + s.ncc.window + s.ncc.template);
+            assert_eq!(s.frame, ((w + 2) * (w + 2)).max(PREFLIGHT_ROW_BYTES));
+            assert_eq!(
+                s.bytes,
+                4 * l * l + s.ncc.window + s.ncc.template + 2 * s.frame
+            );
             assert_eq!(s.words, 4 * l * l + s.ncc.integral);
             let total = s.bytes + 4 * s.words + s.runs * core::mem::size_of::<Run>();
             assert_eq!(s.total_bytes(), total);
@@ -292,6 +322,7 @@ mod tests {
             assert_eq!(ws.inten_l.len(), l * l);
             assert_eq!(ws.mdepth_r.len(), l * l);
             assert!(s.ncc.fits(&ws.scratch));
+            assert_eq!((ws.frame_l.len(), ws.frame_r.len()), (s.frame, s.frame));
             let short = Workspace::new(s, &mut b[1..], &mut wd, &mut r).err();
             assert_eq!(short, Some(FailureCode::ConfigCapacityTooSmall));
             let short = Workspace::new(s, &mut b, &mut wd[1..], &mut r).err();

@@ -19,6 +19,7 @@ use vtsm_core::reloc::workspace::{
 };
 use vtsm_core::reloc::{Outcome, Pipeline, RansacSolver, Relocalizer};
 use vtsm_hal::runner::VerifyChecks;
+use vtsm_hal::StoreFrames;
 
 /// RAM of the flight envelope the budgets are held against (10 MB).
 pub const ENVELOPE_RAM_BYTES: u64 = 10_000_000;
@@ -276,6 +277,16 @@ pub fn profile_rows() -> Vec<Row> {
         let pair = 2 * (w as usize) * (h as usize);
         let engine = size_of::<Relocalizer<Pipeline<'static, 'static>, RansacSolver>>();
         let ram = ws.total_bytes() + pair + engine;
+        // The pair left in the camera's frame memory: the engine reads its
+        // windows through the frame store into the workspace (its two frame
+        // windows are part of `ws`).
+        let store_engine = size_of::<
+            Relocalizer<
+                Pipeline<'static, 'static, StoreFrames<&'static mut crate::devices::FixedCamera>>,
+                RansacSolver,
+            >,
+        >();
+        let windows_ram = ws.total_bytes() + store_engine;
         let name = profile.name();
         let r = |item: &str, v: usize, unit| row("profile", format!("{name}: {item}"), v, unit);
         out.extend([
@@ -290,6 +301,21 @@ pub fn profile_rows() -> Vec<Row> {
             r(
                 "RAM margin against the 10 MB envelope (‰ of envelope left, 0 if over)",
                 (1000u64.saturating_sub(ram as u64 * 1000 / ENVELOPE_RAM_BYTES)) as usize,
+                "‰",
+            ),
+            r(
+                "frame windows (2 × (W + 2)², in the workspace)",
+                2 * ws.frame,
+                "bytes",
+            ),
+            r(
+                "RAM with the pair in a frame store: workspace + engine",
+                windows_ram,
+                "bytes",
+            ),
+            r(
+                "RAM margin with the pair in a frame store (‰ of envelope left, 0 if over)",
+                (1000u64.saturating_sub(windows_ram as u64 * 1000 / ENVELOPE_RAM_BYTES)) as usize,
                 "‰",
             ),
             r(

@@ -1,9 +1,11 @@
 // The flight-profile relocalization: built only with `VTSM_FLIGHT_BUNDLE=DIR`
 // (a bundle written by `cargo run -p vtsm-tests --bin flight_bundle`). The
 // map product and the stereo pair are linked into the image as read-only data
-// (the map store's flash and the camera's frame memory); the runner's RAM
-// buffers and the engine's storage are statics, so the static RAM figure of
-// the image plus the stack high-water mark is the run's whole RAM.
+// (the map store's flash and the camera's frame memory). The pair is never
+// copied whole: `Runner::relocalize_from_store` has the engine read each
+// search window from the camera's memory (`FrameStore`) into its workspace.
+// The runner's map buffer and the engine's storage are statics, so the static
+// RAM figure of the image plus the stack high-water mark is the run's whole RAM.
 
 use crate::workload_mod::devices::{CountingTelemetry, FixedPrior, FlashStore, FrameCamera, TickClock};
 use crate::workload_mod::{fold_outcome, Digest};
@@ -12,7 +14,7 @@ use vtsm_core::config::Params;
 use vtsm_core::geom::{Camera, Pose, StereoRig, Vec3};
 use vtsm_core::ncc::Search;
 use vtsm_core::reloc::{MatchPolicy, Storage, WorkspaceSizes};
-use vtsm_hal::runner::{Buffers, DriveLimits, Runner, RunnerConfig, VerifyChecks};
+use vtsm_hal::runner::{DriveLimits, Runner, RunnerConfig, VerifyChecks};
 
 pub mod scene {
     include!(concat!(env!("VTSM_FLIGHT_DIR"), "/scene.rs"));
@@ -31,8 +33,6 @@ static RIGHT_FRAME: [u8; N] = *include_bytes!(concat!(env!("VTSM_FLIGHT_DIR"), "
 
 #[cfg_attr(target_arch = "arm", link_section = ".flight_map")]
 static mut MAP_RAM: [u8; MAP_LEN] = [0; MAP_LEN];
-static mut LEFT: [u8; N] = [0; N];
-static mut RIGHT: [u8; N] = [0; N];
 static mut STORAGE: Storage<{ WS.bytes }, { WS.words }, { WS.runs }> = Storage::new();
 
 /// What the flight run reports.
@@ -75,10 +75,10 @@ pub fn run(clock: &dyn Fn() -> u64) -> FlightSummary {
     );
     // SAFETY: `run` is called once, from the single thread of the image, and
     // these statics are not touched anywhere else: each reference is unique.
-    let (map, left, right, storage) = unsafe { (&mut *addr_of_mut!(MAP_RAM), &mut *addr_of_mut!(LEFT), &mut *addr_of_mut!(RIGHT), &mut *addr_of_mut!(STORAGE)) };
+    let (map, storage) = unsafe { (&mut *addr_of_mut!(MAP_RAM), &mut *addr_of_mut!(STORAGE)) };
     let Ok(ws) = storage.workspace(WS) else { return fail(4) };
     let limits = DriveLimits { units_per_step: 16, max_steps: u32::MAX, budget_ticks: u64::MAX };
-    let (out, report) = match runner.relocalize(Buffers { left, right, map }, &rig, &PARAMS, ws, scene::SEED, &limits) {
+    let (out, report) = match runner.relocalize_from_store(map, &rig, &PARAMS, ws, scene::SEED, &limits) {
         Ok(r) => r,
         Err(e) => return fail(e.code()),
     };

@@ -310,7 +310,8 @@ pub mod devices {
     use vtsm_core::raster::{self, Target};
     use vtsm_hal::prior::{Covariance, PriorEstimate};
     use super::TILE;
-    use vtsm_hal::{Clock, ErrorKind, ErrorType, FrameInfo, MapStore, PosePrior, StereoCamera, Telemetry};
+    use vtsm_core::frame::Eye;
+    use vtsm_hal::{Clock, ErrorKind, ErrorType, FrameInfo, FrameStore, MapStore, PosePrior, StereoCamera, Telemetry};
 
     /// A stereo camera looking at the map from `truth`: each capture renders
     /// the pair, in 64-pixel tiles, with a gain and offset unlike the map's
@@ -388,6 +389,40 @@ pub mod devices {
             r.copy_from_slice(self.right);
             self.sequence += 1;
             Ok(FrameInfo { width: self.width, height: self.height, stride: self.width, sequence: self.sequence, timestamp_ticks: (self.clock)(), exposure_us: 2000 })
+        }
+    }
+
+    /// The same frame memory read in place: a capture latches the pair, and
+    /// the engine reads its windows straight from it (no copy of the pair).
+    impl FrameStore for FrameCamera<'_> {
+        fn capture_in_place(&mut self, _timeout_ticks: u64) -> Result<FrameInfo, ErrorKind> {
+            let n = (self.width as usize).saturating_mul(self.height as usize);
+            if n == 0 || self.left.len() != n || self.right.len() != n {
+                return Err(ErrorKind::Other);
+            }
+            self.sequence += 1;
+            Ok(FrameInfo { width: self.width, height: self.height, stride: self.width, sequence: self.sequence, timestamp_ticks: (self.clock)(), exposure_us: 2000 })
+        }
+
+        fn read_window(&mut self, eye: Eye, rect: Rect, out: &mut [u8]) -> Result<(), ErrorKind> {
+            let frame = match eye {
+                Eye::Left => self.left,
+                Eye::Right => self.right,
+            };
+            let (w, h) = (self.width as usize, self.height as usize);
+            let (x, y, rw, rh) = (rect.x as usize, rect.y as usize, rect.w as usize, rect.h as usize);
+            let inside = rect.x >= 0 && rect.y >= 0 && rw > 0 && rh > 0 && x.saturating_add(rw) <= w && y.saturating_add(rh) <= h;
+            if !inside {
+                return Err(ErrorKind::Other);
+            }
+            let out = out.get_mut(..rw.saturating_mul(rh)).ok_or(ErrorKind::Other)?;
+            // `max(1)`: `chunks_exact_mut(0)` panics (rw ≥ 1 here anyway).
+            for (k, dst) in out.chunks_exact_mut(rw.max(1)).enumerate() {
+                let at = y.saturating_add(k).saturating_mul(w).saturating_add(x);
+                let src = frame.get(at..).and_then(|r| r.get(..rw)).ok_or(ErrorKind::Other)?;
+                dst.copy_from_slice(src);
+            }
+            Ok(())
         }
     }
 

@@ -1,0 +1,146 @@
+//! The frame-store path: the camera keeps the pair in its own memory and the
+//! engine reads each search window (and the preflight's rows) from it through
+//! `Runner::relocalize_from_store`. Same pixels ⇒ the same outcome as the
+//! path that captures the whole pair into RAM; a window read that fails
+//! after its retries ends the relocalization in its failure code.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use vtsm_core::reloc::Outcome;
+use vtsm_core::FailureCode;
+use vtsm_hal::runner::DriveLimits;
+use vtsm_hal::telemetry::{parse_outcome, FrameKind};
+use vtsm_sim::devices::FaultConfig;
+use vtsm_sim::locate::{run_from_store, run_on_devices, DeviceFaults, DeviceRun, Request};
+use vtsm_tests::scene::{scene, RELOC_SEED};
+use vtsm_tests::testkit;
+
+fn request(map: &[u8]) -> Request<'_> {
+    Request {
+        params: vtsm_core::config::Params {
+            attempts_per_iter: 300,
+            ..testkit::test_params()
+        },
+        ..scene().request(map, RELOC_SEED)
+    }
+}
+
+fn from_store(window_faults: FaultConfig) -> DeviceRun {
+    let faults = DeviceFaults {
+        seed: 11,
+        ..DeviceFaults::default()
+    };
+    run_from_store(
+        &request(&scene().map),
+        &faults,
+        window_faults,
+        &DriveLimits::UNLIMITED,
+    )
+    .unwrap()
+}
+
+fn bits(o: &Outcome) -> Vec<u32> {
+    o.pose
+        .t()
+        .into_iter()
+        .chain(o.pose.q())
+        .map(f32::to_bits)
+        .collect()
+}
+
+/// Verifies: VTSM-HAL-027
+#[test]
+fn reading_windows_from_the_store_gives_the_outcome_of_the_pair_in_ram() {
+    let ram = run_on_devices(
+        &request(&scene().map),
+        &DeviceFaults::default(),
+        &DriveLimits::UNLIMITED,
+    )
+    .unwrap();
+    let store = from_store(FaultConfig::NONE);
+    let (r, _) = ram.result.as_ref().unwrap();
+    let (s, rep) = store.result.as_ref().unwrap();
+    assert_eq!(r.failure, None);
+    assert_eq!(bits(s), bits(r));
+    assert_eq!(s.stats, r.stats);
+    assert_eq!(s.quality, r.quality);
+    assert_eq!(s.failure, r.failure);
+    // Preflight rows (two per eye per sampled row) and at most two windows
+    // per attempt, each read once.
+    let w = rep.windows;
+    println!("windows {w:?}, attempts {}", s.stats.attempts);
+    assert_eq!(w.reads, w.windows);
+    assert_eq!(w.failed_reads, 0);
+    assert!(w.windows > 2 * 64);
+    assert!(w.windows <= 2 * 64 + 2 * s.stats.attempts);
+    assert_eq!(store.log.count(FailureCode::HalFrameStoreRead), 0);
+}
+
+/// A store whose every window read times out (or is cut short) fails the
+/// preflight's first read after its retries: the relocalization ends at once
+/// with `RELOC_FRAME_READ_FAILED` in its outcome (downlinked), and each failed
+/// read is in the runner's log as `HAL_FRAME_STORE_READ`.
+///
+/// Verifies: VTSM-HAL-027, VTSM-RELOC-037
+#[test]
+fn a_failing_frame_store_ends_in_its_failure_code() {
+    let timeouts = FaultConfig {
+        timeout_pct: 100,
+        ..FaultConfig::NONE
+    };
+    let truncations = FaultConfig {
+        truncate_pct: 100,
+        ..FaultConfig::NONE
+    };
+    for faults in [timeouts, truncations] {
+        let run = from_store(faults);
+        let (o, rep) = run.result.as_ref().unwrap();
+        assert_eq!(
+            o.failure,
+            Some(FailureCode::RelocFrameReadFailed),
+            "{faults:?}"
+        );
+        assert_eq!(o.stats.attempts, 0);
+        // The runner's three attempts at the first read.
+        assert_eq!((rep.windows.windows, rep.windows.reads), (1, 3));
+        assert_eq!(run.log.count(FailureCode::HalFrameStoreRead), 3);
+        let sent = run
+            .telemetry
+            .iter()
+            .find(|f| f.kind == FrameKind::Outcome as u8)
+            .and_then(|f| parse_outcome(&f.payload))
+            .unwrap();
+        assert_eq!(sent.failure, FailureCode::RelocFrameReadFailed.code());
+    }
+}
+
+/// Occasional faults are retried: the run either recovers every read (and
+/// gives the clean outcome bit for bit) or ends in the read failure; every
+/// failed read is counted and logged either way.
+///
+/// Verifies: VTSM-HAL-027
+#[test]
+fn occasional_window_faults_are_retried_and_counted() {
+    let clean = from_store(FaultConfig::NONE);
+    let (c, _) = clean.result.as_ref().unwrap();
+    let run = from_store(FaultConfig {
+        timeout_pct: 3,
+        truncate_pct: 3,
+        ..FaultConfig::NONE
+    });
+    let (o, rep) = run.result.as_ref().unwrap();
+    let w = rep.windows;
+    println!("{:?}: {w:?}", o.failure);
+    assert!(w.failed_reads > 0 && w.reads == w.windows + w.failed_reads);
+    assert_eq!(
+        u32::from(run.log.count(FailureCode::HalFrameStoreRead)),
+        w.failed_reads
+    );
+    match o.failure {
+        Some(FailureCode::RelocFrameReadFailed) => {}
+        _ => {
+            assert_eq!(bits(o), bits(c));
+            assert_eq!(o.stats, c.stats);
+        }
+    }
+}
