@@ -138,6 +138,9 @@ pub struct ReadReport {
     pub reads: u32,
     /// Of those, failed.
     pub failed_reads: u32,
+    /// The product was checked and used in place in memory-mapped storage
+    /// ([`MapStore::mapped`]): no `read_range` call, nothing copied.
+    pub in_place: bool,
 }
 
 fn time_or_zero<K: Clock>(clock: &mut K, log: &mut FailureLog) -> u64 {
@@ -528,6 +531,48 @@ fn drive_steps<K: Clock, F: FnMut(u64) -> Result<StepStatus, FailureCode>>(
     (rep, result)
 }
 
+/// The latest prior from `prior`, checked ([`PriorEstimate::check`]); a
+/// device error or an invalid prior is recorded at `now` and returned.
+fn read_prior<P: PosePrior>(
+    prior: &mut P,
+    log: &mut FailureLog,
+    now: u64,
+) -> Result<PriorEstimate, FailureCode> {
+    let p = match prior.latest() {
+        Ok(p) => p,
+        Err(e) => {
+            let code = failure_code(Device::PosePrior, e.kind());
+            log.record(code, now, 0);
+            return Err(code);
+        }
+    };
+    if let Err(code) = p.check() {
+        log.record(code, now, 0);
+        return Err(code);
+    }
+    Ok(p)
+}
+
+/// Check the map product in place in memory-mapped storage: `bytes` (the
+/// store's [`MapStore::mapped`] view) parsed and CRC-checked once; a failure
+/// is recorded at `now` and returned (re-reading mapped memory gives the
+/// same bytes, so there is no retry).
+fn map_in_place<'m>(
+    bytes: &'m [u8],
+    log: &mut FailureLog,
+    now: u64,
+    rep: &mut ReadReport,
+) -> Result<MapView<'m>, FailureCode> {
+    rep.in_place = true;
+    rep.product_attempts = 1;
+    rep.len = u32::try_from(bytes.len()).map_err(|_| FailureCode::HalMapTooLarge)?;
+    if bytes.is_empty() {
+        log.record(FailureCode::HalMapTooLarge, now, 0);
+        return Err(FailureCode::HalMapTooLarge);
+    }
+    MapView::new_checked(bytes).inspect_err(|&c| log.record(c, now, 0))
+}
+
 impl<C, K, S, P, T> Runner<C, K, S, P, T>
 where
     K: Clock,
@@ -595,18 +640,7 @@ where
             &mut self.log,
             verify_map,
         )?;
-        let prior = match self.prior.latest() {
-            Ok(p) => p,
-            Err(e) => {
-                let code = failure_code(Device::PosePrior, e.kind());
-                self.log.record(code, start, 0);
-                return Err(code);
-            }
-        };
-        if let Err(code) = prior.check() {
-            self.log.record(code, start, 0);
-            return Err(code);
-        }
+        let prior = read_prior(&mut self.prior, &mut self.log, start)?;
         let map: &'b [u8] = map;
         let map = map.get(..len).ok_or(FailureCode::HalMapTooLarge)?;
         Ok((map, map_read, prior, start))
@@ -888,13 +922,15 @@ where
     T: Telemetry,
 {
     /// [`Runner::relocalize`] with the pair left in the camera's frame memory:
-    /// read and check the map into `map`, get the prior, capture the pair
+    /// check the map product in place when the store is memory-mapped
+    /// ([`MapStore::mapped`]; `map` is then unused and may be empty) or else
+    /// read and check it into `map`, get the prior, capture the pair
     /// into the store ([`capture_to_store`]), build the engine with
     /// [`Setup::with_frames`] over a [`StoreFrames`] of the camera, and drive
     /// it. The engine reads each search window (and the preflight's rows)
     /// from the store when it needs it, each read retried on transient
-    /// faults at most [`RunnerConfig::attempts`] times, so RAM holds the map,
-    /// the workspace and no frame. A read that still fails ends the
+    /// faults at most [`RunnerConfig::attempts`] times, so RAM holds the
+    /// workspace, no frame and, from memory-mapped storage, no map. A read that still fails ends the
     /// relocalization with [`FailureCode::RelocFrameReadFailed`] in the
     /// outcome; every failed read is in [`Runner::log`] with
     /// [`FailureCode::HalFrameStoreRead`]. With the same pixels the outcome
@@ -929,11 +965,27 @@ where
         seed: u64,
         limits: &DriveLimits,
     ) -> Result<(Outcome, RelocReport), FailureCode> {
-        let (product, map_read, prior, start) =
-            self.acquire_map_and_prior(map, |b| MapView::new_checked(b).map(|_| ()))?;
-        let now = self.now();
+        self.cfg.validate()?;
+        let start = self.now();
+        let mut map_read = ReadReport::default();
+        // The product is used in place when the store is memory-mapped, else
+        // read into `map` (the `is_some` test first: the copy needs the store
+        // mutably, the in-place view borrows it for the whole run).
+        let view = if self.store.mapped().is_some() {
+            let bytes = self.store.mapped().unwrap_or_default();
+            map_in_place(bytes, &mut self.log, start, &mut map_read)?
+        } else {
+            let (len, rep) =
+                read_map_verified(&mut self.store, map, &self.cfg, start, &mut self.log, |b| {
+                    MapView::new_checked(b).map(|_| ())
+                })?;
+            map_read = rep;
+            let product = map.get(..len).ok_or(FailureCode::HalMapTooLarge)?;
+            MapView::new_checked(product).inspect_err(|&c| self.log.record(c, start, 0))?
+        };
+        let prior = read_prior(&mut self.prior, &mut self.log, start)?;
+        let now = time_or_zero(&mut self.clock, &mut self.log);
         let (frame, capture) = capture_to_store(&mut self.camera, &self.cfg, now, &mut self.log)?;
-        let view = MapView::new_checked(product).inspect_err(|&c| self.log.record(c, start, 0))?;
         let params = match prior.uncertainty {
             Some(u) => params.with_uncertainty(u),
             None => *params,

@@ -33,6 +33,22 @@ pub trait MapStore: ErrorType {
     /// * Undetected corruption is possible: callers check the product's CRCs.
     /// * Never writes outside `buf`; keeps no reference to it.
     fn read_range(&mut self, offset: u32, buf: &mut [u8]) -> Result<(), Self::Error>;
+
+    /// The whole stored product as directly addressable memory, when the
+    /// storage is memory-mapped (execute-in-place NOR flash, MRAM, a
+    /// mass-memory window); `None` (the default) when it is read only through
+    /// [`MapStore::read_range`].
+    ///
+    /// # Contract
+    /// * `Some(bytes)`: `bytes` are the product, the same bytes
+    ///   `read_range` returns, and stay unchanged while the store is
+    ///   borrowed; `bytes.len()` is the product's length.
+    /// * The answer (`Some` or `None`) is constant while the store is open.
+    /// * Undetected corruption is possible: callers check the product's CRCs
+    ///   on these bytes before use, as on bytes read.
+    fn mapped(&self) -> Option<&[u8]> {
+        None
+    }
 }
 
 impl<T: MapStore + ?Sized> MapStore for &mut T {
@@ -41,5 +57,8 @@ impl<T: MapStore + ?Sized> MapStore for &mut T {
     }
     fn read_range(&mut self, offset: u32, buf: &mut [u8]) -> Result<(), Self::Error> {
         T::read_range(self, offset, buf)
+    }
+    fn mapped(&self) -> Option<&[u8]> {
+        T::mapped(self)
     }
 }

@@ -168,17 +168,27 @@ impl FaultInjector {
 #[derive(Clone, Debug)]
 pub struct MemMapStore {
     data: Vec<u8>,
+    mapped: bool,
     /// Fault source for `read_range`.
     pub faults: FaultInjector,
 }
 
 impl MemMapStore {
-    /// A store holding `data`, without faults.
+    /// A store holding `data`, without faults, read only through `read_range`.
     pub fn new(data: Vec<u8>) -> Self {
         Self {
             data,
+            mapped: false,
             faults: FaultInjector::none(),
         }
+    }
+
+    /// The same store, also memory-mapped: [`MapStore::mapped`] gives the
+    /// bytes themselves (read faults do not apply to them; corrupt the
+    /// bytes given to [`MemMapStore::new`] to test the checks).
+    pub fn memory_mapped(mut self) -> Self {
+        self.mapped = true;
+        self
     }
 
     /// The same store with seeded faults.
@@ -200,6 +210,10 @@ impl ErrorType for MemMapStore {
 impl MapStore for MemMapStore {
     fn len(&mut self) -> Result<u32, ErrorKind> {
         u32::try_from(self.data.len()).map_err(|_| ErrorKind::Other)
+    }
+
+    fn mapped(&self) -> Option<&[u8]> {
+        self.mapped.then_some(self.data.as_slice())
     }
 
     fn read_range(&mut self, offset: u32, buf: &mut [u8]) -> Result<(), ErrorKind> {

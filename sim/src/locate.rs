@@ -277,7 +277,10 @@ where
 /// [`run_on_devices`] on the frame-store path ([`Runner::relocalize_from_store`]):
 /// the camera keeps the pair in its own memory and the engine reads each
 /// search window from it, with `window_faults` drawn once per window read
-/// (seeded from `faults.seed`); no RAM copy of the pair is made.
+/// (seeded from `faults.seed`); no RAM copy of the pair is made. With
+/// `map_in_place` the map store is memory-mapped ([`MemMapStore::memory_mapped`])
+/// and the runner checks and uses the product in place, without a RAM copy
+/// (`faults.store` then has nothing to act on).
 ///
 /// # Errors
 /// As [`run_on_devices`].
@@ -285,6 +288,7 @@ pub fn run_from_store(
     req: &Request<'_>,
     faults: &DeviceFaults,
     window_faults: FaultConfig,
+    map_in_place: bool,
     limits: &DriveLimits,
 ) -> Result<DeviceRun> {
     let (w, h) = (req.rig.cam().width(), req.rig.cam().height());
@@ -300,7 +304,12 @@ pub fn run_from_store(
     let ws = Workspace::new(sizes, &mut bytes, &mut words, &mut runs)?;
     let (mut runner, probe) = devices_for(req, faults)?;
     runner.camera.window_faults = FaultInjector::new(window_faults, faults.seed ^ 0xf4a3e)?;
-    let mut map = vec![0u8; req.map.len()];
+    let mut map = Vec::new();
+    if map_in_place {
+        runner.store = runner.store.memory_mapped();
+    } else {
+        map.resize(req.map.len(), 0);
+    }
     let start = Instant::now();
     let result =
         runner.relocalize_from_store(&mut map, &req.rig, &req.params, ws, req.seed, limits);

@@ -34,6 +34,7 @@ fn from_store(window_faults: FaultConfig) -> DeviceRun {
         &request(&scene().map),
         &faults,
         window_faults,
+        false,
         &DriveLimits::UNLIMITED,
     )
     .unwrap()
@@ -143,4 +144,68 @@ fn occasional_window_faults_are_retried_and_counted() {
             assert_eq!(o.stats, c.stats);
         }
     }
+}
+
+fn in_place(map: &[u8]) -> DeviceRun {
+    run_from_store(
+        &request(map),
+        &DeviceFaults::default(),
+        FaultConfig::NONE,
+        true,
+        &DriveLimits::UNLIMITED,
+    )
+    .unwrap()
+}
+
+/// A memory-mapped map store: the product is checked and used in place,
+/// without a single `read_range` call, and the outcome is the one of the
+/// product read into RAM, bit for bit.
+///
+/// Verifies: VTSM-HAL-028
+#[test]
+fn a_memory_mapped_map_is_used_in_place_with_the_same_outcome() {
+    let copied = from_store(FaultConfig::NONE);
+    let mapped = in_place(&scene().map);
+    let (c, crep) = copied.result.as_ref().unwrap();
+    let (m, mrep) = mapped.result.as_ref().unwrap();
+    assert_eq!(c.failure, None);
+    assert_eq!(bits(m), bits(c));
+    assert_eq!(m.stats, c.stats);
+    assert_eq!(m.quality, c.quality);
+    assert_eq!(m.failure, c.failure);
+    assert!(!crep.map_read.in_place && crep.map_read.reads > 0);
+    assert!(mrep.map_read.in_place);
+    assert_eq!(mrep.map_read.reads, 0);
+    assert_eq!(mrep.map_read.len, crep.map_read.len);
+    assert_eq!(mrep.windows, crep.windows);
+}
+
+/// A damaged mapped product ends in the failure code the copied product ends
+/// in, logged once (no re-read); an empty one in `HAL_MAP_TOO_LARGE`.
+///
+/// Verifies: VTSM-HAL-028
+#[test]
+fn a_damaged_or_empty_mapped_map_ends_in_its_failure_code() {
+    let mut bad = scene().map.clone();
+    let mid = bad.len() / 2;
+    bad[mid] ^= 0x10;
+    let copied = run_from_store(
+        &request(&bad),
+        &DeviceFaults::default(),
+        FaultConfig::NONE,
+        false,
+        &DriveLimits::UNLIMITED,
+    )
+    .unwrap();
+    let mapped = in_place(&bad);
+    let code = mapped.result.as_ref().unwrap_err();
+    assert_eq!(copied.result.as_ref().unwrap_err(), code);
+    assert_eq!(*code, FailureCode::MapCrcMismatch);
+    assert_eq!(mapped.log.count(FailureCode::MapCrcMismatch), 1);
+    let empty = in_place(&[]);
+    assert_eq!(
+        empty.result.as_ref().unwrap_err(),
+        &FailureCode::HalMapTooLarge
+    );
+    assert_eq!(empty.log.count(FailureCode::HalMapTooLarge), 1);
 }

@@ -1,11 +1,12 @@
 // The flight-profile relocalization: built only with `VTSM_FLIGHT_BUNDLE=DIR`
 // (a bundle written by `cargo run -p vtsm-tests --bin flight_bundle`). The
 // map product and the stereo pair are linked into the image as read-only data
-// (the map store's flash and the camera's frame memory). The pair is never
-// copied whole: `Runner::relocalize_from_store` has the engine read each
+// (the map store's flash and the camera's frame memory). Neither is copied
+// whole: `Runner::relocalize_from_store` checks the map product in place in
+// the memory-mapped flash (`MapStore::mapped`) and has the engine read each
 // search window from the camera's memory (`FrameStore`) into its workspace.
-// The runner's map buffer and the engine's storage are statics, so the static
-// RAM figure of the image plus the stack high-water mark is the run's whole RAM.
+// The engine's storage is a static, so the static RAM figure of the image
+// plus the stack high-water mark is the run's whole RAM.
 
 use crate::workload_mod::devices::{CountingTelemetry, FixedPrior, FlashStore, FrameCamera, TickClock};
 use crate::workload_mod::{fold_outcome, Digest};
@@ -31,8 +32,6 @@ static MAP_FLASH: [u8; MAP_LEN] = *include_bytes!(concat!(env!("VTSM_FLIGHT_DIR"
 static LEFT_FRAME: [u8; N] = *include_bytes!(concat!(env!("VTSM_FLIGHT_DIR"), "/left.gray"));
 static RIGHT_FRAME: [u8; N] = *include_bytes!(concat!(env!("VTSM_FLIGHT_DIR"), "/right.gray"));
 
-#[cfg_attr(target_arch = "arm", link_section = ".flight_map")]
-static mut MAP_RAM: [u8; MAP_LEN] = [0; MAP_LEN];
 static mut STORAGE: Storage<{ WS.bytes }, { WS.words }, { WS.runs }> = Storage::new();
 
 /// What the flight run reports.
@@ -74,11 +73,11 @@ pub fn run(clock: &dyn Fn() -> u64) -> FlightSummary {
         RunnerConfig { attempts: 3, product_attempts: 2, chunk_len: 1 << 16, capture_timeout_ticks: u64::MAX, image_size: (WIDTH as u32, HEIGHT as u32), verify: VerifyChecks::OFF },
     );
     // SAFETY: `run` is called once, from the single thread of the image, and
-    // these statics are not touched anywhere else: each reference is unique.
-    let (map, storage) = unsafe { (&mut *addr_of_mut!(MAP_RAM), &mut *addr_of_mut!(STORAGE)) };
+    // this static is not touched anywhere else: the reference is unique.
+    let storage = unsafe { &mut *addr_of_mut!(STORAGE) };
     let Ok(ws) = storage.workspace(WS) else { return fail(4) };
     let limits = DriveLimits { units_per_step: 16, max_steps: u32::MAX, budget_ticks: u64::MAX };
-    let (out, report) = match runner.relocalize_from_store(map, &rig, &PARAMS, ws, scene::SEED, &limits) {
+    let (out, report) = match runner.relocalize_from_store(&mut [], &rig, &PARAMS, ws, scene::SEED, &limits) {
         Ok(r) => r,
         Err(e) => return fail(e.code()),
     };

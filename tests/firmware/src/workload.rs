@@ -459,6 +459,11 @@ pub mod devices {
             buf.copy_from_slice(src);
             Ok(())
         }
+        fn mapped(&self) -> Option<&[u8]> {
+            // Flash is memory-mapped: the frame-store path checks and uses
+            // the product in place.
+            Some(self.0)
+        }
     }
 
     /// A prior from the navigation filter, fixed for the run.
