@@ -169,39 +169,13 @@ pub fn capture_pair<C: StereoCamera>(
     now_ticks: u64,
     log: &mut FailureLog,
 ) -> Result<(FrameInfo, CaptureReport), FailureCode> {
-    cfg.validate()?;
-    let mut rep = CaptureReport::default();
-    for attempt in 0..cfg.attempts {
-        rep.attempts = attempt + 1;
-        match cam.capture(left, right, cfg.capture_timeout_ticks) {
-            Ok(info) => {
-                if let Err(code) = info.views(cfg.image_size, left, right) {
-                    log.record(code, now_ticks, info.sequence);
-                    return Err(FailureCode::HalFrameInfoInvalid);
-                }
-                return Ok((info, rep));
-            }
-            Err(e) => {
-                let kind = e.kind();
-                let code = failure_code(Device::Camera, kind);
-                log.record(code, now_ticks, u32::from(attempt));
-                match kind {
-                    ErrorKind::Timeout => rep.timeouts += 1,
-                    ErrorKind::Truncated => rep.truncated += 1,
-                    _ => rep.faults += 1,
-                }
-                if !kind.is_transient() {
-                    return Err(code);
-                }
-            }
-        }
-    }
-    log.record(
-        FailureCode::HalCameraRetriesExhausted,
-        now_ticks,
-        u32::from(rep.attempts),
-    );
-    Err(FailureCode::HalCameraRetriesExhausted)
+    capture_retried(cfg, now_ticks, log, |timeout| -> Result<_, C::Error> {
+        let info = cam.capture(left, right, timeout)?;
+        Ok(match info.views(cfg.image_size, left, right) {
+            Ok(_) => Ok(info),
+            Err(code) => Err((code, info.sequence)),
+        })
+    })
 }
 
 /// Capture one stereo pair into a [`FrameStore`]'s own memory, with the
@@ -213,18 +187,38 @@ pub fn capture_to_store<F: FrameStore>(
     now_ticks: u64,
     log: &mut FailureLog,
 ) -> Result<(FrameInfo, CaptureReport), FailureCode> {
+    capture_retried(cfg, now_ticks, log, |timeout| -> Result<_, F::Error> {
+        let info = store.capture_in_place(timeout)?;
+        let ok = (info.width, info.height) == cfg.image_size && info.image_len().is_some();
+        Ok(if ok {
+            Ok(info)
+        } else {
+            Err((FailureCode::HalFrameInfoInvalid, info.sequence))
+        })
+    })
+}
+
+/// The retry loop of [`capture_pair`] and [`capture_to_store`]: at most
+/// `cfg.attempts` calls of `capture(timeout)`, each of which gives the frame,
+/// a frame whose info broke the camera's contract (the code to log and the
+/// frame's sequence number: rejected with [`FailureCode::HalFrameInfoInvalid`],
+/// not retried), or a device error (logged with its code, counted, retried
+/// only when transient).
+fn capture_retried<E: Error>(
+    cfg: &RunnerConfig,
+    now_ticks: u64,
+    log: &mut FailureLog,
+    mut capture: impl FnMut(u64) -> Result<Result<FrameInfo, (FailureCode, u32)>, E>,
+) -> Result<(FrameInfo, CaptureReport), FailureCode> {
     cfg.validate()?;
     let mut rep = CaptureReport::default();
     for attempt in 0..cfg.attempts {
         rep.attempts = attempt + 1;
-        match store.capture_in_place(cfg.capture_timeout_ticks) {
-            Ok(info) => {
-                let (w, h) = cfg.image_size;
-                if (info.width, info.height) != (w, h) || info.image_len().is_none() {
-                    log.record(FailureCode::HalFrameInfoInvalid, now_ticks, info.sequence);
-                    return Err(FailureCode::HalFrameInfoInvalid);
-                }
-                return Ok((info, rep));
+        match capture(cfg.capture_timeout_ticks) {
+            Ok(Ok(info)) => return Ok((info, rep)),
+            Ok(Err((code, sequence))) => {
+                log.record(code, now_ticks, sequence);
+                return Err(FailureCode::HalFrameInfoInvalid);
             }
             Err(e) => {
                 let kind = e.kind();

@@ -236,19 +236,9 @@ fn run_on_devices_observed<F>(
 where
     F: for<'m, 'w> FnMut(&mut Engine<'m, 'w>, u64),
 {
-    let (w, h) = (req.rig.cam().width(), req.rig.cam().height());
-    let n = (w as usize) * (h as usize);
-    if req.left.len() != n || req.right.len() != n {
-        return Err(Error::from(FailureCode::ImageSizeMismatch));
-    }
-    // Check before allocating: a bad parameter must not size a huge workspace.
-    req.params.validate().map_err(FailureCode::from)?;
-    let sizes = workspace_sizes(&req.params);
-    let mut bytes = vec![0u8; sizes.bytes];
-    let mut words = vec![0u32; sizes.words];
-    let mut runs = vec![Run::default(); sizes.runs];
-    let ws = Workspace::new(sizes, &mut bytes, &mut words, &mut runs)?;
-
+    let (n, mut storage) = checked_storage(req)?;
+    let sizes = storage.sizes;
+    let ws = storage.workspace()?;
     let (mut runner, probe) = devices_for(req, faults)?;
     let (mut left, mut right, mut map) = (vec![0u8; n], vec![0u8; n], vec![0u8; req.map.len()]);
     let bufs = Buffers {
@@ -291,17 +281,9 @@ pub fn run_from_store(
     map_in_place: bool,
     limits: &DriveLimits,
 ) -> Result<DeviceRun> {
-    let (w, h) = (req.rig.cam().width(), req.rig.cam().height());
-    let n = (w as usize) * (h as usize);
-    if req.left.len() != n || req.right.len() != n {
-        return Err(Error::from(FailureCode::ImageSizeMismatch));
-    }
-    req.params.validate().map_err(FailureCode::from)?;
-    let sizes = workspace_sizes(&req.params);
-    let mut bytes = vec![0u8; sizes.bytes];
-    let mut words = vec![0u32; sizes.words];
-    let mut runs = vec![Run::default(); sizes.runs];
-    let ws = Workspace::new(sizes, &mut bytes, &mut words, &mut runs)?;
+    let (_, mut storage) = checked_storage(req)?;
+    let sizes = storage.sizes;
+    let ws = storage.workspace()?;
     let (mut runner, probe) = devices_for(req, faults)?;
     runner.camera.window_faults = FaultInjector::new(window_faults, faults.seed ^ 0xf4a3e)?;
     let mut map = Vec::new();
@@ -322,6 +304,49 @@ pub fn run_from_store(
         workspace_bytes: sizes.total_bytes(),
         ticks: probe.ticks(),
     })
+}
+
+/// The engine's caller-owned storage on the host heap, of the sizes
+/// [`workspace_sizes`] gives.
+struct HeapStorage {
+    sizes: WorkspaceSizes,
+    bytes: Vec<u8>,
+    words: Vec<u32>,
+    runs: Vec<Run>,
+}
+
+impl HeapStorage {
+    fn workspace(&mut self) -> Result<Workspace<'_>> {
+        Ok(Workspace::new(
+            self.sizes,
+            &mut self.bytes,
+            &mut self.words,
+            &mut self.runs,
+        )?)
+    }
+}
+
+/// Check `req`'s images against its rig and its parameters, then allocate
+/// the engine's storage: the pixel count of one image and the storage. The
+/// parameters are checked before allocating, so a bad one cannot size a
+/// huge workspace.
+fn checked_storage(req: &Request<'_>) -> Result<(usize, HeapStorage)> {
+    let (w, h) = (req.rig.cam().width(), req.rig.cam().height());
+    let n = (w as usize) * (h as usize);
+    if req.left.len() != n || req.right.len() != n {
+        return Err(Error::from(FailureCode::ImageSizeMismatch));
+    }
+    req.params.validate().map_err(FailureCode::from)?;
+    let sizes = workspace_sizes(&req.params);
+    Ok((
+        n,
+        HeapStorage {
+            sizes,
+            bytes: vec![0u8; sizes.bytes],
+            words: vec![0u32; sizes.words],
+            runs: vec![Run::default(); sizes.runs],
+        },
+    ))
 }
 
 /// The simulated runner of `req` (camera, clock, map store, prior,
