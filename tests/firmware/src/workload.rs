@@ -387,7 +387,7 @@ pub mod devices {
             }
             l.copy_from_slice(self.left);
             r.copy_from_slice(self.right);
-            self.sequence += 1;
+            self.sequence = self.sequence.wrapping_add(1);
             Ok(FrameInfo { width: self.width, height: self.height, stride: self.width, sequence: self.sequence, timestamp_ticks: (self.clock)(), exposure_us: 2000 })
         }
     }
@@ -400,7 +400,7 @@ pub mod devices {
             if n == 0 || self.left.len() != n || self.right.len() != n {
                 return Err(ErrorKind::Other);
             }
-            self.sequence += 1;
+            self.sequence = self.sequence.wrapping_add(1);
             Ok(FrameInfo { width: self.width, height: self.height, stride: self.width, sequence: self.sequence, timestamp_ticks: (self.clock)(), exposure_us: 2000 })
         }
 
@@ -417,8 +417,10 @@ pub mod devices {
             }
             let out = out.get_mut(..rw.saturating_mul(rh)).ok_or(ErrorKind::Other)?;
             // `max(1)`: `chunks_exact_mut(0)` panics (rw ≥ 1 here anyway).
-            for (k, dst) in out.chunks_exact_mut(rw.max(1)).enumerate() {
-                let at = y.saturating_add(k).saturating_mul(w).saturating_add(x);
+            // Rows as a bounded range, not `enumerate` (its counter keeps an
+            // overflow check, a panic path).
+            for (row, dst) in (y..y.saturating_add(rh)).zip(out.chunks_exact_mut(rw.max(1))) {
+                let at = row.saturating_mul(w).saturating_add(x);
                 let src = frame.get(at..).and_then(|r| r.get(..rw)).ok_or(ErrorKind::Other)?;
                 dst.copy_from_slice(src);
             }
