@@ -181,7 +181,8 @@ fn a_memory_mapped_map_is_used_in_place_with_the_same_outcome() {
 }
 
 /// A damaged mapped product ends in the failure code the copied product ends
-/// in, logged once (no re-read); an empty one in `HAL_MAP_TOO_LARGE`.
+/// in, logged once (no re-read); a cut one in `MAP_TRUNCATED`; an empty one in
+/// `HAL_MAP_TOO_LARGE`.
 ///
 /// Verifies: VTSM-HAL-028
 #[test]
@@ -202,6 +203,12 @@ fn a_damaged_or_empty_mapped_map_ends_in_its_failure_code() {
     assert_eq!(copied.result.as_ref().unwrap_err(), code);
     assert_eq!(*code, FailureCode::MapCrcMismatch);
     assert_eq!(mapped.log.count(FailureCode::MapCrcMismatch), 1);
+    // A product cut short in the mapped memory (a partial write, a wrong
+    // length in the store's directory) ends in its own code, like a short read.
+    let cut = in_place(&scene().map[..scene().map.len() / 2]);
+    let code = *cut.result.as_ref().unwrap_err();
+    assert_eq!(code, FailureCode::MapTruncated);
+    assert_eq!(cut.log.count(code), 1);
     let empty = in_place(&[]);
     assert_eq!(
         empty.result.as_ref().unwrap_err(),
