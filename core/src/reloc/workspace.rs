@@ -159,6 +159,13 @@ pub const TEST_WORKSPACE_BYTES: usize = TEST_WORKSPACE.total_bytes();
 /// `Storage<{ SIZES.bytes }, { SIZES.words }, { SIZES.runs }>`, and place it in
 /// a `static`, on a large stack, or on the heap; [`Storage::workspace`] carves
 /// the [`Workspace`].
+///
+/// The byte array comes first in a 16-byte-aligned value, so the buffers
+/// carved from it at multiples of 16 are 16-byte aligned wherever the value
+/// lies; the NCC kernel reads an aligned template as whole vectors (on
+/// strict-alignment AArch64 an unaligned one is assembled byte by byte, at
+/// about twice the instructions). The results do not depend on it.
+#[repr(C, align(16))]
 pub struct Storage<const BYTES: usize, const WORDS: usize, const RUNS: usize> {
     bytes: [u8; BYTES],
     words: [u32; WORDS],
