@@ -297,6 +297,31 @@ mod tests {
     use super::*;
     use std::vec;
 
+    /// The NCC buffers carved from a `Storage` are 16-byte aligned wherever
+    /// the storage lies (here after one byte, and boxed), so the kernel's
+    /// aligned template path is taken on every target.
+    ///
+    /// Verifies: VTSM-RELOC-016
+    #[test]
+    fn storage_buffers_are_16_byte_aligned() {
+        const S: WorkspaceSizes = WorkspaceSizes::new(32, 96, Search::CoarseToFine);
+        type St = Storage<{ S.bytes }, { S.words }, { S.runs }>;
+        struct After {
+            _byte: u8,
+            storage: St,
+        }
+        let mut a = After {
+            _byte: 1,
+            storage: St::new(),
+        };
+        let mut b = std::boxed::Box::new(St::new());
+        for st in [&mut a.storage, &mut *b] {
+            let ws = st.workspace(S).unwrap();
+            assert_eq!(ws.scratch.template.as_ptr() as usize % 16, 0);
+            assert_eq!(ws.scratch.window.as_ptr() as usize % 16, 0);
+        }
+    }
+
     /// Verifies: VTSM-RELOC-016
     #[test]
     fn sizes_cover_both_template_variants_and_carving_checks_lengths() {
