@@ -16,8 +16,12 @@
 //! - `uncertainty50`: priors 25–50 cm / ≤ 1.5°, from a single start that is
 //!   told the priors' real uncertainty ([`UNCERTAINTY_50`], served with the
 //!   prior as a `prior.json` `uncertainty` is, so the engine runs with it as
-//!   t̃₀, r̃₀), and with the multi-seed mode (`Params.seeds = K` seeds spread
-//!   over the same 0.50 m, t̃₀ 0.20 m).
+//!   t̃₀, r̃₀), from a single start told nothing (the default t̃₀ 0.20 m,
+//!   `K=0 untold`), and with the multi-seed mode (`Params.seeds = K` seeds
+//!   spread over the same 0.50 m, t̃₀ 0.20 m; left out with `--seeds-k 0`);
+//!   first, a reference group with the paper's 10–20 cm priors on the same
+//!   captures (`ref 10-20cm`), so that the cost of the wider prior is
+//!   measured in the same run.
 //! - `stepsize`: maps restricted to what sub-sampled wave and forward mapping
 //!   paths see (see [`restrict_to_views`]); reports range to the nearest view.
 //! - `wrongplace`: inputs that must not give a confident answer, per terrain:
@@ -141,7 +145,7 @@ pub struct Args {
     /// Comma-separated mapping step sizes for `stepsize` (default: 1,3,6,12).
     #[arg(long)]
     pub steps: Option<String>,
-    /// Pose seeds K of the multi-seed mode in `uncertainty50`.
+    /// Pose seeds K of the multi-seed mode in `uncertainty50` (0: no multi-seed group).
     #[arg(long, default_value_t = 16)]
     pub seeds_k: u16,
     /// Also run a baseline relocalizer on the same trials and report it next to
@@ -735,6 +739,7 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
                                 method: Method::Vtsm,
                                 extra: vec![
                                     ("hours", f64::from(h)),
+                                    ("prior_max_m", f64::from(prior_m.1)),
                                     ("seeds_k", f64::from(seeds)),
                                     ("t0_m", f64::from(u.t_m)),
                                     ("r0_deg", f64::from(u.r_deg)),
@@ -753,6 +758,15 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
                             None,
                         ),
                         _ => {
+                            // The 10–20 cm reference on the same stops, so the
+                            // cost of the wider prior is measured in the same run.
+                            push(
+                                format!("{base} ref 10-20cm"),
+                                MAIN_BASELINE_M,
+                                PRIOR_M,
+                                0,
+                                None,
+                            );
                             push(
                                 format!("{base} K=0 t0={:.2}m", UNCERTAINTY_50.t_m),
                                 MAIN_BASELINE_M,
@@ -761,12 +775,21 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
                                 Some(UNCERTAINTY_50),
                             );
                             push(
-                                format!("{base} K={}", cfg.seeds_k),
+                                format!("{base} K=0 untold"),
                                 MAIN_BASELINE_M,
                                 PRIOR_50_M,
-                                cfg.seeds_k,
+                                0,
                                 None,
                             );
+                            if cfg.seeds_k > 0 {
+                                push(
+                                    format!("{base} K={}", cfg.seeds_k),
+                                    MAIN_BASELINE_M,
+                                    PRIOR_50_M,
+                                    cfg.seeds_k,
+                                    None,
+                                );
+                            }
                         }
                     }
                 }
@@ -1338,7 +1361,11 @@ fn breakdowns(cfg: &SuiteConfig, outcomes: &[TrialOutcome]) -> (String, Vec<(Str
             }
         }
         Suite::Uncertainty50 => {
-            let ks = [0u16, cfg.seeds_k];
+            let ks: Vec<u16> = if cfg.seeds_k == 0 {
+                vec![0]
+            } else {
+                vec![0, cfg.seeds_k]
+            };
             let names: Vec<String> = ks.iter().map(|k| format!("K={k} ok")).collect();
             let mut series: Vec<Series> = ks
                 .iter()
@@ -1349,7 +1376,11 @@ fn breakdowns(cfg: &SuiteConfig, outcomes: &[TrialOutcome]) -> (String, Vec<(Str
                     color,
                     points: outcomes
                         .iter()
-                        .filter(|o| o.success && extra(o, "seeds_k") == f64::from(k))
+                        .filter(|o| {
+                            o.success
+                                && extra(o, "seeds_k") == f64::from(k)
+                                && extra(o, "prior_max_m") == f64::from(PRIOR_50_M.1)
+                        })
                         .map(|o| (o.init_t_mm, o.final_t_mm))
                         .collect(),
                 })
@@ -1925,16 +1956,33 @@ mod tests {
     #[test]
     fn uncertainty_suite_pairs_k0_stating_the_uncertainty_and_k_seeds() {
         let run = run_suite(&small(Suite::Uncertainty50), "test").unwrap();
-        check_run(&run, 2, 1, (250.0, 500.0), &["final_vs_initial.svg"]);
-        // Paired: same capture and prior in both groups, only K differs.
-        let (a, b) = (&run.outcomes[0], &run.outcomes[1]);
-        assert_eq!((a.seed, a.init_t_mm), (b.seed, b.init_t_mm));
-        assert_eq!((a.extra["seeds_k"], b.extra["seeds_k"]), (0.0, 4.0));
-        // The single start is told the priors' real uncertainty; the
-        // multi-seed group keeps the default t̃₀ and spreads its seeds instead.
+        check_run(&run, 4, 1, (100.0, 500.0), &["final_vs_initial.svg"]);
+        // Groups in order: the 10–20 cm reference, K=0 told the uncertainty,
+        // K=0 told nothing, K seeds.
+        let [r, a, u, b] = [0, 1, 2, 3].map(|i| &run.outcomes[i]);
+        assert!(r.group.contains("ref 10-20cm"), "{}", r.group);
+        assert!((100.0..=200.0 + 1e-3).contains(&r.init_t_mm), "{r:?}");
+        assert_eq!(r.extra["prior_max_m"], f64::from(PRIOR_M.1));
+        // The reference relocalizes the same capture as the other groups.
+        assert_eq!(r.seed, a.seed);
+        // Paired: same capture and prior in the 50 cm groups, only what the
+        // engine is told and K differ.
+        for o in [u, b] {
+            assert_eq!((a.seed, a.init_t_mm), (o.seed, o.init_t_mm));
+            assert_eq!(o.extra["prior_max_m"], f64::from(PRIOR_50_M.1));
+        }
+        assert!(a.init_t_mm >= 250.0 - 1e-3, "{a:?}");
+        assert_eq!((a.extra["seeds_k"], u.extra["seeds_k"]), (0.0, 0.0));
+        assert_eq!(b.extra["seeds_k"], 4.0);
+        // The single start is told the priors' real uncertainty, or nothing
+        // (the default t̃₀); the multi-seed group keeps the default t̃₀ and
+        // spreads its seeds instead.
         assert_eq!((a.extra["t0_m"], a.extra["r0_deg"]), (0.5, 1.5));
-        assert!((b.extra["t0_m"] - 0.2).abs() < 1e-6, "{:?}", b.extra);
+        for o in [r, u, b] {
+            assert!((o.extra["t0_m"] - 0.2).abs() < 1e-6, "{:?}", o.extra);
+        }
         assert!(a.group.contains("K=0 t0=0.50m"), "{}", a.group);
+        assert!(u.group.contains("K=0 untold"), "{}", u.group);
         assert_eq!(run.meta.params["stated_uncertainty"]["t_m"], 0.5);
     }
 
