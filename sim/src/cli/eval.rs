@@ -1361,26 +1361,49 @@ fn breakdowns(cfg: &SuiteConfig, outcomes: &[TrialOutcome]) -> (String, Vec<(Str
             }
         }
         Suite::Uncertainty50 => {
-            let ks: Vec<u16> = if cfg.seeds_k == 0 {
-                vec![0]
-            } else {
-                vec![0, cfg.seeds_k]
-            };
-            let names: Vec<String> = ks.iter().map(|k| format!("K={k} ok")).collect();
-            let mut series: Vec<Series> = ks
+            // One series per kind of group (terrains together): the 50 cm
+            // single start told 0.50 m, the one told nothing, the multi-seed
+            // mode, and the 10–20 cm reference.
+            let wide = f64::from(PRIOR_50_M.1);
+            let told = f64::from(UNCERTAINTY_50.t_m);
+            let k = f64::from(cfg.seeds_k);
+            let mut kinds: Vec<(String, Box<dyn Fn(&TrialOutcome) -> bool>)> = vec![
+                (
+                    format!("K=0 t0={told:.2}m ok"),
+                    Box::new(move |o| {
+                        extra(o, "prior_max_m") == wide
+                            && extra(o, "seeds_k") == 0.0
+                            && extra(o, "t0_m") == told
+                    }),
+                ),
+                (
+                    "K=0 untold ok".into(),
+                    Box::new(move |o| {
+                        extra(o, "prior_max_m") == wide
+                            && extra(o, "seeds_k") == 0.0
+                            && extra(o, "t0_m") != told
+                    }),
+                ),
+            ];
+            if cfg.seeds_k > 0 {
+                kinds.push((
+                    format!("K={} ok", cfg.seeds_k),
+                    Box::new(move |o| extra(o, "seeds_k") == k),
+                ));
+            }
+            kinds.push((
+                "ref 10-20cm ok".into(),
+                Box::new(move |o| extra(o, "prior_max_m") != wide),
+            ));
+            let mut series: Vec<Series> = kinds
                 .iter()
-                .zip(&names)
                 .zip(COLORS)
-                .map(|((&k, n), color)| Series {
+                .map(|((n, keep), color)| Series {
                     name: n,
                     color,
                     points: outcomes
                         .iter()
-                        .filter(|o| {
-                            o.success
-                                && extra(o, "seeds_k") == f64::from(k)
-                                && extra(o, "prior_max_m") == f64::from(PRIOR_50_M.1)
-                        })
+                        .filter(|o| o.success && keep(o))
                         .map(|o| (o.init_t_mm, o.final_t_mm))
                         .collect(),
                 })
