@@ -1240,6 +1240,9 @@ pub fn covariance_check(
     ]
 }
 
+/// Which trials a plot series keeps.
+type Keep = Box<dyn Fn(&TrialOutcome) -> bool>;
+
 const COLORS: [&str; 6] = [
     "#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#17becf",
 ];
@@ -1367,7 +1370,7 @@ fn breakdowns(cfg: &SuiteConfig, outcomes: &[TrialOutcome]) -> (String, Vec<(Str
             let wide = f64::from(PRIOR_50_M.1);
             let told = f64::from(UNCERTAINTY_50.t_m);
             let k = f64::from(cfg.seeds_k);
-            let mut kinds: Vec<(String, Box<dyn Fn(&TrialOutcome) -> bool>)> = vec![
+            let mut kinds: Vec<(String, Keep)> = vec![
                 (
                     format!("K=0 t0={told:.2}m ok"),
                     Box::new(move |o| {
