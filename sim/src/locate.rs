@@ -194,6 +194,29 @@ pub struct DeviceRun {
     pub ticks: u64,
 }
 
+impl DeviceRun {
+    /// The record of a runner call that began at `start`: its result, the
+    /// runner's log and telemetry, and the simulated clock.
+    fn of(
+        result: std::result::Result<(Outcome, RelocReport), FailureCode>,
+        runner: &SimRunner,
+        start: Instant,
+        workspace_bytes: usize,
+        probe: &ManualClock,
+    ) -> Self {
+        // The runner call's time, before the log and telemetry are copied out.
+        let elapsed = start.elapsed();
+        Self {
+            result,
+            log: runner.log.clone(),
+            telemetry: runner.telemetry.writer().frames().frames,
+            elapsed,
+            workspace_bytes,
+            ticks: probe.ticks(),
+        }
+    }
+}
+
 /// [`relocalize_on_devices`], keeping the runner's log and telemetry whatever
 /// the result.
 ///
@@ -253,15 +276,13 @@ where
             runner.relocalize_by_stage(bufs, &req.rig, &req.params, ws, req.seed, limits, observe)
         }
     };
-    let elapsed = start.elapsed();
-    Ok(DeviceRun {
+    Ok(DeviceRun::of(
         result,
-        log: runner.log.clone(),
-        telemetry: runner.telemetry.writer().frames().frames,
-        elapsed,
-        workspace_bytes: sizes.total_bytes(),
-        ticks: probe.ticks(),
-    })
+        &runner,
+        start,
+        sizes.total_bytes(),
+        &probe,
+    ))
 }
 
 /// [`run_on_devices`] on the frame-store path ([`Runner::relocalize_from_store`]):
@@ -295,15 +316,13 @@ pub fn run_from_store(
     let start = Instant::now();
     let result =
         runner.relocalize_from_store(&mut map, &req.rig, &req.params, ws, req.seed, limits);
-    let elapsed = start.elapsed();
-    Ok(DeviceRun {
+    Ok(DeviceRun::of(
         result,
-        log: runner.log.clone(),
-        telemetry: runner.telemetry.writer().frames().frames,
-        elapsed,
-        workspace_bytes: sizes.total_bytes(),
-        ticks: probe.ticks(),
-    })
+        &runner,
+        start,
+        sizes.total_bytes(),
+        &probe,
+    ))
 }
 
 /// The engine's caller-owned storage on the host heap, of the sizes
