@@ -87,6 +87,36 @@ fn crc32_matches_the_standard_check_value() {
     assert_eq!(crc32(b""), 0);
 }
 
+/// The slicing-by-8 CRC equals the bitwise definition (reflected polynomial
+/// 0xEDB88320) at every length 0..=64 and every alignment of the tail, and on a
+/// long buffer.
+#[test]
+fn crc32_equals_the_bitwise_definition_at_every_length() {
+    fn bitwise(bytes: &[u8]) -> u32 {
+        let mut c = 0xFFFF_FFFFu32;
+        for &b in bytes {
+            c ^= u32::from(b);
+            for _ in 0..8 {
+                c = if c & 1 != 0 {
+                    0xEDB8_8320 ^ (c >> 1)
+                } else {
+                    c >> 1
+                };
+            }
+        }
+        !c
+    }
+    let mut rng = crate::rng::Rng::new(9);
+    let buf: Vec<u8> = (0..10_000).map(|_| (rng.next_u32() >> 24) as u8).collect();
+    for n in 0..=64 {
+        for start in 0..8 {
+            let b = &buf[start..start + n];
+            assert_eq!(crc32(b), bitwise(b), "length {n} from {start}");
+        }
+    }
+    assert_eq!(crc32(&buf), bitwise(&buf));
+}
+
 /// Verifies: VTSM-MAP-001, VTSM-MAP-005, VTSM-MAP-006
 #[test]
 fn round_trip_preserves_mesh_tiles_texture_and_mask() {

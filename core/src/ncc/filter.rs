@@ -42,6 +42,17 @@ pub fn filter_region(
         .get_mut(..rw.saturating_mul(rh))
         .ok_or(FailureCode::NccScratchTooSmall)?;
     let (iw, ih) = (src.width(), src.height());
+    // Columns of the region whose neighbours x − 1 and x + 1 lie inside the
+    // image (region coordinates `lo..hi`): these go through the row kernels,
+    // the (at most two) columns on the image's left and right edges through
+    // the per-pixel form with replicated neighbours. Same values either way.
+    let lo = usize::from(rx == 0).min(rw);
+    let hi = if rx.wrapping_add(rw) >= iw {
+        rw.saturating_sub(1)
+    } else {
+        rw
+    }
+    .max(lo);
     // The region lies inside `src` (checked above), so the pixel coordinates
     // below stay within the image and the wrapping additions never wrap.
     for (dy, orow) in (0..rh).zip(out.chunks_exact_mut(rw)) {
@@ -57,7 +68,22 @@ pub fn filter_region(
         }
         let rm = present(src.row(y.saturating_sub(1)));
         let rp = present(src.row(y.wrapping_add(1).min(ih.saturating_sub(1))));
-        for (dx, o) in (0..rw).zip(orow.iter_mut()) {
+        // Interior columns: image columns rx + lo − 1 ..= rx + hi (inside the image).
+        let from = rx.wrapping_add(lo).wrapping_sub(1);
+        let n = hi.wrapping_sub(lo);
+        let rows = [rm, r0, rp].map(|r| r.get(from..).and_then(|r| r.get(..n.wrapping_add(2))));
+        if let (Some(mid), [Some(a), Some(b), Some(c)]) = (orow.get_mut(lo..hi), rows) {
+            match filter {
+                Filter::Sobel => sobel_row(a, b, c, mid),
+                Filter::Laplacian => laplacian_row(a, b, c, mid),
+                Filter::Gray => {}
+            }
+        }
+        let edges = (0..lo).chain(hi..rw);
+        for dx in edges {
+            let Some(o) = orow.get_mut(dx) else {
+                continue;
+            };
             let x = rx.wrapping_add(dx);
             let (xm, xp) = (
                 x.saturating_sub(1),
@@ -87,6 +113,78 @@ pub fn filter_region(
         }
     }
     Ok(())
+}
+
+/// `r[from..from + len]`, or as much of it as `r` holds.
+fn span(r: &[u8], from: usize, len: usize) -> &[u8] {
+    let r = r.get(from..).unwrap_or(&[]);
+    r.get(..len).unwrap_or(r)
+}
+
+/// Pixels a row kernel handles per pass (its i16 column terms live on the stack).
+const ROW_CHUNK: usize = 256;
+
+/// Sobel magnitude `(|gx| + |gy|) / 8` of one row's interior pixels: `out[i]` is
+/// centred on column `i + 1` of the rows above (`a`), at (`b`) and below (`c`),
+/// each `out.len() + 2` long. In two passes over i16 lanes (which the compiler
+/// vectorizes): the column terms `a + 2b + c` and `c − a`, then their horizontal
+/// differences and sums. Every intermediate is within ±1020 and the magnitude
+/// below 2041, so i16 holds them exactly: the values of the per-pixel form.
+#[allow(
+    clippy::arithmetic_side_effects,
+    clippy::cast_possible_truncation,
+    reason = "i16 sums of at most four 8-bit pixels (|·| ≤ 1020) and of two such (≤ 2040); the shifted magnitude is ≤ 255"
+)]
+fn sobel_row(a: &[u8], b: &[u8], c: &[u8], out: &mut [u8]) {
+    let mut sm = [0i16; ROW_CHUNK + 2];
+    let mut df = [0i16; ROW_CHUNK + 2];
+    let mut at = 0usize;
+    for o in out.chunks_mut(ROW_CHUNK) {
+        let m = o.len().wrapping_add(2);
+        let (a, b, c) = (span(a, at, m), span(b, at, m), span(c, at, m));
+        for (((s, d), &p), (&q, &r)) in sm.iter_mut().zip(df.iter_mut()).zip(a).zip(b.iter().zip(c))
+        {
+            let (p, q, r) = (i16::from(p), i16::from(q), i16::from(r));
+            *s = p + 2 * q + r;
+            *d = r - p;
+        }
+        let (s0, s2) = (sm.iter(), sm.get(2..).unwrap_or(&[]).iter());
+        let (d0, d1, d2) = (
+            df.iter(),
+            df.get(1..).unwrap_or(&[]).iter(),
+            df.get(2..).unwrap_or(&[]).iter(),
+        );
+        for ((o, (&sl, &sr)), ((&dl, &dc), &dr)) in
+            o.iter_mut().zip(s0.zip(s2)).zip(d0.zip(d1).zip(d2))
+        {
+            let gx = sr - sl;
+            let gy = dl + 2 * dc + dr;
+            *o = (gx.unsigned_abs().wrapping_add(gy.unsigned_abs()) >> 3).min(255) as u8;
+        }
+        at = at.wrapping_add(ROW_CHUNK);
+    }
+}
+
+/// Laplacian `floor(lap / 8) + 128` of one row's interior pixels, laid out as for
+/// [`sobel_row`]; `lap` is within ±1020, exact in i16.
+#[allow(
+    clippy::arithmetic_side_effects,
+    clippy::cast_possible_truncation,
+    reason = "i16 sums of five 8-bit terms with weights ≤ 4 (|lap| ≤ 1020); the clamped value is within 0..=255"
+)]
+fn laplacian_row(a: &[u8], b: &[u8], c: &[u8], out: &mut [u8]) {
+    let n = out.len();
+    let (up, centre, down) = (span(a, 1, n), span(b, 1, n), span(c, 1, n));
+    let (left, right) = (span(b, 0, n), span(b, 2, n));
+    for (((o, (&u, &d)), &q), (&l, &r)) in out
+        .iter_mut()
+        .zip(up.iter().zip(down))
+        .zip(centre)
+        .zip(left.iter().zip(right))
+    {
+        let lap = i16::from(u) + i16::from(d) + i16::from(l) + i16::from(r) - 4 * i16::from(q);
+        *o = ((lap >> 3) + 128).clamp(0, 255) as u8;
+    }
 }
 
 /// 2× box downsample (rounded mean of each 2×2 block) of `src` into `dst`
@@ -183,6 +281,45 @@ mod tests {
                 )
                 .unwrap();
                 assert_eq!(out, crop(&full, w, x, y, rw, rh), "{f:?}");
+            }
+        }
+        // Rows wider than the row kernels' chunk (lengths around multiples of
+        // ROW_CHUNK), regions on and off the image's left and right edges, and
+        // 0/255 pixels, which reach the extremes of |gx| + |gy| and of lap.
+        for (w, h, seed) in [
+            (600usize, 5usize, 1u64),
+            (ROW_CHUNK + 2, 4, 2),
+            (3, 3, 3),
+            (2, 6, 4),
+        ] {
+            let mut rng = Rng::new(seed);
+            let noise = random_px(w * h, &mut rng);
+            let binary: Vec<u8> = noise
+                .iter()
+                .map(|&v| if v & 1 == 0 { 0 } else { 255 })
+                .collect();
+            for img in [&noise, &binary] {
+                for f in [Filter::Sobel, Filter::Laplacian] {
+                    let full = ref_filter(img, w, h, f);
+                    let spans = [
+                        (0, w),
+                        (1, w - 1),
+                        (0, w.min(ROW_CHUNK + 1)),
+                        (w / 3, w - w / 3),
+                        (w - 1, 1),
+                    ];
+                    for (x, rw) in spans {
+                        let rw = rw.max(1).min(w - x);
+                        let mut out = vec![0u8; rw * h];
+                        let r = Rect::new(x as i32, 0, rw as u32, h as u32);
+                        filter_region(&view(img, w, h), r, f, &mut out).unwrap();
+                        assert_eq!(
+                            out,
+                            crop(&full, w, x, 0, rw, h),
+                            "{f:?} {w}x{h} at {x} width {rw}"
+                        );
+                    }
+                }
             }
         }
         // Extremes of the 8-bit mappings: a vertical 0/255 step.
