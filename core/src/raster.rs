@@ -616,6 +616,89 @@ fn ceil_div(n: i64, d: i64) -> i64 {
     floor_div(n.wrapping_neg(), d).wrapping_neg()
 }
 
+/// Which bound an edge puts on a row's pixels.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+enum Side {
+    /// `A > 0`: the first covered column.
+    Left,
+    /// `A < 0`: the last covered column.
+    Right,
+    /// `A = 0`: the whole row is in or out.
+    #[default]
+    Flat,
+}
+
+/// One edge `E(x, y) = A·x + B·y + C` (owner offset `t`) of [`fill_polygon`],
+/// walked row by row without a division per row. With `k = B·y + C`, the
+/// pixel centre `x` is inside when `A·x ≥ t − k`: for `A > 0` from
+/// `x ≥ ⌈(t − k)/A⌉`, for `A < 0` up to `x ≤ ⌊(t − k)/A⌋`, for `A = 0` on the
+/// whole row when `k ≥ t`. Each bound is kept as `q = ⌊m / d⌋` with
+/// `m = q·d + r`, `0 ≤ r < d = |A|`, where `m` moves by a fixed `δ` per row:
+/// `m = t − k + A − 1` (`δ = −B`) on the left, `m = k − t` (`δ = B`) on the
+/// right, so a row's step is `q += ⌊δ/d⌋`, `r += δ mod d` and one carry. The
+/// same integers as the per-row divisions: one division per edge, not per row.
+/// (`A = 0` keeps `m = k − t`, `δ = B`.) Magnitudes stay below 2^42 (edge
+/// terms < 2^40, rows within the guard band), so the wrapping forms never wrap.
+#[derive(Clone, Copy, Debug, Default)]
+struct EdgeWalk {
+    side: Side,
+    q: i64,
+    r: i64,
+    d: i64,
+    dq: i64,
+    dr: i64,
+    /// `A = 0`: `k − t` of the current row, and its step `B`.
+    m: i64,
+    b: i64,
+}
+
+impl EdgeWalk {
+    fn new((a, b, c, t): (i64, i64, i64, i64), py: i64) -> Self {
+        let k = b.wrapping_mul(py).wrapping_add(c);
+        if a == 0 {
+            return Self {
+                side: Side::Flat,
+                m: k.wrapping_sub(t),
+                b,
+                ..Self::default()
+            };
+        }
+        let (side, d, m, delta) = if a > 0 {
+            let m = t.wrapping_sub(k).wrapping_add(a).wrapping_sub(1);
+            (Side::Left, a, m, b.wrapping_neg())
+        } else {
+            (Side::Right, a.wrapping_neg(), k.wrapping_sub(t), b)
+        };
+        let q = floor_div(m, d);
+        let dq = floor_div(delta, d);
+        Self {
+            side,
+            q,
+            r: m.wrapping_sub(q.wrapping_mul(d)),
+            d,
+            dq,
+            dr: delta.wrapping_sub(dq.wrapping_mul(d)),
+            m: 0,
+            b: 0,
+        }
+    }
+
+    /// On to the next row.
+    #[inline]
+    fn step(&mut self) {
+        if self.side == Side::Flat {
+            self.m = self.m.wrapping_add(self.b);
+            return;
+        }
+        self.q = self.q.wrapping_add(self.dq);
+        self.r = self.r.wrapping_add(self.dr);
+        if self.r >= self.d {
+            self.r = self.r.wrapping_sub(self.d);
+            self.q = self.q.wrapping_add(1);
+        }
+    }
+}
+
 /// Fill one clipped, snapped convex polygon (`v[..n]`, n ≤ [`MAX_CLIP_VERTS`]).
 /// Coverage is exact integer arithmetic on 28.4 coordinates (magnitudes < 2^18,
 /// edge terms < 2^40 in i64): a pixel is covered when it is inside every edge's
@@ -706,20 +789,24 @@ fn fill_polygon<S: PixelSink>(
         return;
     };
     let (wx, wy, w) = (frame.wx, frame.wy, frame.w);
+    let mut walks = [EdgeWalk::default(); MAX_CLIP_VERTS];
+    for (wk, &e) in walks.iter_mut().zip(edges) {
+        *wk = EdgeWalk::new(e, y_lo);
+    }
+    let walks = walks.get_mut(..edges.len()).unwrap_or(&mut []);
     for py in y_lo..=y_hi {
         let mut xl = x_lo;
         let mut xr = x_hi;
-        for &(a, b, c, t) in edges {
-            let k = b.wrapping_mul(py).wrapping_add(c);
-            if a > 0 {
-                xl = xl.max(ceil_div(t.wrapping_sub(k), a));
-            } else if a < 0 {
-                xr = xr.min(floor_div(t.wrapping_sub(k), a));
-            } else if k < t {
-                xr = xl.wrapping_sub(1);
+        let mut empty = false;
+        for wk in walks.iter_mut() {
+            match wk.side {
+                Side::Left => xl = xl.max(wk.q),
+                Side::Right => xr = xr.min(wk.q),
+                Side::Flat => empty |= wk.m < 0,
             }
+            wk.step();
         }
-        if xl > xr {
+        if empty || xl > xr {
             continue;
         }
         stats.spans = stats.spans.saturating_add(1);
