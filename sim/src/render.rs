@@ -80,6 +80,52 @@ impl Sun {
     }
 }
 
+/// Which parts of the sunlight a [`Lighting`] models. The simulated depot is
+/// [`LightModel::Full`]; the other two take one part out of the mapping-time and the
+/// live lighting alike, to measure how much each contributes to the error after a
+/// change of the time of day (`vtsm eval --light-model`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum LightModel {
+    /// Cast shadows and attached shading (the simulated depot).
+    #[default]
+    Full,
+    /// No cast shadows: every cell has lit fraction 1 while the sun is up.
+    NoCastShadows,
+    /// No attached shading: the irradiance of every cell is that of a surface
+    /// facing straight up (the sun term is the sun's elevation, the sky term
+    /// the open-sky value times the cell's sky visibility); cast shadows stay.
+    NoAttachedShading,
+    /// Neither: every cell lit and facing up, so a change of the time of day
+    /// only changes the sun's elevation (a gain the exposure takes out).
+    Flat,
+}
+
+impl LightModel {
+    /// Every model, in the order of [`LightModel::name`]'s list.
+    pub const ALL: [Self; 4] = [
+        Self::Full,
+        Self::NoCastShadows,
+        Self::NoAttachedShading,
+        Self::Flat,
+    ];
+
+    /// The name `--light-model` takes: `full`, `no-cast-shadows`,
+    /// `no-attached-shading`, `flat`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Full => "full",
+            Self::NoCastShadows => "no-cast-shadows",
+            Self::NoAttachedShading => "no-attached-shading",
+            Self::Flat => "flat",
+        }
+    }
+
+    /// Parse a name of [`LightModel::name`].
+    pub fn parse(s: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|m| m.name() == s)
+    }
+}
+
 /// Lighting of one terrain at one sun position: the cast-shadow map and exposure.
 #[derive(Clone, Debug)]
 pub struct Lighting {
@@ -103,6 +149,11 @@ impl Lighting {
     /// Compute the shadow map of `terrain` for `sun` by tracing from every cell toward
     /// the sun through the terrain's max-mip. Cost ∝ cells; done once per sun position.
     pub fn new(terrain: &Terrain, sun: Sun) -> Self {
+        Self::with_model(terrain, sun, LightModel::Full)
+    }
+
+    /// [`Lighting::new`] with the parts of the sunlight that `model` keeps.
+    pub fn with_model(terrain: &Terrain, sun: Sun, model: LightModel) -> Self {
         let (nx, ny, c) = (terrain.nx, terrain.ny, terrain.cell_m);
         let horiz = (sun.dir[0] * sun.dir[0] + sun.dir[1] * sun.dir[1])
             .sqrt()
@@ -112,7 +163,7 @@ impl Lighting {
         let mut lit = vec![1.0f32; nx * ny];
         if sun.dir[2] <= 0.0 {
             lit.iter_mut().for_each(|l| *l = 0.0);
-        } else {
+        } else if !matches!(model, LightModel::NoCastShadows | LightModel::Flat) {
             let flat = terrain.height_grid();
             lit.par_chunks_mut(nx).enumerate().for_each(|(j, row)| {
                 for (i, l) in row.iter_mut().enumerate() {
@@ -127,7 +178,11 @@ impl Lighting {
             let y = terrain.y0 + j as f32 * c;
             for (i, e) in row.iter_mut().enumerate() {
                 let x = terrain.x0 + i as f32 * c;
-                let n = terrain.normal(x, y);
+                let n = if matches!(model, LightModel::NoAttachedShading | LightModel::Flat) {
+                    [0.0, 0.0, 1.0]
+                } else {
+                    terrain.normal(x, y)
+                };
                 *e = irradiance(&sun, n, lit[j * nx + i], terrain.sky_visibility(x, y));
             }
         });

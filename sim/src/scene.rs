@@ -13,7 +13,7 @@
 //! noise seed): the same inputs give byte-identical images.
 
 use crate::mapping::{build_map, MappingOptions, MeshData};
-use crate::render::{render, Lighting, RenderOptions, Sun};
+use crate::render::{render, LightModel, Lighting, RenderOptions, Sun};
 use crate::terrain::{Terrain, TerrainKind, TUBE_XY_M};
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
 use vtsm_core::geom::{Camera, Pose, StereoRig, Vec3};
@@ -299,7 +299,12 @@ impl Scene {
 
     /// Lighting at local solar time `hours` (computes the shadow map).
     pub fn lighting(&self, hours: f32) -> Lighting {
-        Lighting::new(&self.terrain, Sun::depot(hours))
+        self.lighting_with(hours, LightModel::Full)
+    }
+
+    /// [`Scene::lighting`] with only the parts of the sunlight that `model` keeps.
+    pub fn lighting_with(&self, hours: f32, model: LightModel) -> Lighting {
+        Lighting::with_model(&self.terrain, Sun::depot(hours), model)
     }
 
     /// Render options of the profile with sensor noise seeded by `noise_seed`.

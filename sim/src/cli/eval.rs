@@ -51,6 +51,12 @@
 //! does for an OpenCV calibration, and turns the estimate back to the physical
 //! left camera ([`Rectifier::to_physical`]) before measuring its error.
 //!
+//! Two diagnostics change the simulated depot, not the engine: `--light-model`
+//! takes cast shadows or attached shading out of the mapping-time and the live
+//! lighting alike ([`LightModel`]), and `--mask all` puts every map triangle in
+//! the sampling mask M̂ (the paper keeps only rocks on Flagstone and CFA6).
+//! Their defaults (`full`, `paper`) are the suites as the paper ran them.
+//!
 //! "Mapping views" for the distance/angle columns of `paper`, `baseline` and
 //! `uncertainty50` are the 60 viewpoints of the wave mapping path
 //! ([`mapping_trajectory`] with step 1); for `stepsize` they are the
@@ -64,7 +70,7 @@ use crate::io::image::Gray8;
 use crate::io::mesh::MeshData;
 use crate::locate::{self, Request};
 use crate::rectify::{Interp, Rectifier};
-use crate::render::Lighting;
+use crate::render::{LightModel, Lighting};
 use crate::scene::physical::capture_physical;
 use crate::scene::{
     mapping_trajectory, perturbed_prior, Capture, Profile, Scene, StereoPair, Trajectory,
@@ -178,6 +184,16 @@ pub struct Args {
         requires = "physical"
     )]
     pub interp: String,
+    /// Parts of the sunlight the simulated depot has, at mapping and live time
+    /// alike: full, no-cast-shadows, no-attached-shading or flat (neither; a
+    /// diagnostic of how each part moves the error after a change of the time
+    /// of day).
+    #[arg(long, value_name = "MODEL", default_value = "full")]
+    pub light_model: String,
+    /// Sampling mask M̂ of the maps: `paper` (rocks only on flagstone and cfa6,
+    /// everything on cfa2, as the paper) or `all` (every triangle).
+    #[arg(long, value_name = "MASK", default_value = "paper")]
+    pub mask: String,
 }
 
 /// A relocalizer evaluated on the suite's trials.
@@ -278,6 +294,11 @@ pub struct SuiteConfig {
     pub physical: bool,
     /// Kernel of that rectification (`--interp`).
     pub interp: Interp,
+    /// Parts of the sunlight the depot has (`--light-model`).
+    pub light_model: LightModel,
+    /// Every map triangle in the sampling mask (`--mask all`) instead of the
+    /// paper's per-terrain masks.
+    pub mask_all: bool,
 }
 
 impl SuiteConfig {
@@ -303,6 +324,8 @@ impl SuiteConfig {
             verify: VerifyChecks::OFF,
             physical: false,
             interp: Interp::default(),
+            light_model: LightModel::Full,
+            mask_all: false,
         }
     }
 }
@@ -606,6 +629,17 @@ pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
     cfg.verify = args.verify.checks();
     cfg.physical = args.physical;
     cfg.interp = Interp::parse(&args.interp).map_err(Error::msg)?;
+    cfg.light_model = LightModel::parse(&args.light_model).ok_or_else(|| {
+        Error::msg(format!(
+            "unknown --light-model `{}` (full, no-cast-shadows, no-attached-shading, flat)",
+            args.light_model
+        ))
+    })?;
+    cfg.mask_all = match args.mask.as_str() {
+        "paper" => false,
+        "all" => true,
+        m => return Err(Error::msg(format!("unknown --mask `{m}` (paper, all)"))),
+    };
     Ok(cfg)
 }
 
@@ -630,7 +664,13 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
         .collect();
     let full_meshes: Vec<MeshData> = scenes
         .par_iter()
-        .map(|s| s.map(&s.lighting(MAP_HOURS)))
+        .map(|s| {
+            let mut mesh = s.map(&s.lighting_with(MAP_HOURS, cfg.light_model));
+            if cfg.mask_all {
+                mesh.mask.iter_mut().for_each(|m| *m = true);
+            }
+            mesh
+        })
         .collect();
     let live_hours: Vec<f32> = if cfg.suite == Suite::Stepsize {
         vec![cfg.hours.first().copied().unwrap_or(0.0)]
@@ -643,7 +683,7 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
         .collect();
     let lights: Vec<Lighting> = light_keys
         .par_iter()
-        .map(|&(t, h)| scenes[t].lighting(MAP_HOURS + h))
+        .map(|&(t, h)| scenes[t].lighting_with(MAP_HOURS + h, cfg.light_model))
         .collect();
     let light_of = |t: usize, hi: usize| t * live_hours.len() + hi;
 
@@ -905,6 +945,8 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
             "prior_max_deg": PRIOR_MAX_DEG,
             "map_view_range_m": MAP_VIEW_RANGE_M,
             "tile_m": TILE_M,
+            "light_model": cfg.light_model.name(),
+            "mask": if cfg.mask_all { "all" } else { "paper" },
             "rectify_interp": if cfg.physical { Some(cfg.interp.name()) } else { None },
             "baseline": cfg.baseline.map(Method::name),
             "origin": cfg.origin,
@@ -1894,13 +1936,30 @@ mod tests {
             verify: crate::cli::VerifyArg::default(),
             physical: false,
             interp: "lanczos4".into(),
+            light_model: "full".into(),
+            mask: "paper".into(),
         };
         assert!(config_from_args(&args).is_err());
         args.suite = "baseline".into();
+        let parsed = config_from_args(&args).unwrap();
+        assert_eq!(parsed.baseline, Some(Method::Features));
         assert_eq!(
-            config_from_args(&args).unwrap().baseline,
-            Some(Method::Features)
+            (parsed.light_model, parsed.mask_all),
+            (LightModel::Full, false)
         );
+        args.light_model = "no-cast-shadows".into();
+        args.mask = "all".into();
+        let parsed = config_from_args(&args).unwrap();
+        assert_eq!(
+            (parsed.light_model, parsed.mask_all),
+            (LightModel::NoCastShadows, true)
+        );
+        args.mask = "rocks".into();
+        assert!(config_from_args(&args).is_err());
+        args.mask = "paper".into();
+        args.light_model = "overcast".into();
+        assert!(config_from_args(&args).is_err());
+        args.light_model = "full".into();
         args.baseline = Some("sift".into());
         assert!(config_from_args(&args).is_err());
     }

@@ -144,6 +144,61 @@ fn block_shadow_moves_with_the_sun_as_geometry_predicts() {
     }
 }
 
+/// Verifies: VTSM-SIM-016
+#[test]
+fn light_models_take_out_cast_shadows_or_attached_shading_only() {
+    use crate::render::LightModel;
+    // A block that casts a shadow on flat ground, and a ramp facing west.
+    let t = Terrain::from_fn(TerrainKind::Cfa6, 0, 0.01, |x, y| {
+        if x.abs() <= 0.1 && y.abs() <= 0.1 {
+            (0.3, 0.3, LABEL_ROCK)
+        } else if x > 0.5 {
+            ((x - 0.5) * 0.577, 0.3, LABEL_SAND)
+        } else {
+            (0.0, 0.3, LABEL_SAND)
+        }
+    });
+    let sun = Sun::depot(9.5);
+    let full = Lighting::new(&t, sun);
+    assert_eq!(
+        full.irradiance(0.73, 0.31),
+        Lighting::with_model(&t, sun, LightModel::Full).irradiance(0.73, 0.31)
+    );
+    let no_cast = Lighting::with_model(&t, sun, LightModel::NoCastShadows);
+    let flat_up = Lighting::with_model(&t, sun, LightModel::NoAttachedShading);
+    let flat = Lighting::with_model(&t, sun, LightModel::Flat);
+    let (mut shadowed, mut sloped) = (0, 0);
+    for j in 0..60 {
+        for i in 0..60 {
+            let x = -1.0 + 2.0 * (i as f32 + 0.5) / 60.0;
+            let y = -1.0 + 2.0 * (j as f32 + 0.5) / 60.0;
+            assert_eq!(no_cast.lit(x, y), 1.0, "({x}, {y})");
+            assert_eq!(flat.lit(x, y), 1.0, "({x}, {y})");
+            let open = sun.dir[2] + SKY_AMBIENT * t.sky_visibility(x, y);
+            assert!((flat.irradiance(x, y) - open).abs() < 2e-3, "({x}, {y})");
+            assert_eq!(flat_up.lit(x, y), full.lit(x, y), "({x}, {y})");
+            let up = sun.dir[2] * full.lit(x, y) + SKY_AMBIENT * t.sky_visibility(x, y);
+            assert!(
+                (flat_up.irradiance(x, y) - up).abs() < 2e-3,
+                "({x}, {y}): {} against {up}",
+                flat_up.irradiance(x, y)
+            );
+            if full.lit(x, y) < 0.5 && x.abs() > 0.12 && y.abs() > 0.12 {
+                shadowed += 1;
+                assert!(no_cast.irradiance(x, y) > full.irradiance(x, y) + 0.2);
+            }
+            if x > 0.55 && (x < 0.95) && full.lit(x, y) > 0.99 {
+                sloped += 1;
+                assert!((full.irradiance(x, y) - up).abs() > 0.05, "({x}, {y})");
+            }
+        }
+    }
+    assert!(
+        shadowed > 10 && sloped > 100,
+        "{shadowed} shadowed, {sloped} on the ramp"
+    );
+}
+
 /// Verifies: VTSM-SIM-004
 #[test]
 fn known_point_appears_at_predicted_pixels_in_both_images() {
