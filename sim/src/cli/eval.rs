@@ -55,7 +55,10 @@
 //! takes cast shadows or attached shading out of the mapping-time and the live
 //! lighting alike ([`LightModel`]), and `--mask all` puts every map triangle in
 //! the sampling mask M̂ (the paper keeps only rocks on Flagstone and CFA6).
-//! Their defaults (`full`, `paper`) are the suites as the paper ran them.
+//! `--wind S` changes the live depot after mapping (`Terrain::with_wind`: sand
+//! ripples, dust, moved pebbles), the maps staying those of the mapped one: what
+//! the rock-only masks of the paper guard against. Their defaults (`full`,
+//! `paper`, 0) are the suites as the paper ran them.
 //!
 //! "Mapping views" for the distance/angle columns of `paper`, `baseline` and
 //! `uncertainty50` are the 60 viewpoints of the wave mapping path
@@ -112,6 +115,9 @@ pub const WRONG_R_DEG: f64 = 1.5;
 /// Shift of the "right" image of the `wrongplace` suite, pixels (test
 /// profile; scaled with the image width).
 pub const SHIFT_PX: u32 = 4;
+
+/// Fork of a scene's seed that seeds its `--wind`.
+pub const WIND_SEED: u64 = 0x5749_4E44_4556;
 
 /// Largest prior rotation, degrees (all suites).
 pub const PRIOR_MAX_DEG: f32 = 1.5;
@@ -194,6 +200,11 @@ pub struct Args {
     /// everything on cfa2, as the paper) or `all` (every triangle).
     #[arg(long, value_name = "MASK", default_value = "paper")]
     pub mask: String,
+    /// Wind between mapping and relocalization, strength 0..=1 (0: none): sand
+    /// ripples, dust streaks and moved pebbles in the live depot
+    /// (`Terrain::with_wind`); the maps stay those of the mapping-time depot.
+    #[arg(long, value_name = "S", default_value_t = 0.0)]
+    pub wind: f32,
 }
 
 /// A relocalizer evaluated on the suite's trials.
@@ -299,6 +310,8 @@ pub struct SuiteConfig {
     /// Every map triangle in the sampling mask (`--mask all`) instead of the
     /// paper's per-terrain masks.
     pub mask_all: bool,
+    /// Wind strength between mapping and the live pairs (`--wind`, 0 = none).
+    pub wind: f32,
 }
 
 impl SuiteConfig {
@@ -326,6 +339,7 @@ impl SuiteConfig {
             interp: Interp::default(),
             light_model: LightModel::Full,
             mask_all: false,
+            wind: 0.0,
         }
     }
 }
@@ -640,6 +654,10 @@ pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
         "all" => true,
         m => return Err(Error::msg(format!("unknown --mask `{m}` (paper, all)"))),
     };
+    if !(0.0..=1.0).contains(&args.wind) {
+        return Err(Error::msg("--wind must be a strength in 0..=1"));
+    }
+    cfg.wind = args.wind;
     Ok(cfg)
 }
 
@@ -678,12 +696,25 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
         cfg.hours.clone()
     };
     // Lightings: index = terrain * live_hours.len() + hour.
+    // The live depots: the mapped ones after `--wind` (the same ones without it).
+    let windy: Vec<Scene> = if cfg.wind > 0.0 {
+        scenes
+            .par_iter()
+            .map(|s| Scene {
+                terrain: s.terrain.with_wind(s.seed ^ WIND_SEED, cfg.wind),
+                ..*s
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let live_scenes: &[Scene] = if windy.is_empty() { &scenes } else { &windy };
     let light_keys: Vec<(usize, f32)> = (0..scenes.len())
         .flat_map(|t| live_hours.iter().map(move |&h| (t, h)))
         .collect();
     let lights: Vec<Lighting> = light_keys
         .par_iter()
-        .map(|&(t, h)| scenes[t].lighting_with(MAP_HOURS + h, cfg.light_model))
+        .map(|&(t, h)| live_scenes[t].lighting_with(MAP_HOURS + h, cfg.light_model))
         .collect();
     let light_of = |t: usize, hi: usize| t * live_hours.len() + hi;
 
@@ -912,7 +943,7 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
     let t_trials = Instant::now();
     let outcomes = eval::run_parallel(
         &specs,
-        |s| run_trial(cfg, &groups[s.group], &scenes, &lights, &maps, s),
+        |s| run_trial(cfg, &groups[s.group], live_scenes, &lights, &maps, s),
         cfg.progress,
     );
     let trials_s = t_trials.elapsed().as_secs_f64();
@@ -947,6 +978,7 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
             "tile_m": TILE_M,
             "light_model": cfg.light_model.name(),
             "mask": if cfg.mask_all { "all" } else { "paper" },
+            "wind": cfg.wind,
             "rectify_interp": if cfg.physical { Some(cfg.interp.name()) } else { None },
             "baseline": cfg.baseline.map(Method::name),
             "origin": cfg.origin,
@@ -1938,6 +1970,7 @@ mod tests {
             interp: "lanczos4".into(),
             light_model: "full".into(),
             mask: "paper".into(),
+            wind: 0.0,
         };
         assert!(config_from_args(&args).is_err());
         args.suite = "baseline".into();
@@ -1960,8 +1993,62 @@ mod tests {
         args.light_model = "overcast".into();
         assert!(config_from_args(&args).is_err());
         args.light_model = "full".into();
+        args.wind = 1.5;
+        assert!(config_from_args(&args).is_err());
+        args.wind = 0.5;
+        assert_eq!(config_from_args(&args).unwrap().wind, 0.5);
         args.baseline = Some("sift".into());
         assert!(config_from_args(&args).is_err());
+    }
+
+    /// `--wind` changes the live pairs and not the map or the priors (beyond the
+    /// micrometres the ground under the rover moves); `--mask all` changes the
+    /// map's mask and not the pairs or the priors.
+    ///
+    /// Verifies: VTSM-SIM-016
+    #[test]
+    fn wind_and_mask_change_only_what_they_name() {
+        let base = SuiteConfig {
+            terrains: vec![TerrainKind::Cfa6],
+            ..small(Suite::Paper)
+        };
+        let plain = run_suite(&base, "test").unwrap();
+        let windy = run_suite(
+            &SuiteConfig {
+                wind: 1.0,
+                ..base.clone()
+            },
+            "test",
+        )
+        .unwrap();
+        let masked = run_suite(
+            &SuiteConfig {
+                mask_all: true,
+                ..base.clone()
+            },
+            "test",
+        )
+        .unwrap();
+        for run in [&windy, &masked] {
+            assert_eq!(run.outcomes.len(), plain.outcomes.len());
+            for (a, b) in plain.outcomes.iter().zip(&run.outcomes) {
+                // The rover stands on the live ground, which the wind moves by
+                // millimetres, so the truth (and the prior drawn about it) may
+                // move by a micrometre.
+                assert_eq!(a.seed, b.seed);
+                assert!((a.init_t_mm - b.init_t_mm).abs() < 1e-2, "{a:?} {b:?}");
+            }
+        }
+        let finals = |r: &SuiteRun| {
+            r.outcomes
+                .iter()
+                .map(|o| (o.final_t_mm, o.inliers))
+                .collect::<Vec<_>>()
+        };
+        assert_ne!(finals(&plain), finals(&windy), "wind changed nothing");
+        assert_ne!(finals(&plain), finals(&masked), "the mask changed nothing");
+        assert_eq!(windy.meta.params["wind"], 1.0);
+        assert_eq!(masked.meta.params["mask"], "all");
     }
 
     /// The paper suite with the whole scene offset to UTM-sized coordinates
