@@ -155,6 +155,9 @@ fn eval_physical_relocalizes_like_the_rectified_run() {
         verify: Default::default(),
         physical: false,
         interp: "lanczos4".into(),
+        light_model: "full".into(),
+        mask: "paper".into(),
+        wind: 0.0,
     };
     let rect_cfg: SuiteConfig = config_from_args(&args).unwrap();
     assert!(!rect_cfg.physical);
