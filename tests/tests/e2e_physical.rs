@@ -1,7 +1,8 @@
 //! End to end: a physical (distorted, unrectified) capture written by
 //! `scene export --physical` relocalizes through `vtsm relocalize`'s loader and
 //! engine call to about the accuracy of the ideal rectified capture of the same
-//! scene, and the pose reported is the physical left camera's; `vtsm eval
+//! scene, and the pose reported is the physical left camera's (its calibration
+//! given in the OpenCV form or as two ROS camera_info files); `vtsm eval
 //! --physical` does the same on its suites' trials.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -13,6 +14,7 @@ use vtsm_sim::cli::eval::{
 use vtsm_sim::cli::map_build::DEFAULT_TILE_SIZE_M;
 use vtsm_sim::cli::relocalize::{load_inputs, run_engine, Args};
 use vtsm_sim::io::calib_opencv::opencv_calib_text;
+use vtsm_sim::io::calib_ros::{self, camera_info_text};
 use vtsm_sim::rectify::Rectifier;
 use vtsm_sim::scene::export::{write_scene, write_scene_with_calib, SceneFiles};
 use vtsm_sim::scene::physical::{capture_physical, physical_calib};
@@ -63,7 +65,7 @@ fn relocalize(dir: &Path, truth: &Pose) -> (f32, f32, Pose) {
 /// 3 cm and 0.3° of the rectified pair's (and under 5 cm, 0.5° absolute), and
 /// the reported pose is nearer the physical left camera than the rectified one.
 ///
-/// Verifies: VTSM-CLI-033, VTSM-SIM-014
+/// Verifies: VTSM-CLI-033, VTSM-CLI-043, VTSM-SIM-014
 #[test]
 fn physical_pair_relocalizes_like_the_rectified_one() {
     let scene = Scene::new(TerrainKind::Flagstone, SEED, Profile::Test);
@@ -104,6 +106,24 @@ fn physical_pair_relocalizes_like_the_rectified_one() {
         write_scene_with_calib(&phys_dir, &files, &opencv_calib_text(&calib), false).unwrap();
         let (rt, rr, _) = relocalize(&rect_dir, &truth);
         let (pt, pr, pose) = relocalize(&phys_dir, &truth);
+        if stop == 3 {
+            // The same pair with its calibration as two ROS camera_info files
+            // (the `ros_camera_info` form of calib.json): the same estimate.
+            let ros_dir = root.join("ros-3");
+            let json = r#"{"ros_camera_info": {"left": "left.yaml", "right": "right.yaml"}}"#;
+            write_scene_with_calib(&ros_dir, &files, json, false).unwrap();
+            let (l, r) = calib_ros::from_opencv(&calib).unwrap();
+            std::fs::write(ros_dir.join("left.yaml"), camera_info_text("left", &l)).unwrap();
+            std::fs::write(ros_dir.join("right.yaml"), camera_info_text("right", &r)).unwrap();
+            let (_, _, ros_pose) = relocalize(&ros_dir, &truth);
+            let (dt, dr) = ros_pose.error_to(&pose);
+            println!(
+                "stop 3, ROS camera_info: {:.4} mm {:.5}° from the OpenCV form's estimate",
+                dt * 1e3,
+                dr.to_degrees()
+            );
+            assert!(dt < 1e-3 && dr.to_degrees() < 0.01, "{dt} m {dr} rad");
+        }
         // The rectified left camera is turned from the physical one by R1; an
         // estimate that were left rectified would be off by that rotation.
         let inputs = load_inputs(&args(&phys_dir)).unwrap();

@@ -46,8 +46,10 @@ pub struct Args {
     #[arg(long, value_name = "D.vmap")]
     pub map: Option<PathBuf>,
     /// Stereo calibration: a rectified pair {"width","height","fx","fy","cx","cy","baseline_m"},
-    /// or the OpenCV form {"image_size","left","right","R","T"} of a physical pair
-    /// (rectified here; poses then refer to the physical left camera).
+    /// the OpenCV form {"image_size","left","right","R","T"} of a physical pair,
+    /// or the ROS form {"ros_camera_info":{"left":"l.yaml","right":"r.yaml"}} naming
+    /// two camera_info files (both physical forms are rectified here; poses then
+    /// refer to the physical left camera).
     #[arg(long, value_name = "calib.json")]
     pub calib: PathBuf,
     /// Left image (PNG, JPEG, TIFF or PGM; 8 or 16 bit; colour is converted to gray).

@@ -272,17 +272,24 @@ pub fn parse_opencv_calib(bytes: &[u8], path: &Path) -> Result<OpenCvCalib> {
     Ok(c)
 }
 
-/// Parse either form of `calib.json`: the OpenCV form when the top-level object
-/// has an `image_size` key, the rectified form otherwise.
+/// Parse any form of `calib.json`: the ROS form ([`super::calib_ros`]) when the
+/// top-level object has a `ros_camera_info` key, the OpenCV form when it has an
+/// `image_size` key, the rectified form otherwise. The ROS form is returned as
+/// the OpenCV form it describes.
 ///
 /// # Errors
-/// As [`json::parse_calib`] or [`parse_opencv_calib`].
+/// As [`json::parse_calib`], [`parse_opencv_calib`] or
+/// [`super::calib_ros::parse_ros_calib`].
 pub fn parse_calib_any(bytes: &[u8], path: &Path) -> Result<CalibFile> {
-    let is_opencv = serde_json::from_slice::<serde_json::Value>(bytes)
-        .ok()
-        .and_then(|v| v.as_object().map(|o| o.contains_key("image_size")))
-        .unwrap_or(false);
-    if is_opencv {
+    let has = |key: &str| {
+        serde_json::from_slice::<serde_json::Value>(bytes)
+            .ok()
+            .and_then(|v| v.as_object().map(|o| o.contains_key(key)))
+            .unwrap_or(false)
+    };
+    if has("ros_camera_info") {
+        super::calib_ros::parse_ros_calib(bytes, path).map(|c| CalibFile::OpenCv(Box::new(c)))
+    } else if has("image_size") {
         parse_opencv_calib(bytes, path).map(|c| CalibFile::OpenCv(Box::new(c)))
     } else {
         json::parse_calib(bytes, path).map(CalibFile::Rectified)

@@ -15,6 +15,7 @@
 
 pub mod atlas;
 pub mod calib_opencv;
+pub mod calib_ros;
 pub mod image;
 pub mod json;
 pub mod mesh;
