@@ -567,4 +567,40 @@ mod tests {
             }
         }
     }
+
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+        /// A camera_info file cut short, with bytes overwritten, or with lines
+        /// dropped is read or refused with an error; it never panics, and a
+        /// pair that is read passes the OpenCV form's checks.
+        ///
+        /// Verifies: VTSM-CLI-043
+        #[test]
+        fn damaged_camera_info_never_panics(
+            cut in 0usize..2000,
+            edits in proptest::collection::vec((0usize..2000, any::<u8>()), 0..6),
+            drop_line in proptest::option::of(0usize..20),
+        ) {
+            let (l, r) = from_opencv(&physical()).unwrap();
+            let text = camera_info_text("right", &r);
+            let text: String = match drop_line {
+                Some(k) => text.lines().enumerate().filter(|(i, _)| *i != k)
+                    .map(|(_, s)| format!("{s}\n")).collect(),
+                None => text,
+            };
+            let mut bytes = text.into_bytes();
+            bytes.truncate(cut.max(1).min(bytes.len()));
+            for (at, b) in edits {
+                let n = bytes.len();
+                bytes[at % n] = b;
+            }
+            if let Ok(right) = parse_camera_info(&bytes, Path::new("right.yaml")) {
+                if let Ok(c) = to_opencv(&l, &right) {
+                    prop_assert!(c.validate().is_ok());
+                }
+            }
+        }
+    }
 }
