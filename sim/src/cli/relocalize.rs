@@ -47,9 +47,10 @@ pub struct Args {
     pub map: Option<PathBuf>,
     /// Stereo calibration: a rectified pair {"width","height","fx","fy","cx","cy","baseline_m"},
     /// the OpenCV form {"image_size","left","right","R","T"} of a physical pair,
-    /// or the ROS form {"ros_camera_info":{"left":"l.yaml","right":"r.yaml"}} naming
-    /// two camera_info files (both physical forms are rectified here; poses then
-    /// refer to the physical left camera).
+    /// the ROS form {"ros_camera_info":{"left":"l.yaml","right":"r.yaml"}} naming
+    /// two camera_info files, or the Kalibr form {"kalibr_camchain":"camchain.yaml"}
+    /// (the physical forms are rectified here; poses then refer to the physical
+    /// left camera).
     #[arg(long, value_name = "calib.json")]
     pub calib: PathBuf,
     /// Left image (PNG, JPEG, TIFF or PGM; 8 or 16 bit; colour is converted to gray).

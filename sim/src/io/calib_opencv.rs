@@ -272,14 +272,16 @@ pub fn parse_opencv_calib(bytes: &[u8], path: &Path) -> Result<OpenCvCalib> {
     Ok(c)
 }
 
-/// Parse any form of `calib.json`: the ROS form ([`super::calib_ros`]) when the
-/// top-level object has a `ros_camera_info` key, the OpenCV form when it has an
+/// Parse any form of `calib.json`: the Kalibr form ([`super::calib_kalibr`])
+/// when the top-level object has a `kalibr_camchain` key, the ROS form
+/// ([`super::calib_ros`]) when it has a `ros_camera_info` key, the OpenCV form when it has an
 /// `image_size` key, the rectified form otherwise. The ROS form is returned as
-/// the OpenCV form it describes.
+/// the OpenCV form it describes, as is the Kalibr form.
 ///
 /// # Errors
-/// As [`json::parse_calib`], [`parse_opencv_calib`] or
-/// [`super::calib_ros::parse_ros_calib`].
+/// As [`json::parse_calib`], [`parse_opencv_calib`],
+/// [`super::calib_ros::parse_ros_calib`] or
+/// [`super::calib_kalibr::parse_kalibr_calib`].
 pub fn parse_calib_any(bytes: &[u8], path: &Path) -> Result<CalibFile> {
     let has = |key: &str| {
         serde_json::from_slice::<serde_json::Value>(bytes)
@@ -287,7 +289,9 @@ pub fn parse_calib_any(bytes: &[u8], path: &Path) -> Result<CalibFile> {
             .and_then(|v| v.as_object().map(|o| o.contains_key(key)))
             .unwrap_or(false)
     };
-    if has("ros_camera_info") {
+    if has("kalibr_camchain") {
+        super::calib_kalibr::parse_kalibr_calib(bytes, path).map(|c| CalibFile::OpenCv(Box::new(c)))
+    } else if has("ros_camera_info") {
         super::calib_ros::parse_ros_calib(bytes, path).map(|c| CalibFile::OpenCv(Box::new(c)))
     } else if has("image_size") {
         parse_opencv_calib(bytes, path).map(|c| CalibFile::OpenCv(Box::new(c)))

@@ -69,12 +69,12 @@ pub struct RosCameraInfo {
 }
 
 /// Look up `key` in a YAML mapping.
-fn get<'a>(doc: &'a Yaml, key: &str) -> Option<&'a Yaml> {
+pub(super) fn get<'a>(doc: &'a Yaml, key: &str) -> Option<&'a Yaml> {
     doc.as_hash()?.get(&Yaml::String(key.into()))
 }
 
 /// A YAML number (integer or real) as `f64`.
-fn number(y: &Yaml) -> Option<f64> {
+pub(super) fn number(y: &Yaml) -> Option<f64> {
     match y {
         Yaml::Real(_) => y.as_f64(),
         Yaml::Integer(i) => Some(*i as f64),
@@ -124,6 +124,45 @@ fn m3(v: &[f64]) -> [[f64; 3]; 3] {
     m
 }
 
+/// `bytes` (the file `path`) as one YAML mapping: at most `max` bytes, UTF-8,
+/// one document whose top level is a mapping (`what` names it in the message).
+///
+/// # Errors
+/// Each of those conditions, naming `path` (and the line for a YAML syntax error).
+pub(super) fn yaml_mapping(bytes: &[u8], path: &Path, max: usize, what: &str) -> Result<Yaml> {
+    if bytes.len() > max {
+        return Err(Error::file(
+            path,
+            format!("{} bytes; {what} file is at most {max}", bytes.len()),
+        ));
+    }
+    let text =
+        std::str::from_utf8(bytes).map_err(|e| Error::file(path, format!("not UTF-8: {e}")))?;
+    let mut docs = YamlLoader::load_from_str(text).map_err(|e| {
+        Error::at(
+            path,
+            e.marker().line().max(1),
+            format!("not YAML: {}", e.info()),
+        )
+    })?;
+    match docs.as_slice() {
+        [d] if d.as_hash().is_some() => Ok(docs.remove(0)),
+        _ => Err(Error::file(
+            path,
+            format!("must hold one YAML mapping ({what})"),
+        )),
+    }
+}
+
+/// `p` as named in `calib.json` at `path`: relative to its directory unless absolute.
+pub(super) fn resolve(path: &Path, p: &Path) -> PathBuf {
+    if p.is_absolute() {
+        p.to_path_buf()
+    } else {
+        path.parent().unwrap_or(Path::new("")).join(p)
+    }
+}
+
 /// Parse one `camera_info` YAML file.
 ///
 /// # Errors
@@ -132,30 +171,8 @@ fn m3(v: &[f64]) -> [[f64; 3]; 3] {
 /// `plumb_bob` (4 or 5 coefficients) or `rational_polynomial` (8); the message
 /// names the field.
 pub fn parse_camera_info(bytes: &[u8], path: &Path) -> Result<RosCameraInfo> {
-    if bytes.len() > MAX_CAMERA_INFO_BYTES {
-        return Err(Error::file(
-            path,
-            format!(
-                "{} bytes; a camera_info file is at most {MAX_CAMERA_INFO_BYTES}",
-                bytes.len()
-            ),
-        ));
-    }
-    let text =
-        std::str::from_utf8(bytes).map_err(|e| Error::file(path, format!("not UTF-8: {e}")))?;
-    let docs = YamlLoader::load_from_str(text).map_err(|e| {
-        let line = e.marker().line();
-        Error::at(path, line.max(1), format!("not YAML: {}", e.info()))
-    })?;
-    let doc = match docs.as_slice() {
-        [d] if d.as_hash().is_some() => d,
-        _ => {
-            return Err(Error::file(
-                path,
-                "must hold one YAML mapping (a camera_info)",
-            ))
-        }
-    };
+    let doc = yaml_mapping(bytes, path, MAX_CAMERA_INFO_BYTES, "a camera_info")?;
+    let doc = &doc;
     let bad = |why: String| Error::file(path, why);
     let mut size = [0u32; 2];
     for (o, key) in size.iter_mut().zip(["image_width", "image_height"]) {
@@ -296,13 +313,8 @@ pub fn to_opencv(
 /// `path`).
 pub fn parse_ros_calib(bytes: &[u8], path: &Path) -> Result<OpenCvCalib> {
     let f: RosCalibFile = super::json::parse_json(bytes, path)?;
-    let dir = path.parent().unwrap_or(Path::new(""));
     let read = |p: &Path| {
-        let full = if p.is_absolute() {
-            p.to_path_buf()
-        } else {
-            dir.join(p)
-        };
+        let full = resolve(path, p);
         parse_camera_info(&super::read_file(&full)?, &full)
     };
     let left = read(&f.ros_camera_info.left)?;

@@ -14,6 +14,7 @@
 //! existing output is only replaced when asked.
 
 pub mod atlas;
+pub mod calib_kalibr;
 pub mod calib_opencv;
 pub mod calib_ros;
 pub mod image;
