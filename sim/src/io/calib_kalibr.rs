@@ -22,7 +22,7 @@
 //! model only.
 
 use super::calib_opencv::{OpenCvCalib, OpenCvCamera};
-use super::calib_ros::{get, number, resolve, yaml_mapping};
+use super::calib_ros::{get, number_list, resolve, yaml_mapping};
 use crate::error::{Error, Result};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -55,23 +55,9 @@ fn cam1() -> String {
     "cam1".into()
 }
 
-/// A list of numbers under `key` of `cam`.
+/// The list of `n` numbers under `key` of `cam`.
 fn numbers(cam: &Yaml, key: &str, n: usize) -> std::result::Result<Vec<f64>, String> {
-    let v = get(cam, key)
-        .and_then(Yaml::as_vec)
-        .ok_or_else(|| format!("`{key}` is missing or not a list"))?;
-    let v: Vec<f64> = v
-        .iter()
-        .map(number)
-        .collect::<Option<_>>()
-        .ok_or_else(|| format!("`{key}` has an element that is not a number"))?;
-    if v.len() != n {
-        return Err(format!("`{key}` has {} numbers, not {n}", v.len()));
-    }
-    if !v.iter().all(|x| x.is_finite()) {
-        return Err(format!("`{key}` has a non-finite element"));
-    }
-    Ok(v)
+    number_list(get(cam, key), key, n)
 }
 
 /// One pinhole-radtan camera of the chain, and its `T_cn_cnm1` if it has one.
@@ -123,13 +109,8 @@ fn camera(
                 .filter(|r| r.len() == 4)
                 .ok_or_else(|| field("T_cn_cnm1 must be a list of 4 rows".into()))?;
             let mut m = [[0.0; 4]; 4];
-            for (row, y) in m.iter_mut().zip(rows) {
-                let v = y
-                    .as_vec()
-                    .filter(|r| r.len() == 4)
-                    .and_then(|r| r.iter().map(number).collect::<Option<Vec<f64>>>())
-                    .filter(|r| r.iter().all(|x| x.is_finite()))
-                    .ok_or_else(|| field("T_cn_cnm1 rows must be 4 finite numbers".into()))?;
+            for (i, (row, y)) in m.iter_mut().zip(rows).enumerate() {
+                let v = number_list(Some(y), &format!("T_cn_cnm1[{i}]"), 4).map_err(field)?;
                 row.copy_from_slice(&v);
             }
             let last = m[3];

@@ -283,11 +283,13 @@ pub fn parse_opencv_calib(bytes: &[u8], path: &Path) -> Result<OpenCvCalib> {
 /// [`super::calib_ros::parse_ros_calib`] or
 /// [`super::calib_kalibr::parse_kalibr_calib`].
 pub fn parse_calib_any(bytes: &[u8], path: &Path) -> Result<CalibFile> {
+    // The top-level keys, parsed once; malformed JSON is reported by the
+    // rectified form's parser below.
+    let top = serde_json::from_slice::<serde_json::Value>(bytes).ok();
     let has = |key: &str| {
-        serde_json::from_slice::<serde_json::Value>(bytes)
-            .ok()
-            .and_then(|v| v.as_object().map(|o| o.contains_key(key)))
-            .unwrap_or(false)
+        top.as_ref()
+            .and_then(|v| v.as_object())
+            .is_some_and(|o| o.contains_key(key))
     };
     if has("kalibr_camchain") {
         super::calib_kalibr::parse_kalibr_calib(bytes, path).map(|c| CalibFile::OpenCv(Box::new(c)))

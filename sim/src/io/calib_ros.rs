@@ -74,12 +74,36 @@ pub(super) fn get<'a>(doc: &'a Yaml, key: &str) -> Option<&'a Yaml> {
 }
 
 /// A YAML number (integer or real) as `f64`.
-pub(super) fn number(y: &Yaml) -> Option<f64> {
+fn number(y: &Yaml) -> Option<f64> {
     match y {
         Yaml::Real(_) => y.as_f64(),
         Yaml::Integer(i) => Some(*i as f64),
         _ => None,
     }
+}
+
+/// `y` (the value named `name`, `None` when absent) as a list of exactly `n`
+/// finite numbers.
+pub(super) fn number_list(
+    y: Option<&Yaml>,
+    name: &str,
+    n: usize,
+) -> std::result::Result<Vec<f64>, String> {
+    let list = y
+        .and_then(Yaml::as_vec)
+        .ok_or_else(|| format!("`{name}` is missing or not a list"))?;
+    let v: Vec<f64> = list
+        .iter()
+        .map(number)
+        .collect::<Option<_>>()
+        .ok_or_else(|| format!("`{name}` has an element that is not a number"))?;
+    if v.len() != n {
+        return Err(format!("`{name}` has {} numbers, not {n}", v.len()));
+    }
+    if !v.iter().all(|x| x.is_finite()) {
+        return Err(format!("`{name}` has a non-finite element"));
+    }
+    Ok(v)
 }
 
 /// The `data` of a `{rows, cols, data}` matrix, checked against the expected
@@ -98,22 +122,7 @@ fn matrix(
             }
         }
     }
-    let data = get(m, "data")
-        .and_then(Yaml::as_vec)
-        .ok_or_else(|| format!("`{key}.data` is missing or not a list"))?;
-    let v: Option<Vec<f64>> = data.iter().map(number).collect();
-    let v = v.ok_or_else(|| format!("`{key}.data` has an element that is not a number"))?;
-    if v.len() != rows * cols {
-        return Err(format!(
-            "`{key}.data` has {} numbers, a {rows}×{cols} matrix needs {}",
-            v.len(),
-            rows * cols
-        ));
-    }
-    if !v.iter().all(|x| x.is_finite()) {
-        return Err(format!("`{key}.data` has a non-finite element"));
-    }
-    Ok(v)
+    number_list(get(m, "data"), &format!("{key}.data"), rows * cols)
 }
 
 fn m3(v: &[f64]) -> [[f64; 3]; 3] {
