@@ -58,6 +58,38 @@ impl Sink for ArgMax {
     }
 }
 
+/// The positions one [`eval_positions`] call scores: every top-left position
+/// `(x, y)` with `x0 ≤ x ≤ x1`, `y0 ≤ y ≤ y1` (`bounds`) that does not lie in
+/// `skip` (same form; `None` skips nothing). A climbing refinement step passes
+/// the region it scored just before: those positions were offered to the same
+/// [`ArgMax`] already, so offering them again could not change it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct Positions {
+    pub(super) bounds: (usize, usize, usize, usize),
+    pub(super) skip: Option<(usize, usize, usize, usize)>,
+}
+
+impl Positions {
+    /// Every position of `bounds`.
+    pub(super) const fn all(bounds: (usize, usize, usize, usize)) -> Self {
+        Self { bounds, skip: None }
+    }
+
+    /// Whether `(x, y)` lies in `skip`.
+    #[inline]
+    fn skips(&self, x: usize, y: usize) -> bool {
+        self.skip
+            .is_some_and(|(x0, y0, x1, y1)| x0 <= x && x <= x1 && y0 <= y && y <= y1)
+    }
+
+    /// Whether `skip` holds every position of row `y` from `xa` to `xb`.
+    #[inline]
+    fn skips_span(&self, xa: usize, xb: usize, y: usize) -> bool {
+        self.skip
+            .is_some_and(|(x0, y0, x1, y1)| x0 <= xa && xb <= x1 && y0 <= y && y <= y1)
+    }
+}
+
 /// Whether `s` is clearly below `floor` (by the f64 shortcut of
 /// [`cmp_scores`]; never where that defers to the integers).
 #[inline]
@@ -134,10 +166,10 @@ impl Terms {
     }
 }
 
-/// Score every position `(x, y)` with `x0 ≤ x ≤ x1`, `y0 ≤ y ≤ y1` (all valid
-/// top-left positions) and hand each non-flat one that is not clearly below
-/// the sink's floor to `sink`, in raster order; every non-flat position counts
-/// as scored.
+/// Score every position of `at` (all valid top-left positions; [`Positions`])
+/// and hand each non-flat one that is not clearly below the sink's floor to
+/// `sink`, in raster order; every non-flat position scored counts as scored.
+/// The integral tables cover `at.bounds`; skipped positions read no pixels.
 #[allow(
     clippy::arithmetic_side_effects,
     reason = "x1 ≥ x0 and y1 ≥ y0 are checked at entry"
@@ -145,12 +177,13 @@ impl Terms {
 pub(super) fn eval_positions<S: Sink>(
     t: &Tpl,
     (k, win): (usize, &Win),
-    (x0, y0, x1, y1): (usize, usize, usize, usize),
+    at: Positions,
     tables: &mut Tables,
     strip: &mut Strip,
     stats: &mut MatchStats,
     sink: &mut S,
 ) -> Result<(), FailureCode> {
+    let (x0, y0, x1, y1) = at.bounds;
     if x1 < x0 || y1 < y0 {
         return Ok(());
     }
@@ -165,7 +198,7 @@ pub(super) fn eval_positions<S: Sink>(
         st: t.st,
         var_t: t.var_t,
     };
-    let (scored, flat) = scan(t, win, &integ, (x0, y0, x1, y1), strip, terms, sink);
+    let (scored, flat) = scan(t, win, &integ, at, strip, terms, sink);
     stats.positions_scored = stats.positions_scored.saturating_add(scored);
     stats.flat_positions = stats.flat_positions.saturating_add(flat);
     let per = t.w.saturating_mul(t.h) as u64;
@@ -230,17 +263,21 @@ fn scan<S: Sink>(
     t: &Tpl,
     win: &Win,
     integ: &Integral,
-    (x0, y0, x1, y1): (usize, usize, usize, usize),
+    at: Positions,
     strip: &mut Strip,
     terms: Terms,
     sink: &mut S,
 ) -> (u64, u64) {
+    let (x0, y0, x1, y1) = at.bounds;
     let mut counts = (0u64, 0u64);
     let mut floor = sink.floor();
     let width = x1.wrapping_sub(x0).wrapping_add(1);
     if width > STRIP_W {
         for y in y0..=y1 {
             for x in x0..=x1 {
+                if at.skips(x, y) {
+                    continue;
+                }
                 let (sf, sff) = window_sums(t, integ, x, y);
                 let v = terms.var_f(sf, sff);
                 let dot = if v.1 > 0 {
@@ -282,24 +319,29 @@ fn scan<S: Sink>(
                 }
             }
         }
-        // Σ t·f, a column of positions at a time.
+        // Σ t·f, a column of positions at a time, over the runs of positions
+        // it needs (neither flat nor skipped).
         for (i, x) in (0..width).zip(x0..=x1) {
-            let live = (0..hs).any(|j| {
+            let need: [bool; COL_BLOCK] = core::array::from_fn(|j| {
                 let [sf, sff] = strip
                     .sums
                     .get(j)
                     .and_then(|r| r.get(i))
                     .copied()
                     .unwrap_or([0, 0]);
-                terms.var_f(sf, sff).1 > 0
+                j < hs && terms.var_f(sf, sff).1 > 0 && !at.skips(x, ys.wrapping_add(j))
             });
-            if !live {
-                continue;
-            }
-            // Column blocks of 8, 5, 4, 3, 2 and 1 positions, each result
-            // written straight into its strip rows.
+            // Column blocks of 8, 5, 4, 3, 2 and 1 positions over each run of
+            // needed rows, each result written straight into its strip rows.
             let mut j = 0usize;
             while j < hs {
+                if !need.get(j).copied().unwrap_or(false) {
+                    j = j.wrapping_add(1);
+                    continue;
+                }
+                let run = need
+                    .get(j..hs)
+                    .map_or(0, |r| r.iter().take_while(|&&n| n).count());
                 let y = ys.wrapping_add(j);
                 let Some(rows) = strip.dots.get_mut(j..) else {
                     break;
@@ -312,7 +354,7 @@ fn scan<S: Sink>(
                     }
                     v.len()
                 };
-                let done = match hs.wrapping_sub(j) {
+                let done = match run {
                     8.. => put(&dot_col::<8>(t, win, x, y)),
                     5..=7 => put(&dot_col::<5>(t, win, x, y)),
                     4 => put(&dot_col::<4>(t, win, x, y)),
@@ -326,7 +368,13 @@ fn scan<S: Sink>(
         // Hand the positions on, row by row.
         for (j, (sums, dots)) in (0..hs).zip(strip.sums.iter().zip(&strip.dots)) {
             let y = ys.wrapping_add(j);
+            if at.skips_span(x0, x1, y) {
+                continue;
+            }
             for (x, (&[a, b], &d)) in (x0..=x1).zip(sums.iter().zip(dots)) {
+                if at.skips(x, y) {
+                    continue;
+                }
                 let v = terms.var_f(a, b);
                 deliver(&terms, sink, &mut floor, &mut counts, x, y, v, d);
             }
@@ -347,14 +395,18 @@ fn scan<S: Sink>(
     t: &Tpl,
     win: &Win,
     integ: &Integral,
-    (x0, y0, x1, y1): (usize, usize, usize, usize),
+    at: Positions,
     _strip: &mut Strip,
     terms: Terms,
     sink: &mut S,
 ) -> (u64, u64) {
+    let (x0, y0, x1, y1) = at.bounds;
     let mut counts = (0u64, 0u64);
     let mut floor = sink.floor();
     for y in y0..=y1 {
+        if at.skips_span(x0, x1, y) {
+            continue;
+        }
         // `x0, x0 + KERNEL_BLOCK, … ≤ x1` without `step_by` over an inclusive
         // range, whose `nth` has an overflow panic path.
         let mut next_xb = Some(x0);
@@ -365,16 +417,27 @@ fn scan<S: Sink>(
             let mut live = [false; KERNEL_BLOCK];
             // `(0..n).zip(…)` rather than `enumerate().take(n)`: the same
             // pairs without the enumerate counter's overflow check.
-            for ((i, v), l) in (0..n).zip(vs.iter_mut()).zip(live.iter_mut()) {
-                let (sf, sff) = window_sums(t, integ, xb.wrapping_add(i), y);
+            let mut skipped = [false; KERNEL_BLOCK];
+            for (((i, v), l), k) in (0..n)
+                .zip(vs.iter_mut())
+                .zip(live.iter_mut())
+                .zip(skipped.iter_mut())
+            {
+                let x = xb.wrapping_add(i);
+                *k = at.skips(x, y);
+                if *k {
+                    continue;
+                }
+                let (sf, sff) = window_sums(t, integ, x, y);
                 *v = terms.var_f(sf, sff);
                 *l = v.1 > 0;
             }
             let mut dots = [0u32; KERNEL_BLOCK];
-            if n == KERNEL_BLOCK {
-                if live.iter().any(|&l| l) {
-                    dots = dot_block::<KERNEL_BLOCK>(t, win, xb, y);
-                }
+            // A block pass costs less than three single ones (the template
+            // byte is loaded once for all positions), more than two.
+            let needed = live.iter().filter(|&&l| l).count();
+            if n == KERNEL_BLOCK && (needed >= 3 || (needed > 0 && !skipped.contains(&true))) {
+                dots = dot_block::<KERNEL_BLOCK>(t, win, xb, y);
             } else {
                 for ((i, d), &l) in (0..n).zip(dots.iter_mut()).zip(&live) {
                     if l {
@@ -383,7 +446,10 @@ fn scan<S: Sink>(
                     }
                 }
             }
-            for ((i, &s), &d) in (0..n).zip(&vs).zip(&dots) {
+            for (((i, &s), &d), &k) in (0..n).zip(&vs).zip(&dots).zip(&skipped) {
+                if k {
+                    continue;
+                }
                 deliver(
                     &terms,
                     sink,
@@ -701,7 +767,7 @@ pub(super) fn coarse_to_fine(
     eval_positions(
         &tc,
         (lc, &wc),
-        (0, 0, lx, ly),
+        Positions::all((0, 0, lx, ly)),
         tables,
         strip,
         stats,
@@ -729,6 +795,8 @@ pub(super) fn coarse_to_fine(
             let mut center = (c.x.saturating_mul(2).min(lx), c.y.saturating_mul(2).min(ly));
             // The region's argmax (ties keep the first offered).
             let mut best = ArgMax::default();
+            // The region of the step before: its positions are in `best` already.
+            let mut scored: Option<(usize, usize, usize, usize)> = None;
             for _ in 0..=MAX_CLIMB_STEPS {
                 let seen = present(visited.get(..n_visited));
                 if seen.contains(&center) {
@@ -746,7 +814,12 @@ pub(super) fn coarse_to_fine(
                     cx.saturating_add(r).min(lx),
                     cy.saturating_add(r).min(ly),
                 );
-                eval_positions(&t, (k, &w), bounds, tables, strip, stats, &mut best)?;
+                let at = Positions {
+                    bounds,
+                    skip: scored,
+                };
+                eval_positions(&t, (k, &w), at, tables, strip, stats, &mut best)?;
+                scored = Some(bounds);
                 let Some(b) = best.0.as_ref() else {
                     break;
                 };

@@ -3,7 +3,7 @@
 
 use super::integral::Tables;
 use super::pyramid::{Tpl, Win};
-use super::search::{eval_positions, Cand, Sink, Strip};
+use super::search::{eval_positions, Cand, Positions, Sink, Strip};
 use super::{FailureCode, MatchStats, Score, MAX_LEVELS};
 
 /// Vertex offset of a parabola through `(−1, m)`, `(0, c)`, `(1, p)`, in [−0.5, 0.5];
@@ -74,7 +74,7 @@ pub(super) fn offsets(
     eval_positions(
         &t0,
         (0, &w0),
-        bounds,
+        Positions::all(bounds),
         tables,
         strip,
         &mut sub_stats,
