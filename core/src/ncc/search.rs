@@ -78,8 +78,7 @@ impl Positions {
     /// Whether `(x, y)` lies in `skip`.
     #[inline]
     fn skips(&self, x: usize, y: usize) -> bool {
-        self.skip
-            .is_some_and(|(x0, y0, x1, y1)| x0 <= x && x <= x1 && y0 <= y && y <= y1)
+        self.skips_span(x, x, y)
     }
 
     /// Whether `skip` holds every position of row `y` from `xa` to `xb`.
