@@ -338,9 +338,11 @@ fn scan<S: Sink>(
                     j = j.wrapping_add(1);
                     continue;
                 }
-                let run = need
-                    .get(j..hs)
-                    .map_or(0, |r| r.iter().take_while(|&&n| n).count());
+                let run = need.get(j..hs).map_or(0, |r| {
+                    r.iter()
+                        .take_while(|&&n| n)
+                        .fold(0usize, |c, _| c.wrapping_add(1))
+                });
                 let y = ys.wrapping_add(j);
                 let Some(rows) = strip.dots.get_mut(j..) else {
                     break;
@@ -434,7 +436,11 @@ fn scan<S: Sink>(
             let mut dots = [0u32; KERNEL_BLOCK];
             // A block pass costs less than three single ones (the template
             // byte is loaded once for all positions), more than two.
-            let needed = live.iter().filter(|&&l| l).count();
+            // A fold with wrapping adds: `count` keeps an overflow panic path
+            // under overflow checks (at most KERNEL_BLOCK here).
+            let needed = live
+                .iter()
+                .fold(0usize, |c, &l| c.wrapping_add(usize::from(l)));
             if n == KERNEL_BLOCK && (needed >= 3 || (needed > 0 && !skipped.contains(&true))) {
                 dots = dot_block::<KERNEL_BLOCK>(t, win, xb, y);
             } else {
