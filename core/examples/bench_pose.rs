@@ -116,7 +116,7 @@ fn instr(rig: &StereoRig) {
         iterations: 1000,
         inlier_m: 0.05,
         confidence: 0.999,
-        scale_by_sigma: true,
+        sigma_gate: vtsm_core::pose::SIGMA_GATE,
     };
     let calls = 100u64;
     let mut it = [0u64; 2];
@@ -183,7 +183,7 @@ fn main() {
             iterations: 1000,
             inlier_m: 0.05,
             confidence: 0.999,
-            scale_by_sigma: true,
+            sigma_gate: vtsm_core::pose::SIGMA_GATE,
         };
         let sets: Vec<_> = (0..200)
             .map(|_| {
@@ -232,7 +232,7 @@ fn main() {
                     iterations: 1000,
                     inlier_m: 0.05,
                     confidence: 0.999,
-                    scale_by_sigma: true,
+                    sigma_gate: vtsm_core::pose::SIGMA_GATE,
                 };
                 let mut mask = [false; MAX_CORR];
                 let mut s = Ransac::new(&pairs, &cfg, Rng::new(k as u64))

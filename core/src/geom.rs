@@ -174,7 +174,8 @@ pub fn image_dim_ok(d: u32) -> bool {
 }
 
 impl Camera {
-    /// A checked camera: see [`Camera::check`].
+    /// A checked camera: focal lengths accepted by [`focal_px_ok`], a
+    /// principal point by [`principal_px_ok`], image sides by [`image_dim_ok`].
     ///
     /// # Errors
     /// [`FailureCode::StereoRigInvalid`].

@@ -12,7 +12,7 @@ use nalgebra::Matrix3;
 
 /// Default RANSAC confidence `p` of the early-exit rule.
 pub const DEFAULT_CONFIDENCE: f32 = 0.999;
-/// With `scale_by_sigma`, a pair's gate is `√(inlier_m² + (SIGMA_GATE·σ)²)`.
+/// Default [`RansacConfig::sigma_gate`]: a pair's gate is `√(inlier_m² + (SIGMA_GATE·σ)²)`.
 pub const SIGMA_GATE: f32 = 3.0;
 /// Refit-and-recount rounds after the RANSAC search.
 pub const REFIT_ROUNDS: u32 = 3;
@@ -26,8 +26,9 @@ pub struct RansacConfig {
     pub inlier_m: f32,
     /// Early-exit confidence `p`, in (0, 1).
     pub confidence: f32,
-    /// Widen each pair's gate to `√(inlier_m² + (SIGMA_GATE·sigma_m)²)`.
-    pub scale_by_sigma: bool,
+    /// Widen each pair's gate to `√(inlier_m² + (sigma_gate·sigma_m)²)`
+    /// (0: the fixed gate `inlier_m`), finite, ≥ 0.
+    pub sigma_gate: f32,
 }
 
 impl RansacConfig {
@@ -38,7 +39,7 @@ impl RansacConfig {
             iterations: p.ransac_iter,
             inlier_m: p.inlier_m,
             confidence: DEFAULT_CONFIDENCE,
-            scale_by_sigma: true,
+            sigma_gate: SIGMA_GATE,
         }
     }
 
@@ -50,6 +51,8 @@ impl RansacConfig {
         let ok = (1..=MAX_RANSAC_ITER as u16).contains(&self.iterations)
             && self.inlier_m.is_finite()
             && self.inlier_m > 0.0
+            && self.sigma_gate.is_finite()
+            && self.sigma_gate >= 0.0
             && self.confidence.is_finite()
             && self.confidence > 0.0
             && self.confidence < 1.0;
@@ -130,12 +133,8 @@ fn sample3(rng: &mut Rng, n: usize) -> [usize; 3] {
 
 fn gate_sq(cfg: &RansacConfig, p: &Correspondence) -> f32 {
     let base = cfg.inlier_m * cfg.inlier_m;
-    if cfg.scale_by_sigma {
-        let s = SIGMA_GATE * p.sigma_m;
-        base + s * s
-    } else {
-        base
-    }
+    let s = cfg.sigma_gate * p.sigma_m;
+    base + s * s
 }
 
 /// Upper bound (metres) on how far two `world_from_cam` poses move a camera
@@ -582,7 +581,7 @@ mod tests {
             iterations,
             inlier_m: 0.05,
             confidence: 0.999,
-            scale_by_sigma: false,
+            sigma_gate: 0.0,
         }
     }
 
@@ -673,7 +672,7 @@ mod tests {
             let truth = random_pose(&mut rng);
             let pairs = contaminated(&mut rng, &truth, 25, 25, 0.01);
             let c = RansacConfig {
-                scale_by_sigma: seed % 2 == 0,
+                sigma_gate: if seed % 2 == 0 { SIGMA_GATE } else { 0.0 },
                 ..cfg(300)
             };
             let mut m1 = [false; 50];
@@ -859,7 +858,7 @@ mod tests {
         let plain = ransac(&pairs, &cfg(200), &mut rng.fork(1), &mut mask).unwrap();
         assert!(!mask[0] && plain.inliers == 19);
         let scaled = RansacConfig {
-            scale_by_sigma: true,
+            sigma_gate: SIGMA_GATE,
             ..cfg(200)
         };
         let wide = ransac(&pairs, &scaled, &mut rng.fork(1), &mut mask).unwrap();

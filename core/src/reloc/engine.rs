@@ -83,6 +83,9 @@ pub struct Relocalizer<A, S> {
     /// Rounds ended without a consensus before the first pose update (after
     /// the multi-seed mode, if any).
     rounds_without_fix: u8,
+    /// Whether this round's pairs were solved again with the first-fix gate
+    /// ([`Options::first_fix_sigma_scale`]).
+    widened: bool,
     /// Next seed to evaluate while `seeding`.
     seed_index: u16,
     seeding: bool,
@@ -157,6 +160,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             consecutive_stall: 0,
             consecutive_reseed: 0,
             rounds_without_fix: 0,
+            widened: false,
             seed_index: 0,
             seeding: params.seeds > 0,
             best_seed: None,
@@ -181,14 +185,20 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
     /// `n_iter` successes, plus `seeds` seed rounds; each round does at most
     /// `attempts_per_iter` attempts, one solve start and ⌈`ransac_iter` /
     /// [`super::RANSAC_CHUNK`]⌉ RANSAC chunks; the repeated final solve of
-    /// [`super::Verify::repeat_solve`] adds one solve start and its chunks.
+    /// [`super::Verify::repeat_solve`] adds one solve start and its chunks;
+    /// each of the at most `max_reseed + 1` rounds before the first fix may
+    /// add one more solve ([`super::Options::first_fix_sigma_scale`]).
     pub fn max_work_units(params: &Params) -> u32 {
         let fails = u64::from(params.max_stall) + u64::from(params.max_reseed);
         let n_iter = u64::from(params.n_iter);
         let rounds = u64::from(params.seeds) + n_iter + (n_iter + 1) * fails + 1;
         let solve = 1 + u64::from(Self::max_chunks(params));
         let per_round = u64::from(params.attempts_per_iter) + solve;
-        let units = rounds * per_round + solve;
+        // A round before the first fix may be solved again with the first-fix
+        // gate (Options::first_fix_sigma_scale); before a fix only Reseed
+        // rounds follow a failed one, so there are at most max_reseed + 1.
+        let widened = (u64::from(params.max_reseed) + 1) * solve;
+        let units = rounds * per_round + solve + widened;
         u32::try_from(units).unwrap_or(u32::MAX)
     }
 
@@ -469,7 +479,9 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
                 } else {
                     let code = FailureCode::PoseRansacNoConsensus;
                     self.log.record(code, now, u32::from(sol.inliers));
-                    self.round_failed(code, now);
+                    if !self.widen_first_fix() {
+                        self.round_failed(code, now);
+                    }
                 }
             }
             Err(code) => {
@@ -479,7 +491,27 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         }
     }
 
+    /// Before the first fix (not while seeding), once per round: solve the
+    /// same pairs again with the gate's σ term widened by
+    /// [`Options::first_fix_sigma_scale`] instead of failing the round.
+    /// Whether that solve was scheduled.
+    fn widen_first_fix(&mut self) -> bool {
+        let scale = self.opts.first_fix_sigma_scale;
+        if self.widened || self.seeding || self.stats.successes > 0 || scale <= 1.0 {
+            return false;
+        }
+        self.widened = true;
+        self.stats.widened_solves = self.stats.widened_solves.saturating_add(1);
+        self.solver.set_sigma_scale(scale);
+        self.phase = Phase::Solve;
+        true
+    }
+
     fn start_round(&mut self) {
+        if self.widened {
+            self.widened = false;
+            self.solver.set_sigma_scale(1.0);
+        }
         self.round = self.round.saturating_add(1);
         self.stats.rounds = self.stats.rounds.saturating_add(1);
         self.round_attempts = 0;
@@ -872,6 +904,11 @@ mod tests {
 
     struct FakeSolver {
         script: Script,
+        /// Answers the solves made while the σ scale is above 1, when set.
+        wide: Option<Script>,
+        scale: f32,
+        /// The σ scale of each solve.
+        scales: Vec<f32>,
         calls: Vec<Vec<Correspondence>>,
     }
 
@@ -882,8 +919,20 @@ mod tests {
         ) -> Self {
             Self {
                 script: Box::new(f),
+                wide: None,
+                scale: 1.0,
+                scales: Vec::new(),
                 calls: Vec::new(),
             }
+        }
+
+        fn with_wide(
+            mut self,
+            f: impl FnMut(u32, &[Correspondence], &mut [bool]) -> Result<Solution, FailureCode>
+                + 'static,
+        ) -> Self {
+            self.wide = Some(Box::new(f));
+            self
         }
     }
 
@@ -897,7 +946,15 @@ mod tests {
             let _ = rng.next_u32();
             let call = self.calls.len() as u32;
             self.calls.push(pairs.to_vec());
-            (self.script)(call, pairs, mask)
+            self.scales.push(self.scale);
+            match self.wide.as_mut() {
+                Some(wide) if self.scale > 1.0 => wide(call, pairs, mask),
+                _ => (self.script)(call, pairs, mask),
+            }
+        }
+
+        fn set_sigma_scale(&mut self, scale: f32) {
+            self.scale = scale;
         }
     }
 
@@ -1490,6 +1547,81 @@ mod tests {
             r_deg: 1.5,
         });
         assert_eq!(Options::for_params(&wide).first_fix_rounds, 0);
+    }
+
+    /// Verifies: VTSM-RELOC-038
+    #[test]
+    fn a_first_round_without_consensus_is_solved_again_with_the_wider_gate() {
+        // ℓ = 256: the default σ scale is 4.
+        let p = Params {
+            template_px: 256,
+            ..small_params()
+        };
+        let o = Options {
+            min_inliers: 11,
+            first_fix_rounds: 1,
+            ..opts(&p)
+        };
+        assert_eq!(o.first_fix_sigma_scale, 4.0);
+        // 10 of 20 at the solver's gate, all 20 at the wider one.
+        let all = |pairs: &[Correspondence], mask: &mut [bool]| {
+            let mut s = even_inliers(at_x(0.3), pairs, mask);
+            mask.iter_mut().take(pairs.len()).for_each(|m| *m = true);
+            s.inliers = pairs.len() as u16;
+            s
+        };
+        let solver = FakeSolver::new(|_, pairs, mask| Ok(even_inliers(at_x(0.3), pairs, mask)))
+            .with_wide(move |_, pairs, mask| Ok(all(pairs, mask)));
+        let mut r = Relocalizer::new(FakeAttempt::ok(), solver, &p, &o, &at_x(0.0), 1).unwrap();
+        let out = r.run_to_completion(0);
+        // The first fix came from the second solve of the first round; every
+        // later round solved at the solver's own gate and failed, as Stall and
+        // Reseed rounds (no second solve after a fix).
+        assert_eq!(out.stats.widened_solves, 1);
+        assert_eq!(out.stats.successes, 1);
+        assert_eq!(out.log.count(FailureCode::RelocNoConsensus), 0);
+        let scales = &r.solver_ref().scales;
+        assert_eq!(scales.get(..2), Some(&[1.0, 4.0][..]));
+        assert!(scales.iter().skip(2).all(|&s| s == 1.0), "{scales:?}");
+        assert_eq!(out.stats.solves as usize, scales.len());
+        // The same pairs went to both solves of the first round.
+        let calls = &r.solver_ref().calls;
+        assert_eq!(calls.first(), calls.get(1));
+
+        // Without consensus at the wider gate either, the round fails as before.
+        let never = || {
+            FakeSolver::new(|_, pairs, mask| Ok(even_inliers(at_x(0.3), pairs, mask)))
+                .with_wide(|_, pairs, mask| Ok(even_inliers(at_x(0.3), pairs, mask)))
+        };
+        let out = Relocalizer::new(FakeAttempt::ok(), never(), &p, &o, &at_x(0.0), 1)
+            .unwrap()
+            .run_to_completion(0);
+        assert_eq!(out.failure, Some(FailureCode::RelocNoConsensus));
+        assert_eq!((out.stats.solves, out.stats.widened_solves), (2, 1));
+
+        // Scale 1 (ℓ ≤ 64 by default): no second solve.
+        let o1 = Options {
+            first_fix_sigma_scale: 1.0,
+            ..o
+        };
+        let out = Relocalizer::new(FakeAttempt::ok(), never(), &p, &o1, &at_x(0.0), 1)
+            .unwrap()
+            .run_to_completion(0);
+        assert_eq!((out.stats.solves, out.stats.widened_solves), (1, 0));
+        assert_eq!(
+            Options::for_params(&small_params()).first_fix_sigma_scale,
+            1.0
+        );
+
+        // Out-of-range scales are refused.
+        for bad in [0.5, f32::NAN, 16.5] {
+            let ob = Options {
+                first_fix_sigma_scale: bad,
+                ..o
+            };
+            let err = Relocalizer::new(FakeAttempt::ok(), never(), &p, &ob, &at_x(0.0), 1).err();
+            assert_eq!(err, Some(FailureCode::ConfigParamOutOfRange), "{bad}");
+        }
     }
 
     /// Verifies: VTSM-RELOC-012

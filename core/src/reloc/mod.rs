@@ -290,6 +290,15 @@ pub trait Solver {
         let _ = (pairs, inlier_mask, pose);
         None
     }
+
+    /// Scale the per-pair depth-uncertainty term of the inlier gate of the
+    /// solves that follow by `scale` (≥ 1; 1 is the solver's own gate) until
+    /// it is set again. The engine widens it for a second solve of a first
+    /// round's pairs ([`Options::first_fix_sigma_scale`]) and sets it back to
+    /// 1 when a round starts. The default ignores it.
+    fn set_sigma_scale(&mut self, scale: f32) {
+        let _ = scale;
+    }
 }
 
 /// RANSAC hypotheses evaluated per work unit by a chunked [`Solver`].
@@ -335,6 +344,13 @@ pub struct Options {
     /// whose matches trickle in but never agree on a pose. Rounds of the
     /// multi-seed mode are not counted (each seed is its own guess).
     pub first_fix_rounds: u8,
+    /// Before the first pose update, a round whose pairs reach no consensus
+    /// of `min_inliers` is solved once more, on the same pairs, with the
+    /// depth-uncertainty term of the RANSAC inlier gate scaled by this factor
+    /// ([`Solver::set_sigma_scale`]); only if that also fails is the round a
+    /// failed one. 1 = no second solve, else (1, 16]. Rounds after the first
+    /// fix, and first rounds that reach the consensus, keep the solver's gate.
+    pub first_fix_sigma_scale: f32,
     /// Integrity gates applied to the final estimate before it is reported
     /// as a success.
     pub gates: Gates,
@@ -461,6 +477,7 @@ impl Options {
             } else {
                 0
             },
+            first_fix_sigma_scale: first_fix_sigma_scale(params.template_px),
             gates: Gates {
                 prior_factor: DEFAULT_PRIOR_FACTOR,
                 min_spread_m: params.inlier_m,
@@ -482,6 +499,8 @@ impl Options {
             && self.seed_r_deg.is_finite()
             && self.seed_r_deg > 0.0
             && self.seed_r_deg <= 45.0
+            && self.first_fix_sigma_scale.is_finite()
+            && (1.0..=16.0).contains(&self.first_fix_sigma_scale)
             && self.gates.validate()
             && self.verify.validate();
         if ok {
@@ -509,6 +528,23 @@ pub const DEFAULT_PRIOR_FACTOR: f32 = 3.0;
 /// Reseed cap only): from a prior 0.46 m off with t̃₀ = 0.5 m the first fix
 /// took up to 10 Reseed rounds, the search the paper's Reseed is for.
 pub const DEFAULT_FIRST_FIX_ROUNDS: u8 = 1;
+
+/// Default [`Options::first_fix_sigma_scale`] for templates of side `template_px`:
+/// ℓ/64, at least 1, so templates of 64 px and less get no second solve.
+///
+/// The disparity noise behind each pair's σ ([`MatchPolicy::sigma_d_px`],
+/// 0.5 px) is that of a match at ℓ ≤ 64. Under a lighting change a match
+/// moves by a fraction of the template's footprint, so in pixels the error
+/// grows with ℓ, as the residuals of correct poses do (the reprojection gate,
+/// [`Gates::max_reproj_px`], scales by ℓ/64 for that reason). The first
+/// round, whose templates are rendered from viewpoints up to (t̃₀, r̃₀) from
+/// the truth, carries the largest such errors: at the paper profile
+/// (ℓ = 256) after a 6 h change two flagstone views reached 24 and 28 of 100
+/// pairs in consensus (30 needed) and failed, while their pairs held enough
+/// correct ones to converge (`fsw-docs/eval/first-fix.md`).
+pub fn first_fix_sigma_scale(template_px: u16) -> f32 {
+    (f32::from(template_px) / 64.0).clamp(1.0, 16.0)
+}
 /// Number of template variants counted in [`PipelineStats::matches`]:
 /// size (ℓ, ℓ/2) × filter (gray, Sobel, Laplacian), index `size * 3 + filter`.
 pub const MATCH_VARIANTS: usize = 6;
@@ -563,6 +599,9 @@ pub struct Stats {
     pub reseeds: u16,
     /// Seeds evaluated in multi-seed mode.
     pub seeds_tried: u16,
+    /// First rounds solved a second time with the first-fix gate
+    /// ([`Options::first_fix_sigma_scale`]).
+    pub widened_solves: u16,
     /// Final refinement counters (all zero when it did not run).
     pub refine: crate::pose::RefineStats,
     /// Work units spent on [`Verify::repeat_solve`] (its solve start and

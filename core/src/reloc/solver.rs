@@ -19,6 +19,8 @@ pub struct RansacSolver {
     /// Rig and settings of the final refinement (`None`: no refinement and no
     /// covariance).
     pub refine: Option<(StereoRig, RefineConfig)>,
+    /// Factor on the σ term of the gate of the next solves ([`Solver::set_sigma_scale`]).
+    sigma_scale: f32,
     state: Option<crate::pose::Ransac>,
 }
 
@@ -39,6 +41,7 @@ impl RansacSolver {
             cfg: crate::pose::RansacConfig::from_params(p),
             chunked: true,
             refine: None,
+            sigma_scale: 1.0,
             state: None,
         }
     }
@@ -50,6 +53,14 @@ impl RansacSolver {
         self.refine = Some((*rig, cfg));
         self
     }
+
+    /// The RANSAC settings of the next solve: `cfg` with its σ term scaled.
+    fn gated(&self) -> crate::pose::RansacConfig {
+        crate::pose::RansacConfig {
+            sigma_gate: self.cfg.sigma_gate * self.sigma_scale,
+            ..self.cfg
+        }
+    }
 }
 
 impl Solver for RansacSolver {
@@ -59,7 +70,7 @@ impl Solver for RansacSolver {
         rng: &mut Rng,
         inlier_mask: &mut [bool],
     ) -> Result<Solution, FailureCode> {
-        crate::pose::ransac(pairs, &self.cfg, rng, inlier_mask).map(to_solution)
+        crate::pose::ransac(pairs, &self.gated(), rng, inlier_mask).map(to_solution)
     }
 
     fn start(&mut self, pairs: &[Correspondence], rng: Rng) -> Result<bool, FailureCode> {
@@ -67,7 +78,7 @@ impl Solver for RansacSolver {
         if !self.chunked {
             return Ok(true);
         }
-        self.state = Some(crate::pose::Ransac::new(pairs, &self.cfg, rng)?);
+        self.state = Some(crate::pose::Ransac::new(pairs, &self.gated(), rng)?);
         Ok(false)
     }
 
@@ -101,6 +112,14 @@ impl Solver for RansacSolver {
     ) -> Option<Result<Refined, FailureCode>> {
         let (rig, cfg) = self.refine.as_ref()?;
         Some(crate::pose::refine(pairs, inlier_mask, rig, pose, cfg))
+    }
+
+    fn set_sigma_scale(&mut self, scale: f32) {
+        self.sigma_scale = if scale.is_finite() && scale >= 1.0 {
+            scale
+        } else {
+            1.0
+        };
     }
 }
 
@@ -164,6 +183,49 @@ mod tests {
             s.solve(&pairs[..2], &mut Rng::new(1), &mut mask).err(),
             Some(FailureCode::PoseTooFewPoints)
         );
+    }
+
+    /// Verifies: VTSM-RELOC-038
+    #[test]
+    fn sigma_scale_widens_only_the_depth_term_of_the_gate() {
+        // One pair in four displaced 10 cm along its camera ray, σ = 1 cm:
+        // outside the 5 cm gate with 3σ (√(5² + 3²) ≈ 5.8 cm), inside it
+        // with 4 × 3σ (13 cm).
+        let truth = Pose::new(UnitQuaternion::identity(), Vec3::new(0.0, 0.0, 0.0));
+        let mut rng = Rng::new(9);
+        let pairs: Vec<Correspondence> = (0..40)
+            .map(|i| {
+                let cam = Vec3::new(
+                    rng.uniform(-2.0, 2.0),
+                    rng.uniform(-1.0, 1.0),
+                    rng.uniform(2.0, 6.0),
+                );
+                let shift = if i % 4 == 0 { 0.1 } else { 0.0 };
+                Correspondence {
+                    world: truth.transform_point(&(cam + cam.normalize() * shift)),
+                    cam,
+                    sigma_m: 0.01,
+                }
+            })
+            .collect();
+        let p = Params::paper();
+        let mut s = RansacSolver::from_params(&p);
+        s.chunked = false;
+        let mut mask = [false; 64];
+        let narrow = s.solve(&pairs, &mut Rng::new(1), &mut mask).unwrap();
+        s.set_sigma_scale(4.0);
+        let wide = s.solve(&pairs, &mut Rng::new(1), &mut mask).unwrap();
+        assert_eq!(narrow.inliers, 30);
+        assert_eq!(wide.inliers, 40);
+        // Back to 1 (and anything below 1 or not finite means 1): the same
+        // solution as before, bit for bit.
+        for back in [1.0, 0.25, f32::NAN] {
+            s.set_sigma_scale(back);
+            assert_eq!(
+                s.solve(&pairs, &mut Rng::new(1), &mut mask).unwrap(),
+                narrow
+            );
+        }
     }
 
     /// Observes a fixed scene under `truth`: each attempt triangulates one map
