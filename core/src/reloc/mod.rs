@@ -348,7 +348,7 @@ pub struct Options {
     /// of `min_inliers` is solved once more, on the same pairs, with the
     /// depth-uncertainty term of the RANSAC inlier gate scaled by this factor
     /// ([`Solver::set_sigma_scale`]); only if that also fails is the round a
-    /// failed one. 1 = no second solve, else (1, 16]. Rounds after the first
+    /// failed one. 1 = no second solve, else (1, [`MAX_FIRST_FIX_SIGMA_SCALE`]]. Rounds after the first
     /// fix, and first rounds that reach the consensus, keep the solver's gate.
     pub first_fix_sigma_scale: f32,
     /// Integrity gates applied to the final estimate before it is reported
@@ -485,7 +485,7 @@ impl Options {
                 // change leaves on correct poses scales with the template's
                 // footprint (largest measured 6.2 px at ℓ = 32, 6.3 px at
                 // ℓ = 64, 22.8 px at ℓ = 256 under 3–6 h; fsw-docs/eval/integrity.md).
-                max_reproj_px: params.epsilon_px * (f32::from(params.template_px) / 64.0).max(1.0),
+                max_reproj_px: params.epsilon_px * footprint_scale(params.template_px),
             },
             verify: Verify::off(params),
         }
@@ -500,7 +500,7 @@ impl Options {
             && self.seed_r_deg > 0.0
             && self.seed_r_deg <= 45.0
             && self.first_fix_sigma_scale.is_finite()
-            && (1.0..=16.0).contains(&self.first_fix_sigma_scale)
+            && (1.0..=MAX_FIRST_FIX_SIGMA_SCALE).contains(&self.first_fix_sigma_scale)
             && self.gates.validate()
             && self.verify.validate();
         if ok {
@@ -529,8 +529,20 @@ pub const DEFAULT_PRIOR_FACTOR: f32 = 3.0;
 /// took up to 10 Reseed rounds, the search the paper's Reseed is for.
 pub const DEFAULT_FIRST_FIX_ROUNDS: u8 = 1;
 
+/// How much the pixel error of a match under a lighting change grows with the
+/// template side `template_px` over that of a 64 px template: ℓ/64, at least 1.
+/// The reprojection gate ([`Gates::max_reproj_px`]) and the first-fix gate
+/// ([`first_fix_sigma_scale`]) scale with it.
+pub fn footprint_scale(template_px: u16) -> f32 {
+    (f32::from(template_px) / 64.0).max(1.0)
+}
+
+/// Largest [`Options::first_fix_sigma_scale`].
+pub const MAX_FIRST_FIX_SIGMA_SCALE: f32 = 16.0;
+
 /// Default [`Options::first_fix_sigma_scale`] for templates of side `template_px`:
-/// ℓ/64, at least 1, so templates of 64 px and less get no second solve.
+/// [`footprint_scale`] (at most [`MAX_FIRST_FIX_SIGMA_SCALE`]), so templates of
+/// 64 px and less get no second solve.
 ///
 /// The disparity noise behind each pair's σ ([`MatchPolicy::sigma_d_px`],
 /// 0.5 px) is that of a match at ℓ ≤ 64. Under a lighting change a match
@@ -543,8 +555,9 @@ pub const DEFAULT_FIRST_FIX_ROUNDS: u8 = 1;
 /// pairs in consensus (30 needed) and failed, while their pairs held enough
 /// correct ones to converge (`fsw-docs/eval/first-fix.md`).
 pub fn first_fix_sigma_scale(template_px: u16) -> f32 {
-    (f32::from(template_px) / 64.0).clamp(1.0, 16.0)
+    footprint_scale(template_px).min(MAX_FIRST_FIX_SIGMA_SCALE)
 }
+
 /// Number of template variants counted in [`PipelineStats::matches`]:
 /// size (ℓ, ℓ/2) × filter (gray, Sobel, Laplacian), index `size * 3 + filter`.
 pub const MATCH_VARIANTS: usize = 6;
