@@ -896,6 +896,14 @@ mod tests {
                 confidence: 0.0,
                 ..c
             },
+            RansacConfig {
+                sigma_gate: -1.0,
+                ..c
+            },
+            RansacConfig {
+                sigma_gate: f32::INFINITY,
+                ..c
+            },
         ] {
             assert_eq!(
                 ransac(&pairs, &bad, &mut rng, &mut mask).err(),
