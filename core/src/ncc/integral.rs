@@ -1,7 +1,7 @@
 //! Integral images of window levels (window sums and sums of squares) and the
 //! per-search table scratch.
 
-use super::pyramid::Win;
+use super::pyramid::{Tpl, Win};
 use crate::failure::FailureCode;
 
 /// Integral images (sum and sum of squares) of a rectangle of a window level.
@@ -63,8 +63,9 @@ impl<'s> Integral<'s> {
         })
     }
 
-    /// (Σf, Σf²) over `w × h` pixels at region coordinates `(x, y)`.
-    #[inline]
+    /// (Σf, Σf²) over `w × h` pixels at region coordinates `(x, y)` (the
+    /// tests' reference for [`Integral::rect_row`]).
+    #[cfg(test)]
     pub(super) fn rect(&self, x: usize, y: usize, w: usize, h: usize) -> (u32, u32) {
         // Wrapping: a rectangle inside the region (the contract) never wraps; one
         // outside reads some entry or 0 through `get`, never out of bounds.
@@ -88,7 +89,6 @@ impl<'s> Integral<'s> {
     /// `(x + i, y)`, `i < out.len()`, into `out[i]` (with `add`, added to it,
     /// wrapping): four rows of each table combined entry by entry. Rectangles
     /// outside the region (never, by the contract) give zeros, or add nothing.
-    #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
     pub(super) fn rect_row(
         &self,
         x: usize,
@@ -138,9 +138,206 @@ impl<'s> Integral<'s> {
     }
 }
 
+/// Window sums `[Σf, Σf²]` of an unmasked `tw × th` template over a band of
+/// positions, from running column sums instead of integral tables: the
+/// column sums of the template's rows under the current position row, one per
+/// window column of the band, moved down a row by adding the row that enters
+/// and subtracting the row that leaves, and summed across `tw` columns by a
+/// sliding sum. A refinement region of `p × p` positions of an ℓ-pixel
+/// template reads its `(ℓ + p − 1)²` pixels once with vectorizable adds, where
+/// the tables cost two stored entries per pixel and a serial running sum
+/// along each row. The sums are the same integers (u32 wrapping, exact as in
+/// [`Integral::build`]).
+pub(super) struct ColumnSums<'s> {
+    /// Σf down each column of the band (`rw` entries).
+    cs: &'s mut [u32],
+    /// Σf² down each column.
+    cq: &'s mut [u32],
+    /// Window-level column of the band's first position.
+    x0: usize,
+    /// Window-level row of the positions the column sums stand for.
+    y: usize,
+    tw: usize,
+    th: usize,
+}
+
+impl<'s> ColumnSums<'s> {
+    /// The column sums of `rw` columns of `win` from `(x0, y0)` over `th` rows
+    /// (the positions of row `y0`), in `buf` (at least `2·rw` entries).
+    ///
+    /// # Errors
+    /// [`FailureCode::NccScratchTooSmall`] when `buf` is too short or the
+    /// rows leave the window.
+    pub(super) fn new(
+        win: &Win,
+        (x0, y0, rw): (usize, usize, usize),
+        (tw, th): (usize, usize),
+        buf: &'s mut [u32],
+    ) -> Result<Self, FailureCode> {
+        let (cs, rest) = buf
+            .split_at_mut_checked(rw)
+            .ok_or(FailureCode::NccScratchTooSmall)?;
+        let cq = rest.get_mut(..rw).ok_or(FailureCode::NccScratchTooSmall)?;
+        init_columns(win, (x0, y0), th, cs, cq).ok_or(FailureCode::NccScratchTooSmall)?;
+        Ok(Self {
+            cs,
+            cq,
+            x0,
+            y: y0,
+            tw,
+            th,
+        })
+    }
+
+    /// `[Σf, Σf²]` of the positions `(x + i, y)`, `i < out.len()`, into
+    /// `out[i]`. Rows are asked for in increasing order and columns from the
+    /// band's first on (a row before the current one, a column before the
+    /// band's or rows leaving the window give zeros: never, by the contract);
+    /// the column sums move down to `y` first.
+    pub(super) fn row(&mut self, win: &Win, x: usize, y: usize, out: &mut [[u32; 2]]) {
+        while self.y < y {
+            let (Some(leave), Some(enter)) = (
+                win.span(self.x0, self.y, self.cs.len()),
+                self.y
+                    .checked_add(self.th)
+                    .and_then(|e| win.span(self.x0, e, self.cs.len())),
+            ) else {
+                out.fill([0, 0]);
+                return;
+            };
+            move_down(self.cs, self.cq, leave, enter);
+            // y < usize::MAX: the loop condition.
+            self.y = self.y.wrapping_add(1);
+        }
+        let (Some(i0), true) = (x.checked_sub(self.x0), self.y == y) else {
+            out.fill([0, 0]);
+            return;
+        };
+        let (Some(cs), Some(cq)) = (self.cs.get(i0..), self.cq.get(i0..)) else {
+            out.fill([0, 0]);
+            return;
+        };
+        let (Some(first_s), Some(first_q)) = (cs.get(..self.tw), cq.get(..self.tw)) else {
+            out.fill([0, 0]);
+            return;
+        };
+        let fold = |c: &[u32]| c.iter().fold(0u32, |a, &v| a.wrapping_add(v));
+        let (mut s, mut q) = (fold(first_s), fold(first_q));
+        // Position i + 1 gains column i + tw and loses column i.
+        let enter = cs
+            .get(self.tw..)
+            .unwrap_or(&[])
+            .iter()
+            .zip(cq.get(self.tw..).unwrap_or(&[]));
+        let leave = cs.iter().zip(cq.iter());
+        let mut steps = enter.zip(leave);
+        for o in out.iter_mut() {
+            *o = [s, q];
+            match steps.next() {
+                Some(((&es, &eq), (&ls, &lq))) => {
+                    s = s.wrapping_add(es).wrapping_sub(ls);
+                    q = q.wrapping_add(eq).wrapping_sub(lq);
+                }
+                None => {
+                    s = 0;
+                    q = 0;
+                }
+            }
+        }
+    }
+}
+
+/// Columns summed per pass of [`init_columns`]: one 128-bit vector of bytes.
+const COL_CHUNK: usize = 16;
+/// Rows whose byte sums a u16 lane holds exactly (257 · 255 = 65 535).
+const U16_ROWS: usize = 257;
+
+/// Sum `th` rows of `win` from `(x0, y0)` down each of the `cs.len()` columns
+/// (Σf into `cs`, Σf² into `cq`), [`COL_CHUNK`] columns at a time with their
+/// sums in registers through the rows: Σf in u16 lanes, flushed to u32 every
+/// [`U16_ROWS`] rows, the squares in u16 (at most 255² < 2¹⁶) added to u32
+/// lanes. `None` when a row leaves the window.
+fn init_columns(
+    win: &Win,
+    (x0, y0): (usize, usize),
+    th: usize,
+    cs: &mut [u32],
+    cq: &mut [u32],
+) -> Option<()> {
+    const C: usize = COL_CHUNK;
+    cs.fill(0);
+    cq.fill(0);
+    let rw = cs.len().min(cq.len());
+    let row = |r: usize, x: usize, n: usize| win.span(x0.checked_add(x)?, y0.checked_add(r)?, n);
+    let (s_chunks, s_tail) = cs.as_chunks_mut::<C>();
+    let (q_chunks, q_tail) = cq.as_chunks_mut::<C>();
+    for (c, (sc, qc)) in (0usize..).zip(s_chunks.iter_mut().zip(q_chunks.iter_mut())) {
+        // c < rw / C: no overflow.
+        let x = c.wrapping_mul(C);
+        let mut q = [0u32; C];
+        let mut r0 = 0usize;
+        while r0 < th {
+            let r1 = r0.saturating_add(U16_ROWS).min(th);
+            let mut s = [0u16; C];
+            for r in r0..r1 {
+                let f: &[u8; C] = row(r, x, C)?.first_chunk()?;
+                for ((s, q), &f) in s.iter_mut().zip(q.iter_mut()).zip(f) {
+                    let v = u16::from(f);
+                    *s = s.wrapping_add(v);
+                    *q = q.wrapping_add(u32::from(v.wrapping_mul(v)));
+                }
+            }
+            for (o, &v) in sc.iter_mut().zip(&s) {
+                *o = o.wrapping_add(u32::from(v));
+            }
+            r0 = r1;
+        }
+        *qc = q;
+    }
+    let nt = s_tail.len();
+    let xt = rw.wrapping_sub(nt);
+    for r in 0..th {
+        for ((s, q), &f) in s_tail
+            .iter_mut()
+            .zip(q_tail.iter_mut())
+            .zip(row(r, xt, nt)?)
+        {
+            let v = u16::from(f);
+            *s = s.wrapping_add(u32::from(v));
+            *q = q.wrapping_add(u32::from(v.wrapping_mul(v)));
+        }
+    }
+    Some(())
+}
+
+/// Move the column sums down a row: add the row that enters, subtract the
+/// row that leaves ([`COL_CHUNK`] columns at a time, differences in i16 and
+/// i32 lanes added with wrapping: exact modulo 2³² as above).
+fn move_down(cs: &mut [u32], cq: &mut [u32], leave: &[u8], enter: &[u8]) {
+    const C: usize = COL_CHUNK;
+    let step = |s: &mut u32, q: &mut u32, a: u8, b: u8| {
+        let (a, b) = (i32::from(a), i32::from(b));
+        *s = s.wrapping_add_signed(a.wrapping_sub(b));
+        *q = q.wrapping_add_signed(a.wrapping_mul(a).wrapping_sub(b.wrapping_mul(b)));
+    };
+    let (sc, st) = cs.as_chunks_mut::<C>();
+    let (qc, qt) = cq.as_chunks_mut::<C>();
+    let (ec, et) = enter.as_chunks::<C>();
+    let (lc, lt) = leave.as_chunks::<C>();
+    for ((s, q), (e, l)) in sc.iter_mut().zip(qc.iter_mut()).zip(ec.iter().zip(lc)) {
+        for ((s, q), (&a, &b)) in s.iter_mut().zip(q.iter_mut()).zip(e.iter().zip(l)) {
+            step(s, q, a, b);
+        }
+    }
+    for ((s, q), (&a, &b)) in st.iter_mut().zip(qt.iter_mut()).zip(et.iter().zip(lt)) {
+        step(s, q, a, b);
+    }
+}
+
 /// The integral-table scratch of one search: either the tables of a whole window
 /// level, built once and shared by every evaluation at that level, or nothing
-/// kept, each evaluation building the tables of its own region.
+/// kept, each evaluation taking the window sums of its own region (running
+/// column sums or region tables, [`Tables::sums`]) in it.
 pub(super) struct Tables<'b> {
     pub(super) buf: &'b mut [u32],
     /// Level, width and height of the whole-level tables held in `buf`.
@@ -169,6 +366,26 @@ impl<'b> Tables<'b> {
         Ok(())
     }
 
+    /// The window sums of the positions `(x0..=x1, y0..=y1)` of template `t`
+    /// at level `k` of `win`: the whole-level tables when they are held;
+    /// otherwise, for an unmasked template, running column sums
+    /// ([`ColumnSums`]); otherwise the tables of the positions' region.
+    pub(super) fn sums(
+        &mut self,
+        k: usize,
+        win: &Win,
+        t: &Tpl,
+        (x0, y0, x1, y1): (usize, usize, usize, usize),
+    ) -> Result<Sums<'_>, FailureCode> {
+        let held = matches!(self.whole, Some((lk, w, h)) if lk == k && w == win.w && h == win.h);
+        let rw = x1.saturating_sub(x0).saturating_add(t.w);
+        if !held && t.runs.is_none() {
+            return ColumnSums::new(win, (x0, y0, rw), (t.w, t.h), self.buf).map(Sums::Columns);
+        }
+        let rh = y1.saturating_sub(y0).saturating_add(t.h);
+        self.region(k, win, (x0, y0, rw, rh)).map(Sums::Tables)
+    }
+
     /// Tables covering the `rw × rh` rectangle at `(x0, y0)` of level `k` of `win`.
     pub(super) fn region(
         &mut self,
@@ -181,6 +398,44 @@ impl<'b> Tables<'b> {
                 Integral::view(w, h, self.buf)
             }
             _ => Integral::build(win, x0, y0, rw, rh, self.buf),
+        }
+    }
+}
+
+/// Where [`Tables::sums`] takes the window sums of one set of positions from.
+pub(super) enum Sums<'s> {
+    /// Integral tables (of the whole level, or of the positions' region).
+    Tables(Integral<'s>),
+    /// Running column sums of the positions' band (unmasked templates).
+    Columns(ColumnSums<'s>),
+}
+
+impl Sums<'_> {
+    /// `[Σf, Σf²]` of the window under the template's kept pixels at the
+    /// positions `(x + i, y)`, `i < out.len()` (window-level coordinates),
+    /// into `out[i]`. Rows in increasing order (see [`ColumnSums::row`]).
+    pub(super) fn row(&mut self, t: &Tpl, win: &Win, x: usize, y: usize, out: &mut [[u32; 2]]) {
+        match self {
+            Sums::Columns(c) => c.row(win, x, y, out),
+            Sums::Tables(integ) => {
+                let (rx, ry) = (x.wrapping_sub(integ.x0), y.wrapping_sub(integ.y0));
+                match t.runs {
+                    None => integ.rect_row(rx, ry, t.w, t.h, out, false),
+                    Some(runs) => {
+                        out.fill([0, 0]);
+                        for run in runs {
+                            integ.rect_row(
+                                rx.wrapping_add(usize::from(run.x0)),
+                                ry.wrapping_add(usize::from(run.row)),
+                                usize::from(run.x1.wrapping_sub(run.x0)),
+                                usize::from(run.rows),
+                                out,
+                                true,
+                            );
+                        }
+                    }
+                }
+            }
         }
     }
 }
@@ -284,6 +539,88 @@ mod tests {
                 assert_eq!(part.rect(x, y, cw, ch), all.rect(x0 + x, y0 + y, cw, ch));
             }
         }
+    }
+
+    /// Running column sums give the window sums of the integral tables at
+    /// every position of a band, asked row by row with rows skipped and from
+    /// any column of the band, on random pixels and on all-255 pixels (the
+    /// largest squares), in a window whose rows are longer than it is wide.
+    #[test]
+    fn column_sums_equal_table_sums() {
+        let mut rng = Rng::new(11);
+        // A wide window, and a tall one whose templates are taller than the
+        // 257 rows a u16 column sum holds (`init_columns` flushes them).
+        let wide: &[(usize, usize, usize, usize, usize, usize)] = &[
+            (0, 0, 4, 4, 32, 32),
+            (3, 5, 9, 14, 17, 21),
+            (0, 0, 60, 46, 1, 1),
+            (10, 2, 10, 2, 51, 45),
+            (0, 0, 60 - 33, 46 - 40, 33, 40),
+        ];
+        let tall: &[(usize, usize, usize, usize, usize, usize)] = &[
+            (0, 0, 3, 9, 20, 290),
+            (2, 1, 2, 3, 19, 300),
+            (0, 0, 5, 40, 18, 260),
+        ];
+        for ((w, h, stride), cases, bright) in [
+            ((61usize, 47usize, 64usize), wide, false),
+            ((61, 47, 64), wide, true),
+            ((24, 304, 24), tall, false),
+            ((24, 304, 24), tall, true),
+        ] {
+            let px: std::vec::Vec<u8> = if bright {
+                vec![255; stride * h]
+            } else {
+                random_px(stride * h, &mut rng)
+            };
+            let win = Win {
+                px: &px,
+                w,
+                h,
+                stride,
+            };
+            let mut whole = vec![0u32; 2 * (w + 1) * (h + 1)];
+            Integral::build(&win, 0, 0, w, h, &mut whole).unwrap();
+            let all = Integral::view(w, h, &whole).unwrap();
+            for &(x0, y0, x1, y1, tw, th) in cases {
+                let mut buf = vec![0u32; 2 * w];
+                let rw = x1 - x0 + tw;
+                let mut c = ColumnSums::new(&win, (x0, y0, rw), (tw, th), &mut buf).unwrap();
+                for y in (y0..=y1).step_by(if y1 > y0 + 3 { 2 } else { 1 }) {
+                    for xs in [x0, (x0 + x1).div_ceil(2)] {
+                        let mut out = vec![[0u32; 2]; x1 + 1 - xs];
+                        c.row(&win, xs, y, &mut out);
+                        for (i, o) in out.iter().enumerate() {
+                            let (s, q) = all.rect(xs + i, y, tw, th);
+                            assert_eq!(*o, [s, q], "({}, {y}) of {tw}×{th}", xs + i);
+                        }
+                    }
+                }
+                // A row asked for again after a later one, a column before
+                // the band: zeros, no panic.
+                let mut out = [[1u32; 2]; 2];
+                if y1 > y0 {
+                    c.row(&win, x0, y0, &mut out);
+                    assert_eq!(out, [[0, 0]; 2]);
+                }
+                if x0 > 0 {
+                    c.row(&win, x0 - 1, y1, &mut out);
+                    assert_eq!(out, [[0, 0]; 2]);
+                }
+            }
+        }
+        // Scratch too short, rows past the window: refused.
+        let px = vec![7u8; 16 * 16];
+        let win = Win {
+            px: &px,
+            w: 16,
+            h: 16,
+            stride: 16,
+        };
+        let mut buf = vec![0u32; 15];
+        assert!(ColumnSums::new(&win, (0, 0, 8), (8, 8), &mut buf).is_err());
+        let mut buf = vec![0u32; 32];
+        assert!(ColumnSums::new(&win, (0, 10, 8), (8, 8), &mut buf).is_err());
     }
 
     /// A search in the minimum scratch (per-region tables everywhere) returns the

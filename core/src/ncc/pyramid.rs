@@ -117,8 +117,10 @@ pub(super) const fn refine_plan(
 /// window once and serves every refinement region (and, at level 0, the sub-pixel
 /// probe) from them: when the whole level has no more table entries than its
 /// refinement regions would have (one region per refined candidate, re-centring
-/// steps not counted). Otherwise each region builds its own tables. Either way the
-/// window sums are the same integers.
+/// steps not counted). Otherwise each region takes its own window sums: running
+/// column sums for an unmasked template, its own tables for a masked one
+/// ([`super::integral::Tables::sums`]). Either way the window sums are the same
+/// integers.
 pub(super) const fn whole_level_tables(
     tw: usize,
     th: usize,

@@ -3,7 +3,7 @@
 use crate::fmt::present;
 use core::cmp::Ordering;
 
-use super::integral::{Integral, Tables};
+use super::integral::{Sums, Tables};
 #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
 use super::kernel::{dot_block, KERNEL_BLOCK};
 #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
@@ -189,39 +189,18 @@ pub(super) fn eval_positions<S: Sink>(
     // Wrapping index arithmetic below: positions lie in `[x0, x1] × [y0, y1]`
     // of a window that holds the template there (the contract), so nothing
     // wraps; the integral tables and the kernels read through `get` in any case.
-    let rw = (x1 - x0).saturating_add(t.w);
-    let rh = (y1 - y0).saturating_add(t.h);
-    let integ = tables.region(k, win, (x0, y0, rw, rh))?;
+    let mut sums = tables.sums(k, win, t, at.bounds)?;
     let terms = Terms {
         n: t.n,
         st: t.st,
         var_t: t.var_t,
     };
-    let (scored, flat) = scan(t, win, &integ, at, strip, terms, sink);
+    let (scored, flat) = scan(t, win, &mut sums, at, strip, terms, sink);
     stats.positions_scored = stats.positions_scored.saturating_add(scored);
     stats.flat_positions = stats.flat_positions.saturating_add(flat);
     let per = t.w.saturating_mul(t.h) as u64;
     stats.macs = stats.macs.saturating_add(scored.saturating_mul(per));
     Ok(())
-}
-
-/// (Σf, Σf²) of the window under the template's kept pixels at window-level
-/// coordinates (x, y).
-#[inline]
-fn window_sums(t: &Tpl, integ: &Integral, x: usize, y: usize) -> (u32, u32) {
-    let (rx, ry) = (x.wrapping_sub(integ.x0), y.wrapping_sub(integ.y0));
-    match t.runs {
-        None => integ.rect(rx, ry, t.w, t.h),
-        Some(runs) => runs.iter().fold((0u32, 0u32), |(s, q), run| {
-            let (a, b) = integ.rect(
-                rx.wrapping_add(usize::from(run.x0)),
-                ry.wrapping_add(usize::from(run.row)),
-                usize::from(run.x1.wrapping_sub(run.x0)),
-                usize::from(run.rows),
-            );
-            (s.wrapping_add(a), q.wrapping_add(b))
-        }),
-    }
 }
 
 /// Hand one position (its Σf, var_f and Σ t·f) to `sink` unless flat or
@@ -256,12 +235,13 @@ fn deliver<S: Sink>(
 /// sums a row at a time, their Σ t·f column by column with [`dot_col`] (one
 /// pass over the window rows per column of positions), handed on row by row.
 /// A column whose positions are all flat skips the kernel. Regions wider than
-/// [`STRIP_W`] go one position at a time. Returns (scored, flat) counts.
+/// [`STRIP_W`] go a row of positions at a time, their Σ t·f one position at a
+/// time. Returns (scored, flat) counts.
 #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
 fn scan<S: Sink>(
     t: &Tpl,
     win: &Win,
-    integ: &Integral,
+    sums: &mut Sums<'_>,
     at: Positions,
     strip: &mut Strip,
     terms: Terms,
@@ -272,50 +252,40 @@ fn scan<S: Sink>(
     let mut floor = sink.floor();
     let width = x1.wrapping_sub(x0).wrapping_add(1);
     if width > STRIP_W {
+        let [row, ..] = &mut strip.sums;
         for y in y0..=y1 {
-            for x in x0..=x1 {
-                if at.skips(x, y) {
-                    continue;
-                }
-                let (sf, sff) = window_sums(t, integ, x, y);
-                let v = terms.var_f(sf, sff);
-                let dot = if v.1 > 0 {
-                    let [d] = dot_col::<1>(t, win, x, y);
-                    d
-                } else {
-                    0
+            let mut xc = x0;
+            while xc <= x1 {
+                let n = x1.wrapping_sub(xc).wrapping_add(1).min(STRIP_W);
+                let Some(row) = row.get_mut(..n) else {
+                    break;
                 };
-                deliver(&terms, sink, &mut floor, &mut counts, x, y, v, dot);
+                sums.row(t, win, xc, y, row);
+                for (x, &[sf, sff]) in (xc..=x1).zip(row.iter()) {
+                    if at.skips(x, y) {
+                        continue;
+                    }
+                    let v = terms.var_f(sf, sff);
+                    let dot = if v.1 > 0 {
+                        let [d] = dot_col::<1>(t, win, x, y);
+                        d
+                    } else {
+                        0
+                    };
+                    deliver(&terms, sink, &mut floor, &mut counts, x, y, v, dot);
+                }
+                xc = xc.wrapping_add(n);
             }
         }
         return counts;
     }
-    let (rx0, ry0) = (x0.wrapping_sub(integ.x0), y0.wrapping_sub(integ.y0));
     let mut ys = y0;
     loop {
         let hs = y1.wrapping_sub(ys).wrapping_add(1).min(COL_BLOCK);
-        let ry = ry0.wrapping_add(ys.wrapping_sub(y0));
         // Window sums, a row of positions at a time.
-        for (j, sums) in (0..hs).zip(strip.sums.iter_mut()) {
-            let Some(sums) = sums.get_mut(..width) else {
-                continue;
-            };
-            let ry = ry.wrapping_add(j);
-            match t.runs {
-                None => integ.rect_row(rx0, ry, t.w, t.h, sums, false),
-                Some(runs) => {
-                    sums.fill([0, 0]);
-                    for run in runs {
-                        integ.rect_row(
-                            rx0.wrapping_add(usize::from(run.x0)),
-                            ry.wrapping_add(usize::from(run.row)),
-                            usize::from(run.x1.wrapping_sub(run.x0)),
-                            usize::from(run.rows),
-                            sums,
-                            true,
-                        );
-                    }
-                }
+        for (j, row) in (0..hs).zip(strip.sums.iter_mut()) {
+            if let Some(row) = row.get_mut(..width) {
+                sums.row(t, win, x0, ys.wrapping_add(j), row);
             }
         }
         // Σ t·f, a column of positions at a time, over the runs of positions
@@ -395,7 +365,7 @@ fn scan<S: Sink>(
 fn scan<S: Sink>(
     t: &Tpl,
     win: &Win,
-    integ: &Integral,
+    sums: &mut Sums<'_>,
     at: Positions,
     _strip: &mut Strip,
     terms: Terms,
@@ -419,17 +389,21 @@ fn scan<S: Sink>(
             // `(0..n).zip(…)` rather than `enumerate().take(n)`: the same
             // pairs without the enumerate counter's overflow check.
             let mut skipped = [false; KERNEL_BLOCK];
-            for (((i, v), l), k) in (0..n)
+            let mut block = [[0u32; 2]; KERNEL_BLOCK];
+            if let Some(b) = block.get_mut(..n) {
+                sums.row(t, win, xb, y, b);
+            }
+            for ((((i, v), l), k), &[sf, sff]) in (0..n)
                 .zip(vs.iter_mut())
                 .zip(live.iter_mut())
                 .zip(skipped.iter_mut())
+                .zip(&block)
             {
                 let x = xb.wrapping_add(i);
                 *k = at.skips(x, y);
                 if *k {
                     continue;
                 }
-                let (sf, sff) = window_sums(t, integ, x, y);
                 *v = terms.var_f(sf, sff);
                 *l = v.1 > 0;
             }
