@@ -162,7 +162,8 @@ fn no_evidence_attempts() -> u32 {
     Options::for_params(&testkit::test_params()).no_evidence_attempts
 }
 
-/// Renders of one attempt: the left and the right template (two at most).
+/// Renders of one attempt at most: the left template, and the right one once
+/// a left match is accepted.
 const RENDERS_PER_ATTEMPT: u32 = 2;
 
 /// Runner steps of a run of `attempts` units at `DriveLimits::UNLIMITED`'s 64

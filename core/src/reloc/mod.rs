@@ -95,11 +95,12 @@ pub struct AttemptContext {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Stage {
-    /// SamplePoint and Synthesize: vertex draws, the left and right template
-    /// renders, the occlusion check and the template masks.
+    /// SamplePoint and Synthesize: vertex draws, the left template's render,
+    /// the occlusion check and the left template mask.
     Render,
     /// Search windows and Match: every NCC search of the attempt, each
-    /// including the filtering and pyramid of its template and window.
+    /// including the filtering and pyramid of its template and window, and
+    /// the right template's render and mask at the first accepted left match.
     Match,
     /// Valid and Stereo: the row check and the triangulation.
     Stereo,

@@ -9,12 +9,13 @@
 //! camera) or the code of the rejecting step.
 //!
 //! Bounds per attempt: at most [`MAX_SAMPLE_TRIES`] vertex draws, two renders of
-//! ℓ×ℓ, at most two template searches per policy variant (≤ [`MATCH_VARIANTS`](super::MATCH_VARIANTS)),
+//! ℓ×ℓ (the left template in Synthesize, the right one only once a left match
+//! is accepted), at most two template searches per policy variant (≤ [`MATCH_VARIANTS`](super::MATCH_VARIANTS)),
 //! each in a window of at most `params.search_px`² pixels, and one triangulation.
 //!
 //! Staged form ([`Attempt::begin`] / [`Attempt::resume`]): an attempt runs as
 //! [`Stage::Render`] (SamplePoint, Synthesize, search windows), [`Stage::Match`]
-//! and [`Stage::Stereo`], ending early at the stage that rejects it; what one
+//! (with the right template's render) and [`Stage::Stereo`], ending early at the stage that rejects it; what one
 //! stage hands to the next is kept in the pipeline (a few dozen bytes).
 //! [`Attempt::attempt`] is the same stages run back to back.
 
@@ -26,7 +27,7 @@ use super::{
 use crate::config::Params;
 use crate::failure::FailureCode;
 use crate::frame::{self, Eye, FrameSource, StereoPair, Window};
-use crate::geom::{Pose, StereoRig, Vec3};
+use crate::geom::{Camera, Pose, StereoRig, Vec3};
 use crate::image::{GrayView, Rect};
 use crate::map::MapView;
 use crate::ncc::{self, Search};
@@ -232,11 +233,13 @@ fn accept(m: &ncc::Match, policy: &MatchPolicy) -> Result<(), FailureCode> {
 }
 
 /// Template origins of one attempt: the ℓ×ℓ windows of the virtual left and
-/// right images that were rendered.
+/// right images (the left one rendered by Synthesize, the right one at the
+/// attempt's first accepted left match), and the virtual right camera's pose.
 #[derive(Clone, Copy)]
 struct Templates {
     left: Rect,
     right: Rect,
+    vp_right: Pose,
 }
 
 /// Search windows of one attempt in the real left and right images, and the
@@ -292,10 +295,50 @@ fn epipolar_band(
         .filter(|r| r.w as usize >= tw && r.h as usize >= th)
 }
 
+/// Render the ℓ×ℓ template `rect` of the virtual camera at `pose` into the
+/// intensity, depth and mask-depth buffers, counting the render and its
+/// pixels (`PipelineStats::renders`, `render_pixels`).
+fn render_template(
+    map: &MapView<'_>,
+    cam: &Camera,
+    pose: &Pose,
+    rect: Rect,
+    (intensity, depth, mask_depth): (&mut [u8], &mut [u32], &mut [u32]),
+    (renders, pixels): (&mut u32, &mut u64),
+) -> Result<(), FailureCode> {
+    let mut target = Target {
+        intensity,
+        depth,
+        mask_depth,
+    };
+    let rs = raster::render_window(map, cam, pose, rect, &mut target)?;
+    *renders = renders.saturating_add(1);
+    *pixels = pixels.saturating_add(u64::from(rs.pixels_written));
+    Ok(())
+}
+
+/// Form the §III-C mask of a rendered ℓ×ℓ template from its depth and
+/// mask-depth buffers.
+fn template_mask(
+    depth: &[u32],
+    mask_depth: &[u32],
+    mask: &mut [u8],
+    l: usize,
+) -> Result<(), FailureCode> {
+    let n = l.saturating_mul(l);
+    let (Some(d), Some(m)) = (depth.get(..n), mask_depth.get(..n)) else {
+        return Err(FailureCode::ConfigCapacityTooSmall);
+    };
+    raster::template_mask(d, m, l, l, mask);
+    Ok(())
+}
+
 impl<F: FrameSource> Pipeline<'_, '_, F> {
-    /// Synthesize (§III-C): render the ℓ×ℓ left and right templates centred
-    /// on the vertex's projections, reject a vertex hidden in the virtual
-    /// view, and form both template masks.
+    /// Synthesize (§III-C): render the ℓ×ℓ left template centred on the
+    /// vertex's left projection, reject a vertex hidden in the virtual view,
+    /// and form the left template mask. The right template is rendered by
+    /// [`Pipeline::match_pair`] when a left match is accepted: an attempt
+    /// rejected on the left (or hidden) never needs it.
     fn synthesize(
         &mut self,
         vp_left: &Pose,
@@ -303,41 +346,20 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
         stats: &mut PipelineStats,
     ) -> Result<Templates, FailureCode> {
         let l = self.template_px;
-        let cam = self.rig.cam;
-        let ws = &mut self.ws;
-        let n = l.saturating_mul(l);
         let t = Templates {
             left: template_rect(s.left, l),
             right: template_rect(s.right, l),
+            vp_right: self.rig.world_from_right(vp_left),
         };
-        let vp_right = self.rig.world_from_right(vp_left);
-        for (pose, rect, inten, depth, mdepth) in [
-            (
-                vp_left,
-                t.left,
-                &mut *ws.inten_l,
-                &mut *ws.depth_l,
-                &mut *ws.mdepth_l,
-            ),
-            (
-                &vp_right,
-                t.right,
-                &mut *ws.inten_r,
-                &mut *ws.depth_r,
-                &mut *ws.mdepth_r,
-            ),
-        ] {
-            let mut target = Target {
-                intensity: inten,
-                depth,
-                mask_depth: mdepth,
-            };
-            let rs = raster::render_window(self.map, &cam, pose, rect, &mut target)?;
-            stats.renders = stats.renders.saturating_add(1);
-            stats.render_pixels = stats
-                .render_pixels
-                .saturating_add(u64::from(rs.pixels_written));
-        }
+        let ws = &mut self.ws;
+        render_template(
+            self.map,
+            &self.rig.cam,
+            vp_left,
+            t.left,
+            (&mut *ws.inten_l, &mut *ws.depth_l, &mut *ws.mdepth_l),
+            (&mut stats.renders, &mut stats.render_pixels),
+        )?;
         // Occlusion: the surface drawn at the vertex's pixel must be the vertex's own.
         // ℓ ≤ MAX_TEMPLATE_PX (validated params): the centre index fits.
         let centre = (l / 2).wrapping_mul(l).wrapping_add(l / 2);
@@ -347,16 +369,7 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
             stats.occluded = stats.occluded.saturating_add(1);
             return Err(FailureCode::RelocSampleOccluded);
         }
-        let (Some(dl), Some(ml), Some(dr), Some(mr)) = (
-            ws.depth_l.get(..n),
-            ws.mdepth_l.get(..n),
-            ws.depth_r.get(..n),
-            ws.mdepth_r.get(..n),
-        ) else {
-            return Err(FailureCode::ConfigCapacityTooSmall);
-        };
-        raster::template_mask(dl, ml, l, l, ws.mask_l);
-        raster::template_mask(dr, mr, l, l, ws.mask_r);
+        template_mask(ws.depth_l, ws.mdepth_l, ws.mask_l, l)?;
         Ok(t)
     }
 
@@ -410,12 +423,16 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
         fn view(b: &[u8], l: usize) -> Result<GrayView<'_>, FailureCode> {
             GrayView::new(b, l, l, l)
         }
-        let (tl, tml, tr, tmr) = (
-            view(ws.inten_l, l)?,
-            view(ws.mask_l, l)?,
-            view(ws.inten_r, l)?,
-            view(ws.mask_r, l)?,
-        );
+        let (tl, tml) = (view(ws.inten_l, l)?, view(ws.mask_l, l)?);
+        // The right template is rendered at the first accepted left match.
+        let mut right_tpl = Some((
+            &mut *ws.inten_r,
+            &mut *ws.depth_r,
+            &mut *ws.mdepth_r,
+            &mut *ws.mask_r,
+        ));
+        let (mut tr_full, mut tmr_full): (Option<GrayView<'_>>, Option<GrayView<'_>>) =
+            (None, None);
         // The left window is read once per attempt, the right one at the
         // first accepted left match (an attempt rejected on the left reads
         // nothing more); an empty window reads nothing and matches nothing,
@@ -432,12 +449,7 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
                     Some(t)
                 }
             }
-            let (Some(tl), Some(tml), Some(tr), Some(tmr)) = (
-                crop(tl, v.half),
-                crop(tml, v.half),
-                crop(tr, v.half),
-                crop(tmr, v.half),
-            ) else {
+            let (Some(tl), Some(tml)) = (crop(tl, v.half), crop(tml, v.half)) else {
                 continue;
             };
             let (ox, oy) = if v.half {
@@ -484,6 +496,24 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
                 ],
             );
             let pl = [ml.sub_x + ol[0], ml.sub_y + ol[1]];
+            if let Some((inten, depth, mdepth, mask)) = right_tpl.take() {
+                render_template(
+                    self.map,
+                    &self.rig.cam,
+                    &t.vp_right,
+                    t.right,
+                    (&mut *inten, &mut *depth, &mut *mdepth),
+                    (&mut stats.renders, &mut stats.render_pixels),
+                )?;
+                template_mask(depth, mdepth, mask, l)?;
+                (tr_full, tmr_full) = (Some(view(inten, l)?), Some(view(mask, l)?));
+            }
+            let (Some(tr), Some(tmr)) = (
+                tr_full.and_then(|t| crop(t, v.half)),
+                tmr_full.and_then(|t| crop(t, v.half)),
+            ) else {
+                continue;
+            };
             // The right match is sought only where Valid can accept it: the
             // epipolar band of the left match over the plausible disparities.
             let (tw, th) = (tr.width(), tr.height());
@@ -740,6 +770,18 @@ mod tests {
         )
     }
 
+    /// The context of a first-round attempt from `viewpoint` with a small
+    /// uncertainty (5 cm, 0.01 rad).
+    fn attempt_at(viewpoint: Pose) -> AttemptContext {
+        AttemptContext {
+            world_from_viewpoint: viewpoint,
+            t_m: 0.05,
+            r_rad: 0.01,
+            index: 0,
+            round: 0,
+        }
+    }
+
     /// Verifies: VTSM-RELOC-019
     #[test]
     fn attempts_from_the_true_pose_give_consistent_correspondences() {
@@ -757,13 +799,7 @@ mod tests {
         let mut engine = setup.build(ws).unwrap();
         let pipe = engine.attempt_mut();
         let mut stats = PipelineStats::default();
-        let ctx = AttemptContext {
-            world_from_viewpoint: truth,
-            t_m: 0.05,
-            r_rad: 0.01,
-            index: 0,
-            round: 0,
-        };
+        let ctx = attempt_at(truth);
         let cam_from_world = truth.inverse();
         let (mut ok, mut occluded, mut other) = (0u32, 0u32, 0u32);
         let n = 60u32;
@@ -807,6 +843,79 @@ mod tests {
         let got = pipe.attempt(&sky, &mut Rng::new(1), &mut stats).err();
         assert_eq!(got, Some(FailureCode::RelocSampleOutOfView));
         assert_eq!(stats.out_of_view - before, MAX_SAMPLE_TRIES);
+    }
+
+    /// The right template is rendered only once a left match is accepted:
+    /// every attempt that triangulates rendered both templates, an occluded
+    /// one only the left, and on real images of pure noise (where no left
+    /// search is accepted) every attempt that reached Synthesize rendered
+    /// the left template alone.
+    /// Verifies: VTSM-RELOC-039
+    #[test]
+    fn the_right_template_is_rendered_only_after_a_left_match() {
+        let (bytes, truth) = scene();
+        let map = MapView::new_checked(&bytes).unwrap();
+        let rig = rig();
+        let p = test_params();
+        let ctx = attempt_at(truth);
+        let mut noise = Rng::new(17);
+        let mut noise_image = || -> Vec<u8> {
+            (0..640 * 480)
+                .map(|_| (noise.next_u32() >> 24) as u8)
+                .collect()
+        };
+        let textured = (
+            render_full(&map, &rig.cam, &truth, 0.85, 20.0),
+            render_full(&map, &rig.cam, &rig.world_from_right(&truth), 0.85, 20.0),
+        );
+        let noisy = (noise_image(), noise_image());
+        for (images, real) in [(&textured, true), (&noisy, false)] {
+            let (mut b, mut w, mut r) = workspace_buffers(&TEST_WORKSPACE);
+            let ws = Workspace::new(TEST_WORKSPACE, &mut b, &mut w, &mut r).unwrap();
+            let lv = GrayView::new(&images.0, 640, 480, 640).unwrap();
+            let rv = GrayView::new(&images.1, 640, 480, 640).unwrap();
+            let mut engine = Setup::new(&map, lv, rv, &rig, &p, &truth, 0)
+                .build(ws)
+                .unwrap();
+            let pipe = engine.attempt_mut();
+            let mut stats = PipelineStats::default();
+            let (mut ok, mut synthesized) = (0u32, 0u32);
+            for i in 0..40u32 {
+                let before = stats;
+                let mut rng = Rng::new(9).fork(u64::from(i));
+                let got = pipe.attempt(&ctx, &mut rng, &mut stats);
+                let renders = stats.renders - before.renders;
+                let searches =
+                    stats.matches.iter().sum::<u32>() - before.matches.iter().sum::<u32>();
+                match got {
+                    Ok(_) => {
+                        ok += 1;
+                        assert_eq!(renders, 2, "attempt {i}");
+                    }
+                    Err(FailureCode::RelocSampleOutOfView) => assert_eq!(renders, 0),
+                    Err(FailureCode::RelocSampleOccluded) => assert_eq!(renders, 1),
+                    Err(code) => {
+                        assert!((1..=2).contains(&renders), "attempt {i}: {code:?}");
+                        if !real {
+                            assert_eq!(renders, 1, "attempt {i}: {code:?}");
+                        }
+                        // A left search per variant at least, so at least as
+                        // many searches as renders beyond the left one.
+                        assert!(searches >= renders, "attempt {i}");
+                    }
+                }
+                if renders > 0 {
+                    synthesized += 1;
+                }
+            }
+            if real {
+                assert!(ok >= 30, "only {ok} of 40");
+            } else {
+                assert_eq!(ok, 0);
+                assert_eq!(stats.renders, synthesized);
+                assert!(synthesized >= 30, "{stats:?}");
+            }
+        }
     }
 
     /// The right search band holds exactly the template positions whose vertex

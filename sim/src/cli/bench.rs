@@ -717,11 +717,11 @@ fn ms(v: f64) -> String {
 const STAGE_ROWS: [(Stage, &str); 7] = [
     (
         Stage::Render,
-        "SamplePoint, Synthesize: two template renders and masks",
+        "SamplePoint, Synthesize: the left template's render and mask",
     ),
     (
         Stage::Match,
-        "search windows and every NCC search, filtering included",
+        "search windows, every NCC search (filtering included), the right template's render and mask",
     ),
     (Stage::Stereo, "Valid, triangulation"),
     (Stage::Attempt, "whole attempts (unstaged)"),
