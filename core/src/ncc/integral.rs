@@ -2,6 +2,7 @@
 //! per-search table scratch.
 
 use super::pyramid::{Tpl, Win};
+use super::Run;
 use crate::failure::FailureCode;
 
 /// Integral images (sum and sum of squares) of a rectangle of a window level.
@@ -380,9 +381,8 @@ impl<'b> Tables<'b> {
         t: &Tpl,
         (x0, y0, x1, y1): (usize, usize, usize, usize),
     ) -> Result<Sums<'_>, FailureCode> {
-        let held = matches!(self.whole, Some((lk, w, h)) if lk == k && w == win.w && h == win.h);
         let rw = x1.saturating_sub(x0).saturating_add(t.w);
-        if !held && t.runs.is_none() {
+        if !self.holds(k, win) && t.runs.is_none() {
             return ColumnSums::new(win, (x0, y0, rw), (t.w, t.h), self.buf).map(Sums::Columns);
         }
         let rh = y1.saturating_sub(y0).saturating_add(t.h);
@@ -396,13 +396,30 @@ impl<'b> Tables<'b> {
         win: &Win,
         (x0, y0, rw, rh): (usize, usize, usize, usize),
     ) -> Result<Integral<'_>, FailureCode> {
-        match self.whole {
-            Some((lk, w, h)) if lk == k && w == win.w && h == win.h => {
-                Integral::view(w, h, self.buf)
-            }
-            _ => Integral::build(win, x0, y0, rw, rh, self.buf),
+        if self.holds(k, win) {
+            Integral::view(win.w, win.h, self.buf)
+        } else {
+            Integral::build(win, x0, y0, rw, rh, self.buf)
         }
     }
+
+    /// Whether `buf` holds the whole-level tables of level `k` of `win`.
+    fn holds(&self, k: usize, win: &Win) -> bool {
+        self.whole == Some((k, win.w, win.h))
+    }
+}
+
+/// A mask run as a rectangle of the template: column and row offsets, width
+/// and height (`x1 ≥ x0` by construction; wrapping otherwise, and a rectangle
+/// outside the tables reads zeros).
+#[inline]
+fn run_rect(run: &Run) -> (usize, usize, usize, usize) {
+    (
+        usize::from(run.x0),
+        usize::from(run.row),
+        usize::from(run.x1.wrapping_sub(run.x0)),
+        usize::from(run.rows),
+    )
 }
 
 /// Where [`Tables::sums`] takes the window sums of one set of positions from.
@@ -434,12 +451,8 @@ impl Sums<'_> {
                     let (s, q) = match t.runs {
                         None => integ.rect(px, ry, t.w, t.h),
                         Some(runs) => runs.iter().fold((0u32, 0u32), |(s, q), run| {
-                            let (a, b) = integ.rect(
-                                px.wrapping_add(usize::from(run.x0)),
-                                ry.wrapping_add(usize::from(run.row)),
-                                usize::from(run.x1.wrapping_sub(run.x0)),
-                                usize::from(run.rows),
-                            );
+                            let (dx, dy, w, h) = run_rect(run);
+                            let (a, b) = integ.rect(px.wrapping_add(dx), ry.wrapping_add(dy), w, h);
                             (s.wrapping_add(a), q.wrapping_add(b))
                         }),
                     };
@@ -454,14 +467,9 @@ impl Sums<'_> {
                     Some(runs) => {
                         out.fill([0, 0]);
                         for run in runs {
-                            integ.rect_row(
-                                rx.wrapping_add(usize::from(run.x0)),
-                                ry.wrapping_add(usize::from(run.row)),
-                                usize::from(run.x1.wrapping_sub(run.x0)),
-                                usize::from(run.rows),
-                                out,
-                                true,
-                            );
+                            let (dx, dy, w, h) = run_rect(run);
+                            let (x, y) = (rx.wrapping_add(dx), ry.wrapping_add(dy));
+                            integ.rect_row(x, y, w, h, out, true);
                         }
                     }
                 }

@@ -431,8 +431,7 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
             &mut *ws.mdepth_r,
             &mut *ws.mask_r,
         ));
-        let (mut tr_full, mut tmr_full): (Option<GrayView<'_>>, Option<GrayView<'_>>) =
-            (None, None);
+        let mut right: Option<(GrayView<'_>, GrayView<'_>)> = None;
         // The left window is read once per attempt, the right one at the
         // first accepted left match (an attempt rejected on the left reads
         // nothing more); an empty window reads nothing and matches nothing,
@@ -506,12 +505,11 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
                     (&mut stats.renders, &mut stats.render_pixels),
                 )?;
                 template_mask(depth, mdepth, mask, l)?;
-                (tr_full, tmr_full) = (Some(view(inten, l)?), Some(view(mask, l)?));
+                right = Some((view(inten, l)?, view(mask, l)?));
             }
-            let (Some(tr), Some(tmr)) = (
-                tr_full.and_then(|t| crop(t, v.half)),
-                tmr_full.and_then(|t| crop(t, v.half)),
-            ) else {
+            let Some((Some(tr), Some(tmr))) =
+                right.map(|(t, m)| (crop(t, v.half), crop(m, v.half)))
+            else {
                 continue;
             };
             // The right match is sought only where Valid can accept it: the
