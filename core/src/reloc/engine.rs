@@ -9,7 +9,7 @@ use super::{
 };
 use crate::config::{Params, MAX_CORR, MAX_POSE_CANDIDATES};
 use crate::failure::{FailureCode, FailureLog};
-use crate::geom::Pose;
+use crate::geom::{Pose, Vec3};
 use crate::rng::Rng;
 
 /// Stream of per-attempt generators (forked by global attempt index).
@@ -89,6 +89,8 @@ pub struct Relocalizer<A, S> {
     /// Next seed to evaluate while `seeding`.
     seed_index: u16,
     seeding: bool,
+    /// Whether this round's viewpoints were re-centred by [`super::Focus`].
+    focused: bool,
     /// Best seed so far: its solution, pairs given to it, inlier spread.
     best_seed: Option<(Solution, u16, f32)>,
     max_units: u32,
@@ -163,6 +165,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             widened: false,
             seed_index: 0,
             seeding: params.seeds > 0,
+            focused: false,
             best_seed: None,
             max_units: Self::max_work_units(params),
             quality: Quality::default(),
@@ -403,6 +406,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             Ok(c) => {
                 if self.pairs.push(c).is_ok() {
                     self.stats.correspondences = self.stats.correspondences.saturating_add(1);
+                    self.focus();
                 }
             }
             // The frames cannot be read: no later attempt can match either.
@@ -507,7 +511,50 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         true
     }
 
+    /// [`super::Focus`], after a pair joined the round: O(pairs) work.
+    #[allow(
+        clippy::cast_precision_loss,
+        reason = "at most MAX_CORR hypotheses are averaged"
+    )]
+    fn focus(&mut self) {
+        let f = self.opts.focus;
+        if f.votes == 0
+            || self.focused
+            || self.seeding
+            || self.stats.successes > 0
+            || self.t_m <= f.t_m
+        {
+            return;
+        }
+        let r = self.anchor.rotation();
+        let hypothesis = |c: &Correspondence| c.world - r * c.cam;
+        let Some(newest) = self.pairs.last().map(hypothesis) else {
+            return;
+        };
+        let (n, sum) = self
+            .pairs
+            .iter()
+            .map(hypothesis)
+            .filter(|h| (h - newest).norm() <= f.radius_m)
+            .fold((0u16, Vec3::zeros()), |(n, s), h| {
+                (n.saturating_add(1), s + h)
+            });
+        if n < u16::from(f.votes) {
+            return;
+        }
+        let mean = sum / f32::from(n);
+        let within = (mean - self.prior.translation()).norm() <= self.params.t0_m + f.radius_m;
+        if !(within && mean.iter().all(|v| v.is_finite())) {
+            return;
+        }
+        self.center = Pose::new(r, mean);
+        self.t_m = f.t_m;
+        self.focused = true;
+        self.stats.focused_rounds = self.stats.focused_rounds.saturating_add(1);
+    }
+
     fn start_round(&mut self) {
+        self.focused = false;
         if self.widened {
             self.widened = false;
             self.solver.set_sigma_scale(1.0);
@@ -629,6 +676,10 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
 
     fn round_failed(&mut self, code: FailureCode, now: u64) {
         self.pairs.clear();
+        if self.stats.successes == 0 {
+            // A focused round that failed: back to the stated uncertainty.
+            self.t_m = self.params.t0_m;
+        }
         if self.seeding {
             self.next_seed(now);
             return;
@@ -835,10 +886,10 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
 #[cfg(test)]
 mod tests {
     extern crate std;
+    use super::super::Focus;
     use super::super::{Budget, PipelineStats};
     use super::*;
-    use crate::config::Mechanisms;
-    use crate::geom::Vec3;
+    use crate::config::{Mechanisms, DEFAULT_T0_M, MAX_T0_M};
     use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
     use std::boxed::Box;
     use std::vec::Vec;
@@ -853,6 +904,9 @@ mod tests {
         /// What `recheck` reports, and how often it was called.
         recheck: Result<(), FailureCode>,
         rechecks: u32,
+        /// When set, each pair is a point 2–4 m in front of the camera seen
+        /// from this `world_from_left` (a scene), not an arbitrary pair.
+        truth: Option<Pose>,
     }
 
     impl FakeAttempt {
@@ -863,6 +917,14 @@ mod tests {
                 contexts: Vec::new(),
                 recheck: Ok(()),
                 rechecks: 0,
+                truth: None,
+            }
+        }
+
+        fn seen_from(truth: Pose) -> Self {
+            Self {
+                truth: Some(truth),
+                ..Self::ok()
             }
         }
         fn ok() -> Self {
@@ -884,6 +946,18 @@ mod tests {
             }
             let id = self.next_id;
             self.next_id += 1;
+            if let Some(truth) = self.truth {
+                let cam = Vec3::new(
+                    2.0 * rng.next_f32() - 1.0,
+                    2.0 * rng.next_f32() - 1.0,
+                    2.0 + 2.0 * rng.next_f32(),
+                );
+                return Ok(Correspondence {
+                    world: truth.transform_point(&cam),
+                    cam,
+                    sigma_m: 0.01,
+                });
+            }
             let v = ctx.world_from_viewpoint.translation();
             Ok(Correspondence {
                 world: Vec3::new(id as f32, rng.next_f32(), rng.next_f32()),
@@ -1285,6 +1359,155 @@ mod tests {
         assert_eq!(out.failure, Some(FailureCode::RelocReseedCapReached));
         assert_eq!(out.pose, at_x(0.0));
         assert_eq!(out.quality.inliers, 0);
+    }
+
+    /// Viewpoint half-widths and centres of a run from `prior` with t̃₀ =
+    /// `t0`, whose pairs come from `attempt`; the solver never reaches a
+    /// consensus, so every round is a round before the first fix.
+    fn focus_run(t0: f32, focus: Focus, attempt: FakeAttempt) -> (Vec<AttemptContext>, Stats) {
+        let mut p = small_params();
+        p.t0_m = t0;
+        let o = Options { focus, ..opts(&p) };
+        let solver = FakeSolver::new(|_, _, _| Err(FailureCode::PoseDegenerate));
+        let mut r = Relocalizer::new(attempt, solver, &p, &o, &at_x(0.0), 9).unwrap();
+        let out = r.run_to_completion(0);
+        assert_eq!(out.failure, Some(FailureCode::RelocReseedCapReached));
+        (r.attempt_ref().contexts.clone(), out.stats)
+    }
+
+    /// Verifies: VTSM-RELOC-040
+    #[test]
+    fn a_wide_prior_focuses_on_the_position_its_pairs_agree_on() {
+        let p = small_params();
+        let on = Focus::for_params(&p);
+        let truth = at_x(0.4);
+        let (ctxs, stats) = focus_run(0.5, on, FakeAttempt::seen_from(truth));
+        let rounds = usize::from(p.max_reseed) + 1;
+        assert_eq!(ctxs.len(), rounds * usize::from(p.n_corr));
+        assert_eq!(stats.focused_rounds as usize, rounds);
+        let votes = usize::from(on.votes);
+        for round in ctxs.chunks(usize::from(p.n_corr)) {
+            // Until `votes` pairs agree: the stated uncertainty, around the
+            // prior (or a Reseed centre within t̃₀ of it).
+            for c in &round[..votes] {
+                assert_eq!(c.t_m, 0.5);
+                assert!(c.world_from_viewpoint.translation().norm() <= 1.0 + 1e-5);
+            }
+            // Then the focused half-width, around the truth (the one-point
+            // hypotheses of an exact scene all equal its translation).
+            for c in &round[votes..] {
+                assert_eq!(c.t_m, on.t_m);
+                let d = c.world_from_viewpoint.translation() - truth.translation();
+                assert!(d.norm() <= on.t_m + 1e-5, "{d:?}");
+            }
+        }
+
+        // Pairs that agree on nothing (scattered hypotheses), or on a position
+        // outside the prior's stated uncertainty: never focused, and the same
+        // viewpoints as with Focus off.
+        for attempt in [
+            || FakeAttempt::ok(),
+            || FakeAttempt::seen_from(at_x(0.5 + 0.1 + 0.01)),
+        ] {
+            let (ctxs, stats) = focus_run(0.5, on, attempt());
+            assert_eq!(stats.focused_rounds, 0);
+            assert!(ctxs.iter().all(|c| c.t_m == 0.5));
+            let (off, _) = focus_run(0.5, Focus::OFF, attempt());
+            assert_eq!(ctxs, off);
+        }
+
+        // A prior of the default uncertainty is never focused.
+        let (ctxs, stats) = focus_run(DEFAULT_T0_M, on, FakeAttempt::seen_from(at_x(0.15)));
+        assert_eq!(stats.focused_rounds, 0);
+        let (off, _) = focus_run(DEFAULT_T0_M, Focus::OFF, FakeAttempt::seen_from(at_x(0.15)));
+        assert_eq!(ctxs, off);
+    }
+
+    /// Verifies: VTSM-RELOC-040
+    #[test]
+    fn the_first_fix_of_a_focused_round_anneals_from_the_focused_width() {
+        let mut p = small_params();
+        p.t0_m = 0.5;
+        let truth = at_x(0.4);
+        let solver = FakeSolver::new(move |_, pairs, mask| {
+            mask.iter_mut().for_each(|m| *m = true);
+            Ok(Solution {
+                pose: truth,
+                inliers: pairs.len() as u16,
+                rms_m: 0.01,
+                iterations: 10,
+                candidates: heapless::Vec::new(),
+            })
+        });
+        let o = opts(&p);
+        let mut r =
+            Relocalizer::new(FakeAttempt::seen_from(truth), solver, &p, &o, &at_x(0.0), 3).unwrap();
+        let out = r.run_to_completion(0);
+        assert_eq!(out.failure, None);
+        assert_eq!(out.stats.focused_rounds, 1);
+        let h = &out.quality.history;
+        assert_eq!(h[0].t_m, o.focus.t_m);
+        if h.len() > 1 {
+            assert!((h[1].t_m - o.focus.t_m * p.gamma).abs() <= 1e-6);
+        }
+    }
+
+    /// Verifies: VTSM-RELOC-040
+    #[test]
+    fn focus_options_out_of_range_are_refused() {
+        let p = small_params();
+        let on = Focus::for_params(&p);
+        for focus in [
+            Focus { votes: 1, ..on },
+            Focus {
+                votes: (p.n_corr + 1) as u8,
+                ..on
+            },
+            Focus {
+                radius_m: 0.0,
+                ..on
+            },
+            Focus {
+                radius_m: f32::NAN,
+                ..on
+            },
+            Focus {
+                radius_m: 1.5,
+                ..on
+            },
+            Focus { t_m: 0.0, ..on },
+            Focus {
+                t_m: f32::INFINITY,
+                ..on
+            },
+            Focus {
+                t_m: MAX_T0_M + 0.5,
+                ..on
+            },
+        ] {
+            let o = Options { focus, ..opts(&p) };
+            let r = Relocalizer::new(
+                FakeAttempt::ok(),
+                FakeSolver::new(|_, _, _| Err(FailureCode::PoseDegenerate)),
+                &p,
+                &o,
+                &at_x(0.0),
+                1,
+            );
+            assert_eq!(
+                r.err(),
+                Some(FailureCode::ConfigParamOutOfRange),
+                "{focus:?}"
+            );
+        }
+        for focus in [
+            Focus::OFF,
+            Focus { votes: 2, ..on },
+            Focus { votes: 20, ..on },
+        ] {
+            let o = Options { focus, ..opts(&p) };
+            assert!(Options::validate(&o, &p).is_ok(), "{focus:?}");
+        }
     }
 
     /// Verifies: VTSM-RELOC-031

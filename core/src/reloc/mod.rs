@@ -357,6 +357,83 @@ pub struct Options {
     pub gates: Gates,
     /// Upset tolerance: repeat the final solve, re-check the map product.
     pub verify: Verify,
+    /// Before the first pose update from a wide prior, re-centre a round's
+    /// viewpoints on the translation its pairs agree on.
+    pub focus: Focus,
+}
+
+/// Focus: before the first pose update, from a prior more uncertain than
+/// [`Focus::t_m`], re-centre the rest of a round's viewpoints on the camera
+/// position its correspondences agree on.
+///
+/// With the prior's rotation `R`, each correspondence gives a one-point
+/// translation hypothesis `world − R·cam`: the camera position that puts the
+/// triangulated point on its map point. When at least `votes` of the round's
+/// hypotheses lie within `radius_m` of the newest one, and their mean within
+/// the prior's stated uncertainty (t̃₀ + `radius_m`) of the prior, the
+/// round's remaining viewpoints are drawn around that mean (with the prior's
+/// rotation) with translation half-width `t_m` instead of t̃₀. A round that
+/// then fails restores t̃₀ before its Reseed draw.
+///
+/// The solve is untouched: every pair is a measurement of the real images,
+/// whichever viewpoint rendered its template. Only where the next templates
+/// are rendered from changes: from a 0.5 m prior, few random viewpoints are
+/// close enough to the truth for their templates to match inside the capped
+/// search windows (`fsw-docs/eval/uncertainty50.md`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Focus {
+    /// Agreeing hypotheses needed, the newest included: 0 = off, else
+    /// 2..=n_corr.
+    pub votes: u8,
+    /// Agreement radius, metres, (0, 1]. The prior's rotation error moves a
+    /// hypothesis by up to r̃₀·|cam| (7.9 cm for 1.5° at 3 m), in the same
+    /// direction for points seen in the same direction.
+    pub radius_m: f32,
+    /// Translation half-width of the focused viewpoints, metres,
+    /// (0, [`crate::config::MAX_T0_M`]]. Focus runs only while the current
+    /// half-width is larger.
+    pub t_m: f32,
+}
+
+/// Default [`Focus::votes`]: four agreeing pairs, so that a chance
+/// agreement of wrong matches (scattered over the whole prior region) is rare.
+pub const DEFAULT_FOCUS_VOTES: u8 = 4;
+/// Default [`Focus::radius_m`], metres.
+pub const DEFAULT_FOCUS_RADIUS_M: f32 = 0.10;
+
+impl Focus {
+    /// Never focus.
+    pub const OFF: Focus = Focus {
+        votes: 0,
+        radius_m: DEFAULT_FOCUS_RADIUS_M,
+        t_m: crate::config::DEFAULT_T0_M,
+    };
+
+    /// The defaults: [`DEFAULT_FOCUS_VOTES`] (at most N_corr) within
+    /// [`DEFAULT_FOCUS_RADIUS_M`], focused to the default prior uncertainty
+    /// ([`crate::config::DEFAULT_T0_M`]), the one the first round is measured
+    /// from on every suite. A prior no more uncertain than that never focuses.
+    #[allow(
+        clippy::cast_possible_truncation,
+        reason = "the minimum with DEFAULT_FOCUS_VOTES fits u8"
+    )]
+    pub fn for_params(params: &Params) -> Self {
+        Self {
+            votes: u16::from(DEFAULT_FOCUS_VOTES).min(params.n_corr) as u8,
+            ..Self::OFF
+        }
+    }
+
+    fn validate(&self, params: &Params) -> bool {
+        let votes_ok = self.votes == 0 || (2..=params.n_corr).contains(&u16::from(self.votes));
+        votes_ok
+            && self.radius_m.is_finite()
+            && self.radius_m > 0.0
+            && self.radius_m <= 1.0
+            && self.t_m.is_finite()
+            && self.t_m > 0.0
+            && self.t_m <= crate::config::MAX_T0_M
+    }
 }
 
 /// Integrity gates on the final estimate ("is this answer the depot seen from
@@ -489,6 +566,7 @@ impl Options {
                 max_reproj_px: params.epsilon_px * footprint_scale(params.template_px),
             },
             verify: Verify::off(params),
+            focus: Focus::for_params(params),
         }
     }
 
@@ -503,7 +581,8 @@ impl Options {
             && self.first_fix_sigma_scale.is_finite()
             && (1.0..=MAX_FIRST_FIX_SIGMA_SCALE).contains(&self.first_fix_sigma_scale)
             && self.gates.validate()
-            && self.verify.validate();
+            && self.verify.validate()
+            && self.focus.validate(params);
         if ok {
             Ok(())
         } else {
@@ -616,6 +695,8 @@ pub struct Stats {
     /// First rounds solved a second time with the first-fix gate
     /// ([`Options::first_fix_sigma_scale`]).
     pub widened_solves: u16,
+    /// Rounds whose viewpoints were re-centred by [`Focus`].
+    pub focused_rounds: u16,
     /// Final refinement counters (all zero when it did not run).
     pub refine: crate::pose::RefineStats,
     /// Work units spent on [`Verify::repeat_solve`] (its solve start and

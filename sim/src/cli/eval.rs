@@ -1218,6 +1218,7 @@ fn run_trial(
                 ("attempts", out.stats.attempts),
                 ("stalls", u32::from(out.stats.stalls)),
                 ("reseeds", u32::from(out.stats.reseeds)),
+                ("focused_rounds", u32::from(out.stats.focused_rounds)),
                 ("refine_accepted", u32::from(out.stats.refine.accepted)),
             ] {
                 o.extra.insert(k.into(), f64::from(v));
