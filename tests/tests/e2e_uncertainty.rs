@@ -109,9 +109,10 @@ fn error_mm(r: &json::ResultFile, truth: &Pose) -> f64 {
 }
 
 /// A prior 0.40 m off that states 0.50 m / 1.5° relocalizes from a single
-/// start to within 5 cm of the truth, and `result.json` says what it ran with.
+/// start to within 5 cm of the truth, its first round focused on the position
+/// its pairs agreed on, and `result.json` says what it ran with.
 ///
-/// Verifies: VTSM-CLI-041, VTSM-HAL-026
+/// Verifies: VTSM-CLI-041, VTSM-HAL-026, VTSM-RELOC-040
 #[test]
 fn far_prior_stating_its_uncertainty_relocalizes_within_5_cm() {
     let s = scenario();
@@ -125,6 +126,7 @@ fn far_prior_stating_its_uncertainty_relocalizes_within_5_cm() {
     assert_eq!(r.prior_uncertainty, Some(STATED));
     // One start: the multi-seed mode stays off.
     assert_eq!(r.stats["seeds_tried"], 0);
+    assert!(r.stats["focused_rounds"] >= 1, "{:?}", r.stats);
     let text = std::fs::read_to_string(&out).unwrap();
     assert!(
         text.contains("\"prior_uncertainty\": {\n    \"t_m\": 0.5,\n    \"r_deg\": 1.5\n  }"),

@@ -512,10 +512,6 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
     }
 
     /// [`super::Focus`], after a pair joined the round: O(pairs) work.
-    #[allow(
-        clippy::cast_precision_loss,
-        reason = "at most MAX_CORR hypotheses are averaged"
-    )]
     fn focus(&mut self) {
         let f = self.opts.focus;
         if f.votes == 0
