@@ -209,7 +209,8 @@ fn a_spent_step_budget_returns_the_anytime_result() {
 
 /// A relocalization of `left`/`right` from `prior` through the runner.
 /// The prior's stated uncertainty reaches the engine through the runner: the
-/// first iteration's viewpoints are drawn within it, the report says what the
+/// first iteration's viewpoints are drawn within it (or within Focus's
+/// half-width once its pairs agreed, VTSM-RELOC-040), the report says what the
 /// engine ran with, and a stated value out of range stops the run at the
 /// prior check with `HAL_PRIOR_INVALID`.
 ///
@@ -232,10 +233,20 @@ fn runner_builds_the_engine_with_the_priors_stated_uncertainty() {
         let (o, rep) = r.result.as_ref().unwrap();
         assert_eq!(o.failure, None, "{uncertainty:?}");
         assert_eq!(rep.prior_uncertainty, used);
+        // The first fix's round drew its viewpoints within the stated
+        // uncertainty, or, once Focus re-centred it (a stated t̃₀ above the
+        // default only), within the focused half-width.
+        let focus = vtsm_core::reloc::Focus::for_params(&base.params);
+        let t_first = if o.stats.focused_rounds > 0 {
+            assert!(used.t_m > focus.t_m, "{uncertainty:?}");
+            focus.t_m
+        } else {
+            used.t_m
+        };
         let first = o.quality.history.first().unwrap();
         assert_eq!(
             (first.t_m, first.r_rad),
-            (used.t_m, used.r_deg.to_radians()),
+            (t_first, used.r_deg.to_radians()),
             "{uncertainty:?}"
         );
         assert_eq!(o.stats.seeds_tried, 0);
