@@ -89,8 +89,6 @@ pub struct Relocalizer<A, S> {
     /// Next seed to evaluate while `seeding`.
     seed_index: u16,
     seeding: bool,
-    /// Whether this round's viewpoints were re-centred by [`super::Focus`].
-    focused: bool,
     /// Best seed so far: its solution, pairs given to it, inlier spread.
     best_seed: Option<(Solution, u16, f32)>,
     max_units: u32,
@@ -165,7 +163,6 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             widened: false,
             seed_index: 0,
             seeding: params.seeds > 0,
-            focused: false,
             best_seed: None,
             max_units: Self::max_work_units(params),
             quality: Quality::default(),
@@ -511,15 +508,12 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         true
     }
 
-    /// [`super::Focus`], after a pair joined the round: O(pairs) work.
+    /// [`super::Focus`], after a pair joined the round: O(pairs) work. A
+    /// focused round runs at `f.t_m` (until a failed round restores t̃₀), so
+    /// the width check also keeps a round from focusing twice.
     fn focus(&mut self) {
         let f = self.opts.focus;
-        if f.votes == 0
-            || self.focused
-            || self.seeding
-            || self.stats.successes > 0
-            || self.t_m <= f.t_m
-        {
+        if f.votes == 0 || self.seeding || self.stats.successes > 0 || self.t_m <= f.t_m {
             return;
         }
         let r = self.anchor.rotation();
@@ -545,12 +539,10 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         }
         self.center = Pose::new(r, mean);
         self.t_m = f.t_m;
-        self.focused = true;
         self.stats.focused_rounds = self.stats.focused_rounds.saturating_add(1);
     }
 
     fn start_round(&mut self) {
-        self.focused = false;
         if self.widened {
             self.widened = false;
             self.solver.set_sigma_scale(1.0);
