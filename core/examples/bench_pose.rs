@@ -73,6 +73,7 @@ fn stereo_pairs(
             world,
             cam: q.p_cam,
             sigma_m: q.sigma_z_m,
+            variant: vtsm_core::pose::VARIANT_UNKNOWN,
         });
     }
     v

@@ -433,6 +433,7 @@ fn step(
             world,
             cam: pt.p_cam,
             sigma_m: pt.sigma_z_m,
+            variant: vtsm_core::pose::VARIANT_UNKNOWN,
         });
     }
     let ns = corr.len();

@@ -551,6 +551,7 @@ mod tests {
                     world: truth.transform_point(&cam),
                     cam,
                     sigma_m: 0.0,
+                    variant: crate::pose::VARIANT_UNKNOWN,
                 }
             })
             .collect();
@@ -567,6 +568,7 @@ mod tests {
                         world: truth.transform_point(&cam),
                         cam,
                         sigma_m: 0.0,
+                        variant: crate::pose::VARIANT_UNKNOWN,
                     }
                 })
                 .collect()

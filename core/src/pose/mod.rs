@@ -67,7 +67,15 @@ pub struct Correspondence {
     pub cam: Vec3,
     /// One-sigma uncertainty of `cam` (the stereo depth sigma), metres, ≥ 0.
     pub sigma_m: f32,
+    /// The template variant whose matches gave `cam`
+    /// ([`Variant::index`](crate::reloc::Variant::index)), or
+    /// [`VARIANT_UNKNOWN`]. The engine's final round keeps only
+    /// gradient-domain pairs (VTSM-RELOC-041).
+    pub variant: u8,
 }
+
+/// [`Correspondence::variant`] of a pair that no template match produced.
+pub const VARIANT_UNKNOWN: u8 = u8::MAX;
 
 impl Correspondence {
     fn is_finite(&self) -> bool {
@@ -134,6 +142,7 @@ mod test_pairs {
                     world: pose.transform_point(&cam),
                     cam,
                     sigma_m: 0.01,
+                    variant: crate::pose::VARIANT_UNKNOWN,
                 }
             })
             .collect()

@@ -566,6 +566,7 @@ mod tests {
                 world: truth.transform_point(&other),
                 cam,
                 sigma_m: 0.01,
+                variant: crate::pose::VARIANT_UNKNOWN,
             });
         }
         // Shuffle (Fisher–Yates) so inliers are not a prefix.
@@ -929,6 +930,7 @@ mod tests {
                     world: truth.transform_point(&cam),
                     cam,
                     sigma_m: 0.0,
+                    variant: crate::pose::VARIANT_UNKNOWN,
                 }
             })
             .collect();

@@ -621,6 +621,7 @@ mod tests {
                 world: truth.transform_point(&p),
                 cam: pt.p_cam,
                 sigma_m: pt.sigma_z_m,
+                variant: crate::pose::VARIANT_UNKNOWN,
             });
         }
         out

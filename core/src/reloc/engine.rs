@@ -86,6 +86,9 @@ pub struct Relocalizer<A, S> {
     /// Whether this round's pairs were solved again with the first-fix gate
     /// ([`Options::first_fix_sigma_scale`]).
     widened: bool,
+    /// The final round may keep gradient-domain pairs only: no round has
+    /// failed since the last pose update ([`Options::final_gradient_only`]).
+    gradient_final: bool,
     /// Next seed to evaluate while `seeding`.
     seed_index: u16,
     seeding: bool,
@@ -161,6 +164,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             consecutive_reseed: 0,
             rounds_without_fix: 0,
             widened: false,
+            gradient_final: false,
             seed_index: 0,
             seeding: params.seeds > 0,
             best_seed: None,
@@ -373,6 +377,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             world_from_viewpoint: randomize(&center, self.t_m, self.r_rad, planar, &mut rng),
             t_m: self.t_m,
             r_rad: self.r_rad,
+            gradient_only: self.final_round(),
             index,
             round: self.round,
         };
@@ -542,6 +547,18 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         self.stats.focused_rounds = self.stats.focused_rounds.saturating_add(1);
     }
 
+    /// Whether the round under way is the final one and keeps only
+    /// gradient-domain pairs ([`Options::final_gradient_only`]): a success
+    /// now would be the `n_iter`-th and no round has failed since the last
+    /// update (a restricted final round that fails runs again with every
+    /// variant). Never while seeding.
+    fn final_round(&self) -> bool {
+        self.opts.final_gradient_only
+            && self.gradient_final
+            && !self.seeding
+            && self.stats.successes.saturating_add(1) >= u16::from(self.params.n_iter)
+    }
+
     fn start_round(&mut self) {
         if self.widened {
             self.widened = false;
@@ -549,6 +566,9 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         }
         self.round = self.round.saturating_add(1);
         self.stats.rounds = self.stats.rounds.saturating_add(1);
+        if self.final_round() {
+            self.stats.gradient_rounds = self.stats.gradient_rounds.saturating_add(1);
+        }
         self.round_attempts = 0;
         self.phase = Phase::Collect;
     }
@@ -628,6 +648,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
                 self.accept(now);
             }
         } else {
+            self.gradient_final = true;
             self.reuse_inliers(sol.inliers);
             self.start_round();
         }
@@ -642,13 +663,18 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         } else {
             0
         };
+        // Into the final round only gradient-domain pairs (the success just
+        // counted makes the next round the final one).
+        let gradient_only = self.final_round();
         let mut write = 0usize;
         for read in 0..self.pairs.len() {
             if write >= keep {
                 break;
             }
             let inlier = self.inlier_mask.get(read).copied().unwrap_or(false);
-            if let (true, Some(p)) = (inlier, self.pairs.get(read).copied()) {
+            let p = self.pairs.get(read).copied();
+            let p = p.filter(|p| !gradient_only || super::policy::is_gradient_variant(p.variant));
+            if let (true, Some(p)) = (inlier, p) {
                 if let Some(slot) = self.pairs.get_mut(write) {
                     *slot = p;
                 }
@@ -664,6 +690,9 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
 
     fn round_failed(&mut self, code: FailureCode, now: u64) {
         self.pairs.clear();
+        // A failed round (a final one restricted to gradient pairs included)
+        // runs again with every variant.
+        self.gradient_final = false;
         if self.stats.successes == 0 {
             // A focused round that failed: back to the stated uncertainty.
             self.t_m = self.params.t0_m;
@@ -895,6 +924,9 @@ mod tests {
         /// When set, each pair is a point 2–4 m in front of the camera seen
         /// from this `world_from_left` (a scene), not an arbitrary pair.
         truth: Option<Pose>,
+        /// The template variant of pair `id` (Sobel at ℓ unless set); a gray
+        /// one is rejected when the context asks for gradient matches only.
+        variant: fn(u32) -> u8,
     }
 
     impl FakeAttempt {
@@ -906,6 +938,7 @@ mod tests {
                 recheck: Ok(()),
                 rechecks: 0,
                 truth: None,
+                variant: |_| 1,
             }
         }
 
@@ -934,6 +967,10 @@ mod tests {
             }
             let id = self.next_id;
             self.next_id += 1;
+            let variant = (self.variant)(id);
+            if ctx.gradient_only && !super::super::policy::is_gradient_variant(variant) {
+                return Err(FailureCode::NccLowScore);
+            }
             if let Some(truth) = self.truth {
                 let cam = Vec3::new(
                     2.0 * rng.next_f32() - 1.0,
@@ -944,6 +981,7 @@ mod tests {
                     world: truth.transform_point(&cam),
                     cam,
                     sigma_m: 0.01,
+                    variant,
                 });
             }
             let v = ctx.world_from_viewpoint.translation();
@@ -952,6 +990,7 @@ mod tests {
                 // The viewpoint centre travels with the pair so solvers can see it.
                 cam: v,
                 sigma_m: 0.01,
+                variant,
             })
         }
 
@@ -1270,6 +1309,82 @@ mod tests {
                 reused_total += expect;
             }
             assert_eq!(out.stats.reused as usize, reused_total);
+        }
+    }
+
+    /// Verifies: VTSM-RELOC-041
+    #[test]
+    fn the_final_round_keeps_gradient_domain_pairs_only() {
+        // (option on, variant of pair id, the fifth solve fails, gradient final round expected)
+        let sobel_two_thirds: fn(u32) -> u8 = |id| [0, 1, 4][(id % 3) as usize];
+        let cases = [
+            (true, sobel_two_thirds, false, true),
+            (false, sobel_two_thirds, false, false),
+            // The restricted final round fails: it runs again with every variant.
+            (true, sobel_two_thirds, true, true),
+        ];
+        for (on, variant, fail_final, restricted) in cases {
+            let p = small_params();
+            let mut o = opts(&p);
+            o.final_gradient_only = on;
+            let solver = FakeSolver::new(move |call, pairs, mask| {
+                if fail_final && call == u32::from(p.n_iter) - 1 {
+                    return Err(FailureCode::PoseRansacNoConsensus);
+                }
+                Ok(even_inliers(at_x(0.1 * (call + 1) as f32), pairs, mask))
+            });
+            let mut attempt = FakeAttempt::ok();
+            attempt.variant = variant;
+            let mut r = Relocalizer::new(attempt, solver, &p, &o, &at_x(0.0), 5).unwrap();
+            let out = r.run_to_completion(0);
+            assert!(out.failure.is_none(), "{:?}", out.failure);
+            assert_eq!(
+                out.stats.gradient_rounds,
+                u16::from(restricted),
+                "{on} {fail_final}"
+            );
+            let calls = &r.solver_ref().calls;
+            let gray = |c: &[Correspondence]| {
+                c.iter()
+                    .filter(|q| !super::super::policy::is_gradient_variant(q.variant))
+                    .count()
+            };
+            let contexts = &r.attempt_ref().contexts;
+            // The rounds before the final one take every variant.
+            let before = usize::from(p.n_iter) - 1;
+            assert!(calls[..before].iter().all(|c| gray(c) > 0));
+            let final_solves = &calls[before..];
+            assert_eq!(final_solves.len(), 1 + usize::from(fail_final));
+            let restricted_attempts = contexts.iter().filter(|c| c.gradient_only).count();
+            if restricted {
+                let first = &final_solves[0];
+                assert_eq!(first.len(), usize::from(p.n_corr));
+                assert_eq!(gray(first), 0);
+                // Pairs carried into it by Reuse are gradient ones too, and
+                // its new pairs came from gradient-only attempts, the gray
+                // third of whose ids was rejected.
+                let prev = &calls[before - 1];
+                let carried = first
+                    .iter()
+                    .filter(|c| prev.iter().any(|q| q.world.x == c.world.x))
+                    .count();
+                assert!(carried > 0);
+                let new = usize::from(p.n_corr) - carried;
+                assert!(
+                    restricted_attempts >= new + new / 2 - 1,
+                    "{restricted_attempts} attempts for {new} pairs"
+                );
+            } else {
+                assert_eq!(restricted_attempts, 0);
+            }
+            // The solve that ends the run: gradient pairs only exactly when the
+            // restricted final round is the one that succeeded.
+            let last = final_solves.last().unwrap();
+            assert_eq!(
+                gray(last) == 0,
+                restricted && !fail_final,
+                "{on} {fail_final}"
+            );
         }
     }
 

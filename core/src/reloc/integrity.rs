@@ -133,6 +133,7 @@ mod tests {
             world: cam,
             cam,
             sigma_m: 0.01,
+            variant: crate::pose::VARIANT_UNKNOWN,
         }
     }
 

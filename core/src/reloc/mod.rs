@@ -84,6 +84,9 @@ pub struct AttemptContext {
     pub t_m: f32,
     /// Current rotation search bound r̃, radians (sizes the search window).
     pub r_rad: f32,
+    /// Accept only gradient-domain matches (Sobel, Laplacian): set in the
+    /// final round under [`Options::final_gradient_only`].
+    pub gradient_only: bool,
     /// Global attempt index (for logging).
     pub index: u32,
     /// Round index (iterations, Stall / Reseed rounds and seeds all count).
@@ -360,6 +363,15 @@ pub struct Options {
     /// Before the first pose update from a wide prior, re-centre a round's
     /// viewpoints on the translation its pairs agree on.
     pub focus: Focus,
+    /// The final round (the one after `n_iter − 1` pose updates) accepts only
+    /// gradient-domain matches, and Reuse carries only such pairs into it; a
+    /// final round so restricted that fails is run again with every variant
+    /// (VTSM-RELOC-041). A gray-domain match follows the
+    /// shading baked into the map's texture, which a change of the time of
+    /// day moves alike across the image, so a final solve on such pairs
+    /// inherits that shift; the earlier rounds keep them, where the
+    /// consensus needs their yield (`fsw-docs/eval/lighting.md`).
+    pub final_gradient_only: bool,
 }
 
 /// Focus: before the first pose update, from a prior more uncertain than
@@ -567,6 +579,7 @@ impl Options {
             },
             verify: Verify::off(params),
             focus: Focus::for_params(params),
+            final_gradient_only: true,
         }
     }
 
@@ -697,6 +710,9 @@ pub struct Stats {
     pub widened_solves: u16,
     /// Rounds whose viewpoints were re-centred by [`Focus`].
     pub focused_rounds: u16,
+    /// Final rounds run on gradient-domain matches only
+    /// ([`Options::final_gradient_only`]; 0 or 1).
+    pub gradient_rounds: u16,
     /// Final refinement counters (all zero when it did not run).
     pub refine: crate::pose::RefineStats,
     /// Work units spent on [`Verify::repeat_solve`] (its solve start and

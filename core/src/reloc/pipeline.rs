@@ -58,6 +58,9 @@ pub struct Pipeline<'a, 'w, F = StereoPair<'a>> {
     ws: Workspace<'w>,
     /// What the next stage of a staged attempt starts from.
     pending: Pending,
+    /// The attempt under way accepts only gradient-domain variants
+    /// ([`AttemptContext::gradient_only`]).
+    gradient_only: bool,
 }
 
 /// Where a staged attempt stands between two of its stages.
@@ -68,7 +71,7 @@ enum Pending {
     /// Rendered, with its search windows: Match is next.
     Match(Sample, Templates, Windows),
     /// Matched in both images: Valid + Stereo is next.
-    Stereo(Sample, ([f32; 2], [f32; 2])),
+    Stereo(Sample, ([f32; 2], [f32; 2]), u8),
 }
 
 /// A sampled vertex and its projections.
@@ -153,6 +156,7 @@ impl<'a, 'w, F: FrameSource> Pipeline<'a, 'w, F> {
             policy: *policy,
             ws,
             pending: Pending::None,
+            gradient_only: false,
         }
     }
 
@@ -417,7 +421,7 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
         t: Templates,
         win: Windows,
         stats: &mut PipelineStats,
-    ) -> Result<([f32; 2], [f32; 2]), FailureCode> {
+    ) -> Result<([f32; 2], [f32; 2], u8), FailureCode> {
         let l = self.template_px;
         let ws = &mut self.ws;
         fn view(b: &[u8], l: usize) -> Result<GrayView<'_>, FailureCode> {
@@ -440,7 +444,11 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
         let mut right_buf = Some(&mut *ws.frame_r);
         let mut right_win: Option<Window<'_>> = None;
         let mut last = FailureCode::NccLowScore;
+        let gradient_only = self.gradient_only;
         for v in self.policy.variants.iter().flatten() {
+            if gradient_only && !super::policy::is_gradient_variant(v.index() as u8) {
+                continue;
+            }
             fn crop(t: GrayView<'_>, half: bool) -> Option<GrayView<'_>> {
                 if half {
                     ncc::sub_template(&t)
@@ -557,7 +565,9 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
                 *c = c.saturating_add(1);
             }
             let pr = [mr.sub_x + or[0], mr.sub_y + or[1]];
-            return Ok((pl, pr));
+            // Variant indices are < MATCH_VARIANTS ≤ u8::MAX.
+            let variant = u8::try_from(idx).unwrap_or(crate::pose::VARIANT_UNKNOWN);
+            return Ok((pl, pr, variant));
         }
         Err(last)
     }
@@ -567,7 +577,7 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
     fn stereo(
         &self,
         s: &Sample,
-        (pl, pr): ([f32; 2], [f32; 2]),
+        (pl, pr, variant): ([f32; 2], [f32; 2], u8),
         stats: &mut PipelineStats,
     ) -> Result<Correspondence, FailureCode> {
         let p = stereo::triangulate(
@@ -583,6 +593,7 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
             world: s.world,
             cam: p.p_cam,
             sigma_m: p.sigma_z_m,
+            variant,
         })
     }
 }
@@ -615,6 +626,7 @@ impl<F: FrameSource> Attempt for Pipeline<'_, '_, F> {
         stats: &mut PipelineStats,
     ) -> StageStep {
         self.pending = Pending::None;
+        self.gradient_only = ctx.gradient_only;
         let vp_left = ctx.world_from_viewpoint;
         let rendered = self
             .sample(&vp_left.inverse(), rng, stats)
@@ -639,8 +651,8 @@ impl<F: FrameSource> Attempt for Pipeline<'_, '_, F> {
         match pending {
             Pending::Match(sample, templates, windows) => {
                 let ended = match self.match_pair(&sample, templates, windows, stats) {
-                    Ok(pixels) => {
-                        self.pending = Pending::Stereo(sample, pixels);
+                    Ok((pl, pr, variant)) => {
+                        self.pending = Pending::Stereo(sample, (pl, pr), variant);
                         None
                     }
                     Err(code) => Some(Err(code)),
@@ -650,9 +662,9 @@ impl<F: FrameSource> Attempt for Pipeline<'_, '_, F> {
                     ended,
                 }
             }
-            Pending::Stereo(sample, pixels) => StageStep {
+            Pending::Stereo(sample, pixels, variant) => StageStep {
                 stage: Stage::Stereo,
-                ended: Some(self.stereo(&sample, pixels, stats)),
+                ended: Some(self.stereo(&sample, (pixels.0, pixels.1, variant), stats)),
             },
             // No attempt under way: nothing was sampled.
             Pending::None => StageStep {
@@ -775,6 +787,7 @@ mod tests {
             world_from_viewpoint: viewpoint,
             t_m: 0.05,
             r_rad: 0.01,
+            gradient_only: false,
             index: 0,
             round: 0,
         }

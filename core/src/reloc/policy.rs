@@ -27,6 +27,13 @@ impl Variant {
     }
 }
 
+/// Whether [`Variant::index`] `index` names a gradient-domain variant
+/// (Sobel or Laplacian, at ℓ or ℓ/2); `false` for gray and for
+/// [`VARIANT_UNKNOWN`](crate::pose::VARIANT_UNKNOWN).
+pub const fn is_gradient_variant(index: u8) -> bool {
+    (index as usize) < super::MATCH_VARIANTS && index % 3 != 0
+}
+
 /// Which variants to try, in what order, and how to accept a match.
 ///
 /// A variant is accepted when both the left and the right search score at

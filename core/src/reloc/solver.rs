@@ -154,6 +154,7 @@ mod tests {
                     world,
                     cam,
                     sigma_m: 0.005,
+                    variant: crate::pose::VARIANT_UNKNOWN,
                 }
             })
             .collect();
@@ -205,6 +206,7 @@ mod tests {
                     world: truth.transform_point(&(cam + cam.normalize() * shift)),
                     cam,
                     sigma_m: 0.01,
+                    variant: crate::pose::VARIANT_UNKNOWN,
                 }
             })
             .collect();
@@ -263,6 +265,7 @@ mod tests {
                 world,
                 cam: pt.p_cam,
                 sigma_m: pt.sigma_z_m,
+                variant: crate::pose::VARIANT_UNKNOWN,
             })
         }
     }

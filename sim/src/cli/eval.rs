@@ -1219,6 +1219,7 @@ fn run_trial(
                 ("stalls", u32::from(out.stats.stalls)),
                 ("reseeds", u32::from(out.stats.reseeds)),
                 ("focused_rounds", u32::from(out.stats.focused_rounds)),
+                ("gradient_rounds", u32::from(out.stats.gradient_rounds)),
                 ("refine_accepted", u32::from(out.stats.refine.accepted)),
             ] {
                 o.extra.insert(k.into(), f64::from(v));

@@ -368,6 +368,7 @@ pub fn outcome_from_core(o: &vtsm_core::reloc::Outcome, asked: VerifyChecks) -> 
         ("seeds_tried", u64::from(s.seeds_tried)),
         ("widened_solves", u64::from(s.widened_solves)),
         ("focused_rounds", u64::from(s.focused_rounds)),
+        ("gradient_rounds", u64::from(s.gradient_rounds)),
         ("renders", u64::from(p.renders)),
         ("render_pixels", p.render_pixels),
         ("ncc_matches", p.matches.iter().map(|&m| u64::from(m)).sum()),
