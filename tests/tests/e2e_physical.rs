@@ -2,8 +2,8 @@
 //! `scene export --physical` relocalizes through `vtsm relocalize`'s loader and
 //! engine call to about the accuracy of the ideal rectified capture of the same
 //! scene, and the pose reported is the physical left camera's (its calibration
-//! given in the OpenCV form, as two ROS camera_info files or as a Kalibr
-//! camera chain); `vtsm eval
+//! given in the OpenCV form, as two ROS camera_info files, as a Kalibr
+//! camera chain or as a `cv::FileStorage` YAML file); `vtsm eval
 //! --physical` does the same on its suites' trials.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -72,10 +72,44 @@ fn kalibr_chain(calib: &OpenCvCalib) -> String {
     )
 }
 
+/// `calib` as one `cv::FileStorage` YAML file in OpenCV 4's layout
+/// (`%YAML:1.0`, `!!opencv-matrix` values under the argument names of
+/// `cv::stereoCalibrate`, `image_width`/`image_height`).
+fn storage_yaml(calib: &OpenCvCalib) -> String {
+    let mat = |key: &str, rows: usize, cols: usize, data: &[f64]| {
+        let d: Vec<String> = data.iter().map(|v| format!("{v:?}")).collect();
+        format!(
+            "{key}: !!opencv-matrix\n   rows: {rows}\n   cols: {cols}\n   dt: d\n   data: [ {} ]\n",
+            d.join(", ")
+        )
+    };
+    let flat = |m: &[[f64; 3]; 3]| m.concat();
+    format!(
+        "%YAML:1.0\n---\nimage_width: {}\nimage_height: {}\n{}{}{}{}{}{}",
+        calib.image_size[0],
+        calib.image_size[1],
+        mat("cameraMatrix1", 3, 3, &flat(&calib.left.k)),
+        mat("distCoeffs1", 1, calib.left.dist.len(), &calib.left.dist),
+        mat("cameraMatrix2", 3, 3, &flat(&calib.right.k)),
+        mat("distCoeffs2", 1, calib.right.dist.len(), &calib.right.dist),
+        mat("R", 3, 3, &flat(&calib.r)),
+        mat("T", 3, 1, &calib.t),
+    )
+}
+
 /// Relocalize the files in `dir`; (translation error m, rotation error deg) of
 /// the reported pose against `truth`, and the pose.
 fn relocalize(dir: &Path, truth: &Pose) -> (f32, f32, Pose) {
-    let inputs = load_inputs(&args(dir)).unwrap();
+    relocalize_calib(dir, &dir.join("calib.json"), truth)
+}
+
+/// [`relocalize`] with the calibration file `calib`.
+fn relocalize_calib(dir: &Path, calib: &Path, truth: &Pose) -> (f32, f32, Pose) {
+    let inputs = load_inputs(&Args {
+        calib: calib.to_path_buf(),
+        ..args(dir)
+    })
+    .unwrap();
     let out = run_engine(&inputs).unwrap();
     assert_eq!(out.failure, None, "{}", dir.display());
     // The outcome is in the map's local frame; the truth in the mesh's.
@@ -93,7 +127,7 @@ fn relocalize(dir: &Path, truth: &Pose) -> (f32, f32, Pose) {
 /// 3 cm and 0.3° of the rectified pair's (and under 5 cm, 0.5° absolute), and
 /// the reported pose is nearer the physical left camera than the rectified one.
 ///
-/// Verifies: VTSM-CLI-033, VTSM-CLI-043, VTSM-CLI-044, VTSM-SIM-014
+/// Verifies: VTSM-CLI-033, VTSM-CLI-043, VTSM-CLI-044, VTSM-CLI-045, VTSM-SIM-014
 #[test]
 fn physical_pair_relocalizes_like_the_rectified_one() {
     let scene = Scene::new(TerrainKind::Flagstone, SEED, Profile::Test);
@@ -151,6 +185,11 @@ fn physical_pair_relocalizes_like_the_rectified_one() {
                 dr.to_degrees()
             );
             assert!(dt < 1e-3 && dr.to_degrees() < 0.01, "{dt} m {dr} rad");
+            // As one cv::FileStorage YAML file given as --calib itself: the
+            // same calibration, the same estimate.
+            std::fs::write(ros_dir.join("stereo.yml"), storage_yaml(&calib)).unwrap();
+            let (_, _, fs_pose) = relocalize_calib(&ros_dir, &ros_dir.join("stereo.yml"), &truth);
+            assert_eq!(fs_pose, pose, "FileStorage form");
             // And as a Kalibr camera chain. Radtan has no k3: without the right
             // camera's 0.001 the rectified images differ slightly, and so does
             // the engine's path; the estimate is held to the accuracy bounds the

@@ -48,9 +48,10 @@ pub struct Args {
     /// Stereo calibration: a rectified pair {"width","height","fx","fy","cx","cy","baseline_m"},
     /// the OpenCV form {"image_size","left","right","R","T"} of a physical pair,
     /// the ROS form {"ros_camera_info":{"left":"l.yaml","right":"r.yaml"}} naming
-    /// two camera_info files, or the Kalibr form {"kalibr_camchain":"camchain.yaml"}
-    /// (the physical forms are rectified here; poses then refer to the physical
-    /// left camera).
+    /// two camera_info files, the Kalibr form {"kalibr_camchain":"camchain.yaml"},
+    /// or the FileStorage form {"opencv_storage":["intrinsics.yml","extrinsics.yml"]}
+    /// (a cv::FileStorage YAML file may also be given here itself) (the physical
+    /// forms are rectified here; poses then refer to the physical left camera).
     #[arg(long, value_name = "calib.json")]
     pub calib: PathBuf,
     /// Left image (PNG, JPEG, TIFF or PGM; 8 or 16 bit; colour is converted to gray).

@@ -272,17 +272,24 @@ pub fn parse_opencv_calib(bytes: &[u8], path: &Path) -> Result<OpenCvCalib> {
     Ok(c)
 }
 
-/// Parse any form of `calib.json`: the Kalibr form ([`super::calib_kalibr`])
-/// when the top-level object has a `kalibr_camchain` key, the ROS form
+/// Parse any form of `calib.json`: a FileStorage YAML file itself
+/// ([`super::calib_storage`]) when it begins with `%YAML`, the FileStorage
+/// form when the top-level object has an `opencv_storage` key, the Kalibr form
+/// ([`super::calib_kalibr`]) when it has a `kalibr_camchain` key, the ROS form
 /// ([`super::calib_ros`]) when it has a `ros_camera_info` key, the OpenCV form when it has an
 /// `image_size` key, the rectified form otherwise. The ROS form is returned as
-/// the OpenCV form it describes, as is the Kalibr form.
+/// the OpenCV form it describes, as are the Kalibr and FileStorage forms.
 ///
 /// # Errors
 /// As [`json::parse_calib`], [`parse_opencv_calib`],
+/// [`super::calib_storage::parse_storage_calib`],
 /// [`super::calib_ros::parse_ros_calib`] or
 /// [`super::calib_kalibr::parse_kalibr_calib`].
 pub fn parse_calib_any(bytes: &[u8], path: &Path) -> Result<CalibFile> {
+    if super::calib_storage::is_storage_yaml(bytes) {
+        return super::calib_storage::parse_storage_yaml(bytes, path)
+            .map(|c| CalibFile::OpenCv(Box::new(c)));
+    }
     // The top-level keys, parsed once; malformed JSON is reported by the
     // rectified form's parser below.
     let top = serde_json::from_slice::<serde_json::Value>(bytes).ok();
@@ -291,7 +298,10 @@ pub fn parse_calib_any(bytes: &[u8], path: &Path) -> Result<CalibFile> {
             .and_then(|v| v.as_object())
             .is_some_and(|o| o.contains_key(key))
     };
-    if has("kalibr_camchain") {
+    if has("opencv_storage") {
+        super::calib_storage::parse_storage_calib(bytes, path)
+            .map(|c| CalibFile::OpenCv(Box::new(c)))
+    } else if has("kalibr_camchain") {
         super::calib_kalibr::parse_kalibr_calib(bytes, path).map(|c| CalibFile::OpenCv(Box::new(c)))
     } else if has("ros_camera_info") {
         super::calib_ros::parse_ros_calib(bytes, path).map(|c| CalibFile::OpenCv(Box::new(c)))

@@ -17,6 +17,7 @@ pub mod atlas;
 pub mod calib_kalibr;
 pub mod calib_opencv;
 pub mod calib_ros;
+pub mod calib_storage;
 pub mod image;
 pub mod json;
 pub mod mesh;
