@@ -597,17 +597,7 @@ mod tests {
         ) {
             let (l, r) = from_opencv(&physical()).unwrap();
             let text = camera_info_text("right", &r);
-            let text: String = match drop_line {
-                Some(k) => text.lines().enumerate().filter(|(i, _)| *i != k)
-                    .map(|(_, s)| format!("{s}\n")).collect(),
-                None => text,
-            };
-            let mut bytes = text.into_bytes();
-            bytes.truncate(cut.max(1).min(bytes.len()));
-            for (at, b) in edits {
-                let n = bytes.len();
-                bytes[at % n] = b;
-            }
+            let bytes = super::super::damaged(&text, cut, &edits, drop_line);
             if let Ok(right) = parse_camera_info(&bytes, Path::new("right.yaml")) {
                 if let Ok(c) = to_opencv(&l, &right) {
                     prop_assert!(c.validate().is_ok());

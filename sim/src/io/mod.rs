@@ -155,3 +155,33 @@ pub(crate) fn clip(s: &str) -> String {
         format!("{head}...")
     }
 }
+
+/// `text` damaged as the file-reader fuzz tests damage it: line `drop_line`
+/// left out, cut to `cut` bytes (at least one), then each `(at, byte)` of
+/// `edits` written at `at` modulo the length.
+#[cfg(test)]
+pub(crate) fn damaged(
+    text: &str,
+    cut: usize,
+    edits: &[(usize, u8)],
+    drop_line: Option<usize>,
+) -> Vec<u8> {
+    let text: String = match drop_line {
+        Some(k) => text
+            .lines()
+            .enumerate()
+            .filter(|(i, _)| *i != k)
+            .map(|(_, s)| format!("{s}\n"))
+            .collect(),
+        None => text.to_string(),
+    };
+    let mut bytes = text.into_bytes();
+    bytes.truncate(cut.max(1).min(bytes.len()));
+    for &(at, b) in edits {
+        let n = bytes.len();
+        if let Some(slot) = bytes.get_mut(at % n.max(1)) {
+            *slot = b;
+        }
+    }
+    bytes
+}

@@ -230,17 +230,7 @@ proptest! {
         drop_line in proptest::option::of(0usize..50),
     ) {
         let text = std::fs::read_to_string(examples().join("opencv-storage/stereo.yml")).unwrap();
-        let text: String = match drop_line {
-            Some(k) => text.lines().enumerate().filter(|(i, _)| *i != k)
-                .map(|(_, s)| format!("{s}\n")).collect(),
-            None => text,
-        };
-        let mut bytes = text.into_bytes();
-        bytes.truncate(cut.max(1).min(bytes.len()));
-        for (at, b) in edits {
-            let n = bytes.len();
-            bytes[at % n] = b;
-        }
+        let bytes = crate::io::damaged(&text, cut, &edits, drop_line);
         if let Ok(c) = parse_storage_yaml(&bytes, Path::new("stereo.yml")) {
             prop_assert!(c.validate().is_ok());
         }
