@@ -1,9 +1,11 @@
 #!/usr/bin/env python3
 """Per-group side-by-side table of `vtsm eval` runs of the same trials.
 
-Usage: python3 fsw-docs/eval/compare.py LABEL=DIR [LABEL=DIR ...]
+Usage: python3 fsw-docs/eval/compare.py LABEL=DIR[+DIR ...] [LABEL=DIR[+DIR ...] ...]
 
-Each DIR is a `vtsm eval` output directory (its trials.csv). Groups are those of
+Each DIR is a `vtsm eval` output directory (its trials.csv); DIR+DIR pools
+several runs under one label (e.g. two seeds; trials pair by position in the
+list and trial index). Groups are those of
 the first run; a group missing from a run is left out for it. The paired
 difference is against the first run, over the trials both solved (same group
 and trial index: same capture, prior and seed), with how many of them the run
@@ -47,8 +49,13 @@ def inside(rows, key):
 
 runs = []
 for arg in sys.argv[1:]:
-    label, _, path = arg.partition("=")
-    rows = [r for r in csv.DictReader(open(path.rstrip("/") + "/trials.csv")) if r["method"] == "vtsm"]
+    label, _, paths = arg.partition("=")
+    rows = []
+    for k, path in enumerate(paths.split("+")):
+        for r in csv.DictReader(open(path.rstrip("/") + "/trials.csv")):
+            if r["method"] == "vtsm":
+                r["trial"] = "%d-%s" % (k, r["trial"])
+                rows.append(r)
     runs.append((label, rows))
 if not runs:
     sys.exit(__doc__)
