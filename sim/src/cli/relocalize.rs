@@ -50,7 +50,7 @@ pub struct Args {
     /// the ROS form {"ros_camera_info":{"left":"l.yaml","right":"r.yaml"}} naming
     /// two camera_info files, the Kalibr form {"kalibr_camchain":"camchain.yaml"},
     /// or the FileStorage form {"opencv_storage":["intrinsics.yml","extrinsics.yml"]}
-    /// (a cv::FileStorage YAML file may also be given here itself) (the physical
+    /// (a cv::FileStorage YAML or XML file may also be given here itself) (the physical
     /// forms are rectified here; poses then refer to the physical left camera).
     #[arg(long, value_name = "calib.json")]
     pub calib: PathBuf,

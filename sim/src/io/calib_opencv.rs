@@ -272,8 +272,8 @@ pub fn parse_opencv_calib(bytes: &[u8], path: &Path) -> Result<OpenCvCalib> {
     Ok(c)
 }
 
-/// Parse any form of `calib.json`: a FileStorage YAML file itself
-/// ([`super::calib_storage`]) when it begins with `%YAML`, the FileStorage
+/// Parse any form of `calib.json`: a FileStorage file itself
+/// ([`super::calib_storage`]) when it begins with `%YAML` or is XML, the FileStorage
 /// form when the top-level object has an `opencv_storage` key, the Kalibr form
 /// ([`super::calib_kalibr`]) when it has a `kalibr_camchain` key, the ROS form
 /// ([`super::calib_ros`]) when it has a `ros_camera_info` key, the OpenCV form when it has an
@@ -286,8 +286,8 @@ pub fn parse_opencv_calib(bytes: &[u8], path: &Path) -> Result<OpenCvCalib> {
 /// [`super::calib_ros::parse_ros_calib`] or
 /// [`super::calib_kalibr::parse_kalibr_calib`].
 pub fn parse_calib_any(bytes: &[u8], path: &Path) -> Result<CalibFile> {
-    if super::calib_storage::is_storage_yaml(bytes) {
-        return super::calib_storage::parse_storage_yaml(bytes, path)
+    if super::calib_storage::is_storage_file(bytes) {
+        return super::calib_storage::parse_storage_file(bytes, path)
             .map(|c| CalibFile::OpenCv(Box::new(c)));
     }
     // The top-level keys, parsed once; malformed JSON is reported by the

@@ -10,8 +10,8 @@
 //! ```
 //!
 //! Paths are resolved against the directory of `calib.json`. A YAML file that
-//! begins with `%YAML` may also be given as `--calib` itself; it is read as
-//! `{"opencv_storage": that file}`.
+//! begins with `%YAML`, or an XML file, may also be given as `--calib`
+//! itself; it is read as `{"opencv_storage": that file}`.
 //!
 //! The files are read together; each item is looked up under the names OpenCV
 //! code writes it with ([`KEYS`]): the left camera matrix as `M1`, `K1` or
@@ -26,9 +26,10 @@
 //! `mm`; only in `calib.json`) says otherwise: `stereoCalibrate` returns `T` in
 //! the unit of the calibration target's square size. Other keys (`R1`, `P1`,
 //! `Q`, `E`, `F`, RMS figures, ...) are ignored; the host rectifier computes
-//! the rectification itself. Both headers OpenCV writes are read (`%YAML:1.0`
-//! of OpenCV 2–4, `%YAML 1.2` of OpenCV 5); the XML and JSON forms of
-//! FileStorage are refused with a message saying so.
+//! the rectification itself. Both YAML headers OpenCV writes are read
+//! (`%YAML:1.0` of OpenCV 2–4, `%YAML 1.2` of OpenCV 5), and the XML form
+//! ([`xml`]); the JSON form of FileStorage is refused with a message saying
+//! so.
 
 use super::calib_opencv::{OpenCvCalib, OpenCvCamera};
 use super::calib_ros::{get, resolve, yaml_mapping};
@@ -161,31 +162,40 @@ fn m3(y: &Yaml) -> std::result::Result<[[f64; 3]; 3], String> {
     Ok([[d[0], d[1], d[2]], [d[3], d[4], d[5]], [d[6], d[7], d[8]]])
 }
 
-/// The header-free text of one FileStorage file: the `%YAML:1.0` directive of
-/// OpenCV 2–4 is not YAML and becomes a comment (line numbers kept).
-fn yaml_text(bytes: &[u8], path: &Path) -> Result<Vec<u8>> {
+/// The top-level mapping of one FileStorage file (`bytes`, read from
+/// `path`): XML through [`xml`], YAML with the `%YAML:1.0` directive of
+/// OpenCV 2–4 (not YAML) turned into a comment, line numbers kept.
+fn storage_doc(bytes: &[u8], path: &Path) -> Result<Yaml> {
     let start = bytes
         .iter()
         .position(|b| !b.is_ascii_whitespace())
         .unwrap_or(0);
     let head = &bytes[start..];
-    if head.starts_with(b"<?xml") || head.starts_with(b"<opencv_storage") {
-        return Err(Error::file(
-            path,
-            "FileStorage XML is not read; write the calibration as YAML (cv2.FileStorage(\"….yml\", …))",
-        ));
+    if xml::is_xml(head) {
+        if bytes.len() > MAX_STORAGE_BYTES {
+            return Err(Error::file(
+                path,
+                format!(
+                    "{} bytes; a FileStorage calibration file is at most {MAX_STORAGE_BYTES}",
+                    bytes.len()
+                ),
+            ));
+        }
+        let text =
+            std::str::from_utf8(bytes).map_err(|e| Error::file(path, format!("not UTF-8: {e}")))?;
+        return xml::parse(text, path);
     }
     if head.starts_with(b"{") {
         return Err(Error::file(
             path,
-            "FileStorage JSON is not read; write the calibration as YAML (cv2.FileStorage(\"….yml\", …))",
+            "FileStorage JSON is not read; write the calibration as YAML or XML (cv2.FileStorage(\"….yml\", …))",
         ));
     }
-    let mut out = bytes.to_vec();
+    let mut text = bytes.to_vec();
     if head.starts_with(b"%YAML:") {
-        out[start] = b'#';
+        text[start] = b'#';
     }
-    Ok(out)
+    yaml_mapping(&text, path, MAX_STORAGE_BYTES, "a FileStorage calibration")
 }
 
 /// One file of the set, read: its path and top-level mapping.
@@ -287,8 +297,7 @@ fn from_files(
 ) -> Result<OpenCvCalib> {
     let mut files = Vec::with_capacity(sources.len());
     for (p, bytes) in sources {
-        let text = yaml_text(bytes, p)?;
-        let doc = yaml_mapping(&text, p, MAX_STORAGE_BYTES, "a FileStorage calibration")?;
+        let doc = storage_doc(bytes, p)?;
         files.push(Storage {
             path: p.clone(),
             doc,
@@ -434,23 +443,24 @@ pub fn parse_storage_calib(bytes: &[u8], path: &Path) -> Result<OpenCvCalib> {
     from_files(&sources, c.image_size, t_scale, path)
 }
 
-/// Whether `bytes` is a FileStorage YAML file given as `--calib` itself (it
-/// begins with `%YAML`).
-pub fn is_storage_yaml(bytes: &[u8]) -> bool {
+/// Whether `bytes` is a FileStorage file given as `--calib` itself: YAML
+/// beginning with `%YAML`, or XML.
+pub fn is_storage_file(bytes: &[u8]) -> bool {
     bytes
         .iter()
         .position(|b| !b.is_ascii_whitespace())
-        .is_some_and(|i| bytes[i..].starts_with(b"%YAML"))
+        .is_some_and(|i| bytes[i..].starts_with(b"%YAML") || xml::is_xml(&bytes[i..]))
 }
 
-/// Parse one FileStorage YAML file (`bytes`, read from `path`) given as
+/// Parse one FileStorage file (`bytes`, read from `path`) given as
 /// `--calib` itself: `T` in metres, the image size from the file.
 ///
 /// # Errors
 /// As [`parse_storage_calib`].
-pub fn parse_storage_yaml(bytes: &[u8], path: &Path) -> Result<OpenCvCalib> {
+pub fn parse_storage_file(bytes: &[u8], path: &Path) -> Result<OpenCvCalib> {
     from_files(&[(path.to_path_buf(), bytes.to_vec())], None, 1.0, path)
 }
 
 #[cfg(test)]
 mod tests;
+pub mod xml;

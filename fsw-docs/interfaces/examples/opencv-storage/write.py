@@ -3,7 +3,7 @@
 # rectification R1 R2 P1 P2 Q of cv2.stereoRectify), T in millimetres as after a
 # calibration with the target's square size given in mm; and stereo.yml, one file
 # with cameraMatrix1/distCoeffs1/... (the names of cv2.stereoCalibrate's
-# arguments), T in metres and the image size.
+# arguments), T in metres and the image size, as YAML and as XML.
 # Run from fsw-docs/interfaces/examples: python3 opencv-storage/write.py
 import json, numpy as np, cv2
 c = json.load(open('calib-opencv.json'))
@@ -19,9 +19,11 @@ def write(name, items):
     fs.release()
 write('intrinsics.yml', [('M1', K1), ('D1', D1), ('M2', K2), ('D2', D2)])
 write('extrinsics.yml', [('R', R), ('T', T * 1000.0), ('R1', R1), ('R2', R2), ('P1', P1), ('P2', P2), ('Q', Q)])
-write('stereo.yml', [('image_size', np.array([[W, H]], dtype=np.int32)),
-                     ('cameraMatrix1', K1), ('distCoeffs1', D1),
-                     ('cameraMatrix2', K2), ('distCoeffs2', D2), ('R', R), ('T', T)])
+one = [('image_size', np.array([[W, H]], dtype=np.int32)),
+       ('cameraMatrix1', K1), ('distCoeffs1', D1),
+       ('cameraMatrix2', K2), ('distCoeffs2', D2), ('R', R), ('T', T)]
+write('stereo.yml', one)
+write('stereo.xml', one)
 open('opencv-storage/calib.json', 'w').write(
     '{"opencv_storage": ["intrinsics.yml", "extrinsics.yml"], "image_size": [%d, %d], "T_unit": "mm"}\n' % (W, H))
 print(cv2.__version__)

@@ -23,15 +23,20 @@ fn scratch(name: &str) -> PathBuf {
 /// The files OpenCV 5.1.0's `cv2.FileStorage` wrote for the rig of
 /// `calib-opencv.json` (`examples/opencv-storage/write.py`): the two files of
 /// the `stereo_calib` sample with `T` in millimetres, and one file with the
-/// argument names of `cv2.stereoCalibrate`, read as `--calib` itself, give
-/// that calibration (T within 1e-15 m after the millimetre conversion).
+/// argument names of `cv2.stereoCalibrate` as YAML and as XML, each read as
+/// `--calib` itself, give that calibration (T within 1e-15 m after the
+/// millimetre conversion).
 ///
 /// Verifies: VTSM-CLI-045
 #[test]
 fn the_opencv_written_examples_read_to_the_opencv_example() {
     let ex = examples();
     let want = opencv(read_calib_any(&ex.join("calib-opencv.json")).unwrap());
-    for file in ["opencv-storage/calib.json", "opencv-storage/stereo.yml"] {
+    for file in [
+        "opencv-storage/calib.json",
+        "opencv-storage/stereo.yml",
+        "opencv-storage/stereo.xml",
+    ] {
         let got = opencv(read_calib_any(&ex.join(file)).unwrap());
         assert_eq!(
             (&got.left, &got.right, got.r, got.image_size),
@@ -155,16 +160,56 @@ fn bad_storage_files_are_refused_naming_file_and_key() {
             "{want:?}: {e}"
         );
     }
-    // XML and JSON FileStorage.
-    let xml = file("x.yml", "%YAML 1.2\n---\n");
-    let xml_text = "<?xml version=\"1.0\"?>\n<opencv_storage>\n</opencv_storage>\n";
-    std::fs::write(&xml, xml_text).unwrap();
-    let calib = file(
-        "c.json",
-        r#"{"opencv_storage": "x.yml", "image_size": [640, 480]}"#,
-    );
-    let e = read_calib_any(&calib).unwrap_err().to_string();
-    assert!(e.contains("x.yml") && e.contains("XML"), "{e}");
+    // FileStorage JSON, and XML outside the subset OpenCV writes, named by
+    // calib.json.
+    let refused = [
+        ("x.json", "{\"M1\": 1}", vec!["x.json", "JSON is not read"]),
+        (
+            "x.xml",
+            "<?xml version=\"1.0\"?>\n<storage>\n</storage>\n",
+            vec!["x.xml:2", "root is <storage>"],
+        ),
+        (
+            "x.xml",
+            "<?xml version=\"1.0\"?>\n<opencv_storage>\n<M1>1 2</M2>\n</opencv_storage>\n",
+            vec!["x.xml:3", "</M2> closes <M1>"],
+        ),
+        (
+            "x.xml",
+            "<opencv_storage>\n<M1><rows>3</rows>x</M1>\n</opencv_storage>\n",
+            vec!["x.xml:2", "mixes text and elements"],
+        ),
+        (
+            "x.xml",
+            "<opencv_storage>\n<M1><a><a><a><a><a><a><a><a>1</a></a></a></a></a></a></a></a></M1></opencv_storage>",
+            vec!["x.xml:2", "deeper than 8"],
+        ),
+        ("x.xml", "<opencv_storage>\n<M1>1 2 3", vec!["x.xml", "<M1> is not closed"]),
+        (
+            "x.xml",
+            "<opencv_storage><T>1</T><T>2</T></opencv_storage>",
+            vec!["x.xml", "<T> twice"],
+        ),
+        (
+            "x.xml",
+            "<opencv_storage><n>&foo;</n></opencv_storage>",
+            vec!["x.xml", "entity"],
+        ),
+        (
+            "x.xml",
+            "<opencv_storage></opencv_storage> <x/>",
+            vec!["x.xml", "content after"],
+        ),
+    ];
+    for (name, text, want) in refused {
+        file(name, text);
+        let p = file(
+            "c.json",
+            &format!(r#"{{"opencv_storage": "{name}", "image_size": [640, 480]}}"#),
+        );
+        let e = read_calib_any(&p).unwrap_err().to_string();
+        assert!(want.iter().all(|w| e.contains(w)), "{want:?}: {e}");
+    }
     // calib.json of the form.
     for (json, want) in [
         (
@@ -231,7 +276,23 @@ proptest! {
     ) {
         let text = std::fs::read_to_string(examples().join("opencv-storage/stereo.yml")).unwrap();
         let bytes = crate::io::damaged(&text, cut, &edits, drop_line);
-        if let Ok(c) = parse_storage_yaml(&bytes, Path::new("stereo.yml")) {
+        if let Ok(c) = parse_storage_file(&bytes, Path::new("stereo.yml")) {
+            prop_assert!(c.validate().is_ok());
+        }
+    }
+
+    /// The same for the XML form.
+    ///
+    /// Verifies: VTSM-CLI-045
+    #[test]
+    fn damaged_storage_xml_never_panics(
+        cut in 0usize..2400,
+        edits in proptest::collection::vec((0usize..2400, any::<u8>()), 0..6),
+        drop_line in proptest::option::of(0usize..50),
+    ) {
+        let text = std::fs::read_to_string(examples().join("opencv-storage/stereo.xml")).unwrap();
+        let bytes = crate::io::damaged(&text, cut, &edits, drop_line);
+        if let Ok(c) = parse_storage_file(&bytes, Path::new("stereo.xml")) {
             prop_assert!(c.validate().is_ok());
         }
     }
