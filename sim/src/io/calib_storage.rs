@@ -204,9 +204,15 @@ struct Storage {
     doc: Yaml,
 }
 
+/// Whether `a` and `b` are matrices with the same numbers in the same order
+/// (as `!!opencv-matrix` and as a list, or 1 × N and N × 1).
+fn same_numbers(a: &Yaml, b: &Yaml) -> bool {
+    matches!((matrix(a), matrix(b)), (Ok((_, _, x)), Ok((_, _, y))) if x == y)
+}
+
 /// The first of `names` present in any of `files`, with the file it is in;
-/// refused when two of the names are present, or one name in two files with
-/// different values.
+/// refused when two of the names, or one name in two files, give different
+/// values.
 fn find<'a>(
     files: &'a [Storage],
     names: &[&str],
@@ -225,7 +231,7 @@ fn find<'a>(
             let Some(key) = key.as_str() else { continue };
             match found {
                 None => found = Some((f, key, v)),
-                Some((_, k, w)) if k == key && w == v => {}
+                Some((_, _, w)) if w == v || same_numbers(w, v) => {}
                 Some((g, k, _)) => {
                     return Err(Error::file(
                         &f.path,

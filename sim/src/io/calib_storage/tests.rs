@@ -250,6 +250,14 @@ fn bad_storage_files_are_refused_naming_file_and_key() {
         let e = read_calib_any(&p).unwrap_err().to_string();
         assert!(want.iter().all(|w| e.contains(w)), "{want:?}: {e}");
     }
+    // One item under two names (or in two files) with the same numbers is
+    // read: the left camera matrix also as a plain list.
+    let twice = format!("{good}M1: [ 884.2, 0., 691.7, 0., 882.6, 451.9, 0., 0., 1. ]\n");
+    let p = file("stereo.yml", &twice);
+    assert_eq!(
+        opencv(read_calib_any(&p).unwrap()).left.k[0],
+        [884.2, 0.0, 691.7]
+    );
     // The same two files with the unit given read to the example.
     let p = file(
         "c.json",
