@@ -195,7 +195,32 @@ fn storage_doc(bytes: &[u8], path: &Path) -> Result<Yaml> {
     if head.starts_with(b"%YAML:") {
         text[start] = b'#';
     }
+    lower_special_reals(&mut text);
     yaml_mapping(&text, path, MAX_STORAGE_BYTES, "a FileStorage calibration")
+}
+
+/// OpenCV writes NaN and infinities as `.Nan` and `.Inf`, which YAML does not
+/// read as numbers; as whole tokens (between white space, `[`, `,`, `]`, `:`
+/// or a sign and the next of those) they become `.nan` and `.inf`, so such a
+/// value is refused as non-finite rather than as not a number.
+fn lower_special_reals(text: &mut [u8]) {
+    let edge = |b: Option<&u8>| b.is_none_or(|b| b" \t\r\n[],:-+".contains(b));
+    for word in [&b".Nan"[..], b".Inf"] {
+        let mut i = 0;
+        while i + word.len() <= text.len() {
+            let hit = text[i..].starts_with(word)
+                && edge(i.checked_sub(1).and_then(|j| text.get(j)))
+                && edge(text.get(i + word.len()));
+            if hit {
+                for b in &mut text[i + 1..i + word.len()] {
+                    b.make_ascii_lowercase();
+                }
+                i += word.len();
+            } else {
+                i += 1;
+            }
+        }
+    }
 }
 
 /// One file of the set, read: its path and top-level mapping.

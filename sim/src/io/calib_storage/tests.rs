@@ -143,6 +143,17 @@ fn bad_storage_files_are_refused_naming_file_and_key() {
             vec!["`distCoeffs1`", "non-finite"],
         ),
         (
+            good.replace(
+                "0.02, 0.00059999999999999995",
+                ".Nan, 0.00059999999999999995",
+            ),
+            vec!["`distCoeffs1`", "non-finite"],
+        ),
+        (
+            good.replace("data: [ -0.39994843145470177", "data: [ -.Inf"),
+            vec!["`T`", "non-finite"],
+        ),
+        (
             good.replace("data: [ -0.39994843145470177", "data: [ x"),
             vec!["`T`", "not a number"],
         ),
