@@ -139,14 +139,7 @@ fn m3(v: &[f64]) -> [[f64; 3]; 3] {
 /// # Errors
 /// Each of those conditions, naming `path` (and the line for a YAML syntax error).
 pub(super) fn yaml_mapping(bytes: &[u8], path: &Path, max: usize, what: &str) -> Result<Yaml> {
-    if bytes.len() > max {
-        return Err(Error::file(
-            path,
-            format!("{} bytes; {what} file is at most {max}", bytes.len()),
-        ));
-    }
-    let text =
-        std::str::from_utf8(bytes).map_err(|e| Error::file(path, format!("not UTF-8: {e}")))?;
+    let text = bounded_text(bytes, path, max, what)?;
     let mut docs = YamlLoader::load_from_str(text).map_err(|e| {
         Error::at(
             path,
@@ -161,6 +154,26 @@ pub(super) fn yaml_mapping(bytes: &[u8], path: &Path, max: usize, what: &str) ->
             format!("must hold one YAML mapping ({what})"),
         )),
     }
+}
+
+/// `bytes` (the file `path`) as text: at most `max` bytes and UTF-8 (`what`
+/// names the file in the message).
+///
+/// # Errors
+/// Either condition, naming `path`.
+pub(super) fn bounded_text<'a>(
+    bytes: &'a [u8],
+    path: &Path,
+    max: usize,
+    what: &str,
+) -> Result<&'a str> {
+    if bytes.len() > max {
+        return Err(Error::file(
+            path,
+            format!("{} bytes; {what} file is at most {max}", bytes.len()),
+        ));
+    }
+    std::str::from_utf8(bytes).map_err(|e| Error::file(path, format!("not UTF-8: {e}")))
 }
 
 /// `p` as named in `calib.json` at `path`: relative to its directory unless absolute.

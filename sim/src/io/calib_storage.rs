@@ -32,7 +32,7 @@
 //! so.
 
 use super::calib_opencv::{OpenCvCalib, OpenCvCamera};
-use super::calib_ros::{get, resolve, yaml_mapping};
+use super::calib_ros::{bounded_text, get, resolve, yaml_mapping};
 use crate::error::{Error, Result};
 use nalgebra::{Rotation3, Vector3};
 use serde::Deserialize;
@@ -41,6 +41,8 @@ use yaml_rust2::Yaml;
 
 /// Largest accepted size of one FileStorage file, bytes.
 pub const MAX_STORAGE_BYTES: usize = 1 << 20;
+/// What a FileStorage file is called in messages.
+const WHAT: &str = "a FileStorage calibration";
 /// Most files one `opencv_storage` list may name.
 pub const MAX_STORAGE_FILES: usize = 8;
 
@@ -166,37 +168,23 @@ fn m3(y: &Yaml) -> std::result::Result<[[f64; 3]; 3], String> {
 /// `path`): XML through [`xml`], YAML with the `%YAML:1.0` directive of
 /// OpenCV 2–4 (not YAML) turned into a comment, line numbers kept.
 fn storage_doc(bytes: &[u8], path: &Path) -> Result<Yaml> {
-    let start = bytes
-        .iter()
-        .position(|b| !b.is_ascii_whitespace())
-        .unwrap_or(0);
-    let head = &bytes[start..];
-    if xml::is_xml(head) {
-        if bytes.len() > MAX_STORAGE_BYTES {
-            return Err(Error::file(
-                path,
-                format!(
-                    "{} bytes; a FileStorage calibration file is at most {MAX_STORAGE_BYTES}",
-                    bytes.len()
-                ),
-            ));
-        }
-        let text =
-            std::str::from_utf8(bytes).map_err(|e| Error::file(path, format!("not UTF-8: {e}")))?;
+    let text = bounded_text(bytes, path, MAX_STORAGE_BYTES, WHAT)?;
+    let head = text.trim_start();
+    if xml::is_xml(head.as_bytes()) {
         return xml::parse(text, path);
     }
-    if head.starts_with(b"{") {
+    if head.starts_with('{') {
         return Err(Error::file(
             path,
             "FileStorage JSON is not read; write the calibration as YAML or XML (cv2.FileStorage(\"….yml\", …))",
         ));
     }
-    let mut text = bytes.to_vec();
-    if head.starts_with(b"%YAML:") {
-        text[start] = b'#';
+    let mut yaml = text.as_bytes().to_vec();
+    if head.starts_with("%YAML:") {
+        yaml[text.len() - head.len()] = b'#';
     }
-    lower_special_reals(&mut text);
-    yaml_mapping(&text, path, MAX_STORAGE_BYTES, "a FileStorage calibration")
+    lower_special_reals(&mut yaml);
+    yaml_mapping(&yaml, path, MAX_STORAGE_BYTES, WHAT)
 }
 
 /// OpenCV writes NaN and infinities as `.Nan` and `.Inf`, which YAML does not
