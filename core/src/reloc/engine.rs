@@ -86,9 +86,6 @@ pub struct Relocalizer<A, S> {
     /// Whether this round's pairs were solved again with the first-fix gate
     /// ([`Options::first_fix_sigma_scale`]).
     widened: bool,
-    /// The final round may keep gradient-domain pairs only: no round has
-    /// failed since the last pose update ([`Options::final_gradient_only`]).
-    gradient_final: bool,
     /// Next seed to evaluate while `seeding`.
     seed_index: u16,
     seeding: bool,
@@ -164,7 +161,6 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             consecutive_reseed: 0,
             rounds_without_fix: 0,
             widened: false,
-            gradient_final: false,
             seed_index: 0,
             seeding: params.seeds > 0,
             best_seed: None,
@@ -550,12 +546,15 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
     /// Whether the round under way is the final one and keeps only
     /// gradient-domain pairs ([`Options::final_gradient_only`]): a success
     /// now would be the `n_iter`-th and no round has failed since the last
-    /// update (a restricted final round that fails runs again with every
-    /// variant). Never while seeding.
+    /// update (every failed round that goes on counts a Stall or a Reseed,
+    /// and an update clears both; so a restricted final round that fails
+    /// runs again with every variant). Never while seeding.
     fn final_round(&self) -> bool {
         self.opts.final_gradient_only
-            && self.gradient_final
             && !self.seeding
+            && self.stats.successes > 0
+            && self.consecutive_stall == 0
+            && self.consecutive_reseed == 0
             && self.stats.successes.saturating_add(1) >= u16::from(self.params.n_iter)
     }
 
@@ -648,7 +647,6 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
                 self.accept(now);
             }
         } else {
-            self.gradient_final = true;
             self.reuse_inliers(sol.inliers);
             self.start_round();
         }
@@ -690,9 +688,6 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
 
     fn round_failed(&mut self, code: FailureCode, now: u64) {
         self.pairs.clear();
-        // A failed round (a final one restricted to gradient pairs included)
-        // runs again with every variant.
-        self.gradient_final = false;
         if self.stats.successes == 0 {
             // A focused round that failed: back to the stated uncertainty.
             self.t_m = self.params.t0_m;
