@@ -4,8 +4,6 @@
 //! core; [`Params`] holds the values a mission may tune at run time. A parameter
 //! outside its range is an error ([`ParamError`]), never silently clamped.
 
-use crate::failure::FailureCode;
-
 // ---- capacities -----------------------------------------------------------
 
 /// Largest image side (pixels) any view accepts. Paper profile: 5472×3648.
@@ -323,12 +321,6 @@ pub struct ParamError {
     pub field: ParamField,
 }
 
-impl From<ParamError> for FailureCode {
-    fn from(_: ParamError) -> Self {
-        FailureCode::ConfigParamOutOfRange
-    }
-}
-
 fn in_range(v: f32, lo: f32, hi: f32, lo_open: bool) -> bool {
     v.is_finite() && v <= hi && if lo_open { v > lo } else { v >= lo }
 }
@@ -466,6 +458,7 @@ impl Params {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::failure::FailureCode;
 
     /// Verifies: VTSM-CFG-002
     #[test]

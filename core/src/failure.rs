@@ -10,7 +10,7 @@
 //! [`FailureLog`] keeps one saturating counter per code and a ring of the last
 //! [`crate::config::FAILURE_RING_LEN`] events. Bounded: recording is O(codes).
 
-use crate::config::FAILURE_RING_LEN;
+use crate::config::{ParamError, FAILURE_RING_LEN};
 
 /// How bad a failure is for the relocalization that saw it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -352,6 +352,14 @@ impl FailureLog {
     /// Forget everything.
     pub fn clear(&mut self) {
         *self = Self::new();
+    }
+}
+
+/// Every out-of-range parameter is one code: the field is in the
+/// [`ParamError`], the code says only that nothing runs until it is fixed.
+impl From<ParamError> for FailureCode {
+    fn from(_: ParamError) -> Self {
+        FailureCode::ConfigParamOutOfRange
     }
 }
 

@@ -1,5 +1,6 @@
 extern crate std;
 use super::*;
+use crate::config::{TEMPLATE_MASK_JUMP_M, TEMPLATE_MASK_JUMP_REL_DIV, TEMPLATE_MASK_RADIUS_PX};
 use crate::image::GrayView;
 use crate::map::{encode, encoded_len, MapSource};
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
