@@ -1,5 +1,10 @@
 extern crate std;
+use super::format::*;
 use super::*;
+use crate::config::{MAX_MAP_ORIGIN_M, MAX_MAP_VERTICES};
+use crate::failure::FailureCode;
+use crate::geom::Vec3;
+use crate::image::GrayView;
 use proptest::prelude::*;
 use std::collections::BTreeSet;
 use std::vec;

@@ -1,0 +1,216 @@
+//! The map product's byte layout: header constants and offsets, the section
+//! table ([`Layout`]), little-endian field readers and writers, and the
+//! per-record value checks shared by the encoder and the checked view.
+//!
+//! Input: byte slices and offsets; output: values (`None` when a read falls
+//! outside the slice) or bytes written in place. No loop beyond one record.
+
+use crate::config::MAX_MAP_ORIGIN_M;
+use crate::failure::FailureCode;
+use crate::geom::Vec3;
+
+/// First eight bytes of every map product.
+pub const MAGIC: [u8; 8] = *b"VTSMMAP\0";
+
+/// Format version written by this build (version 1 is also read).
+pub const VERSION: u32 = 2;
+
+/// Length of the version-2 header in bytes (including its own CRC).
+pub const HEADER_LEN: usize = 176;
+
+/// Length of the version-1 header in bytes (no origin).
+pub const HEADER_LEN_V1: usize = 152;
+
+/// Bytes per tile record.
+pub const TILE_BYTES: usize = 32;
+
+/// Bytes per vertex record.
+pub const VERTEX_BYTES: usize = 12;
+
+/// Bytes per triangle record.
+pub const TRIANGLE_BYTES: usize = 16;
+
+/// Bytes per triangle UV record.
+pub const UV_BYTES: usize = 24;
+
+/// Bytes per mask-vertex record.
+pub const MASK_VERTEX_BYTES: usize = 4;
+
+/// Triangle flag: the triangle belongs to the sampling mask M̂.
+pub const FLAG_MASK: u32 = 1;
+
+/// Largest magnitude of a texture coordinate in the product, texture pixels
+/// (2^20 = 64 · `MAX_TEXTURE_DIM`). Coordinates beyond the texture sample its edge
+/// texels, so nothing farther is needed; the rasterizer clamps interpolated
+/// coordinates to the same range.
+pub const MAX_UV_PX: f32 = (1u32 << 20) as f32;
+
+pub(super) const SECTIONS: usize = 6;
+
+pub(super) const SEC_TILES: usize = 0;
+
+pub(super) const SEC_VERTICES: usize = 1;
+
+pub(super) const SEC_TRIANGLES: usize = 2;
+
+pub(super) const SEC_UVS: usize = 3;
+
+pub(super) const SEC_TEXTURE: usize = 4;
+
+pub(super) const SEC_MASK: usize = 5;
+
+pub(super) const OFF_SECTIONS: usize = 76;
+
+pub(super) const OFF_ORIGIN: usize = 148;
+
+// ---- little-endian helpers ----------------------------------------------------
+
+#[inline]
+pub(super) fn rd_u32(b: &[u8], off: usize) -> Option<u32> {
+    let s = b.get(off..off.checked_add(4)?)?;
+    let mut a = [0u8; 4];
+    a.copy_from_slice(s);
+    Some(u32::from_le_bytes(a))
+}
+
+#[inline]
+pub(super) fn rd_f32(b: &[u8], off: usize) -> Option<f32> {
+    rd_u32(b, off).map(f32::from_bits)
+}
+
+#[inline]
+pub(super) fn rd_vec3(b: &[u8], off: usize) -> Option<Vec3> {
+    Some(Vec3::new(
+        rd_f32(b, off)?,
+        rd_f32(b, off.checked_add(4)?)?,
+        rd_f32(b, off.checked_add(8)?)?,
+    ))
+}
+
+/// Offset of record `i` of `stride` bytes in the section at `base`; `None` where
+/// it would not fit in `usize` (a validated layout never gets there).
+#[inline]
+pub(super) fn record_at(base: usize, i: u32, stride: usize) -> Option<usize> {
+    (i as usize).checked_mul(stride)?.checked_add(base)
+}
+
+#[inline]
+pub(super) fn rd_f64(b: &[u8], off: usize) -> Option<f64> {
+    let s = b.get(off..off.checked_add(8)?)?;
+    let mut a = [0u8; 8];
+    a.copy_from_slice(s);
+    Some(f64::from_le_bytes(a))
+}
+
+/// Header length of a format version, `None` for a version this build cannot read.
+pub(super) fn header_len_of(version: u32) -> Option<usize> {
+    match version {
+        1 => Some(HEADER_LEN_V1),
+        VERSION => Some(HEADER_LEN),
+        _ => None,
+    }
+}
+
+/// Whether a map origin is usable: finite, each coordinate within ±[`MAX_MAP_ORIGIN_M`].
+pub fn origin_ok(o: &[f64; 3]) -> bool {
+    o.iter()
+        .all(|c| c.is_finite() && c.abs() <= MAX_MAP_ORIGIN_M)
+}
+
+#[inline]
+pub(super) fn wr_u32(b: &mut [u8], off: usize, v: u32) -> Result<(), FailureCode> {
+    let end = off
+        .checked_add(4)
+        .ok_or(FailureCode::MapEncodeBufferTooSmall)?;
+    let s = b
+        .get_mut(off..end)
+        .ok_or(FailureCode::MapEncodeBufferTooSmall)?;
+    s.copy_from_slice(&v.to_le_bytes());
+    Ok(())
+}
+
+#[inline]
+pub(super) fn wr_f32(b: &mut [u8], off: usize, v: f32) -> Result<(), FailureCode> {
+    wr_u32(b, off, v.to_bits())
+}
+
+pub(super) fn wr_vec3(b: &mut [u8], off: usize, v: &Vec3) -> Result<(), FailureCode> {
+    let s: &mut [u8; 12] = b
+        .get_mut(off..)
+        .and_then(|s| s.first_chunk_mut())
+        .ok_or(FailureCode::MapEncodeBufferTooSmall)?;
+    for (dst, c) in s.chunks_exact_mut(4).zip([v.x, v.y, v.z]) {
+        dst.copy_from_slice(&c.to_bits().to_le_bytes());
+    }
+    Ok(())
+}
+
+pub(super) fn vec_finite(v: &Vec3) -> bool {
+    v.x.is_finite() && v.y.is_finite() && v.z.is_finite()
+}
+
+/// Whether a texture coordinate (texture pixels) is within ±[`MAX_UV_PX`] (NaN is not).
+pub(super) fn uv_in_range(c: f32) -> bool {
+    c.abs() <= MAX_UV_PX
+}
+
+/// Whether the triangle `a b c` has non-zero area (f32 cross product of its edges;
+/// an infinite one counts, a NaN one does not).
+#[allow(
+    clippy::arithmetic_side_effects,
+    reason = "f32 vector arithmetic (nalgebra); no integer operation"
+)]
+pub(super) fn has_area(a: &Vec3, b: &Vec3, c: &Vec3) -> bool {
+    (b - a).cross(&(c - a)).norm_squared() > 0.0
+}
+
+pub(super) fn inside(p: &Vec3, min: &Vec3, max: &Vec3) -> bool {
+    p.x >= min.x && p.y >= min.y && p.z >= min.z && p.x <= max.x && p.y <= max.y && p.z <= max.z
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(super) struct Section {
+    pub(super) off: usize,
+    pub(super) len: usize,
+}
+
+/// Sizes and offsets of every section, derived from the counts only.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct Layout {
+    pub(super) sec: [Section; SECTIONS],
+    pub(super) total: usize,
+}
+
+impl Layout {
+    pub(super) fn new(
+        header: usize,
+        v: usize,
+        t: usize,
+        tiles: usize,
+        masks: usize,
+        tw: usize,
+        th: usize,
+    ) -> Self {
+        // Saturating: counts beyond the capacities give a total no buffer or
+        // product can match, so they are refused by the length checks.
+        let lens = [
+            tiles.saturating_mul(TILE_BYTES),
+            v.saturating_mul(VERTEX_BYTES),
+            t.saturating_mul(TRIANGLE_BYTES),
+            t.saturating_mul(UV_BYTES),
+            tw.saturating_mul(th),
+            masks.saturating_mul(MASK_VERTEX_BYTES),
+        ];
+        let mut sec = [Section::default(); SECTIONS];
+        let mut off = header;
+        for (s, len) in sec.iter_mut().zip(lens) {
+            *s = Section { off, len };
+            off = off.saturating_add(len);
+        }
+        Self { sec, total: off }
+    }
+
+    pub(super) fn off(&self, i: usize) -> usize {
+        self.sec.get(i).map_or(0, |s| s.off)
+    }
+}

@@ -1,0 +1,536 @@
+//! The checked read-only view of an encoded map ([`MapView`]) and its records
+//! ([`Triangle`], [`Tile`]).
+//!
+//! Input: the product's bytes; [`MapView::new_checked`] verifies the header,
+//! the CRC, the section layout and every record once, in time linear in the
+//! product, so the accessors afterwards only bound-check an index. Output:
+//! vertices, triangles, tiles, texture and mask as values, never a panic.
+
+use super::crc::crc32;
+use super::format::*;
+use crate::config::{MAX_MAP_TILES, MAX_MAP_TRIANGLES, MAX_MAP_VERTICES, MAX_TEXTURE_DIM};
+use crate::failure::FailureCode;
+use crate::geom::Vec3;
+use crate::image::GrayView;
+
+// ---- public records ----------------------------------------------------------
+
+/// One triangle of the map.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Triangle {
+    /// Vertex indices (validated `< vertex_count`).
+    pub v: [u32; 3],
+    /// Texture coordinates per corner, in texture pixels: x right, y down,
+    /// pixel centres on integers (so `(0,0)` is the centre of the top-left texel).
+    pub uv: [[f32; 2]; 3],
+    /// Member of the sampling mask M̂.
+    pub mask: bool,
+}
+
+/// One tile: a contiguous run of triangles and the 3D box that bounds them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tile {
+    /// Lower corner of the box, world metres.
+    pub min: Vec3,
+    /// Upper corner of the box, world metres.
+    pub max: Vec3,
+    /// Index of the tile's first triangle.
+    pub first_triangle: u32,
+    /// Number of triangles in the tile (may be 0 for an empty grid cell).
+    pub triangle_count: u32,
+}
+
+#[cfg(feature = "defmt")]
+impl defmt::Format for Tile {
+    fn format(&self, f: defmt::Formatter) {
+        defmt::write!(
+            f,
+            "Tile {{ min: [{}, {}, {}], max: [{}, {}, {}], first_triangle: {}, triangle_count: {} }}",
+            self.min.x,
+            self.min.y,
+            self.min.z,
+            self.max.x,
+            self.max.y,
+            self.max.z,
+            self.first_triangle,
+            self.triangle_count
+        );
+    }
+}
+
+/// A validated map product. Construction checks everything once; afterwards
+/// every accessor is O(1), cannot panic and returns `None` only for an index
+/// outside its count.
+#[derive(Clone, Copy, Debug)]
+pub struct MapView<'a> {
+    pub(super) bytes: &'a [u8],
+    pub(super) layout: Layout,
+    pub(super) vertex_count: u32,
+    pub(super) triangle_count: u32,
+    pub(super) tile_count: u32,
+    pub(super) mask_vertex_count: u32,
+    pub(super) tiles_x: u32,
+    pub(super) tiles_y: u32,
+    pub(super) tile_size_m: f32,
+    pub(super) min: Vec3,
+    pub(super) max: Vec3,
+    pub(super) origin: [f64; 3],
+    pub(super) texture: GrayView<'a>,
+}
+
+impl<'a> MapView<'a> {
+    /// Check a map product and return a view of it.
+    ///
+    /// Checks, in order: length of the header ([`FailureCode::MapTruncated`]),
+    /// magic ([`FailureCode::MapBadMagic`]), version 1 or 2 ([`FailureCode::MapUnsupportedVersion`]),
+    /// header CRC ([`FailureCode::MapCrcMismatch`]), the origin (version 2:
+    /// [`FailureCode::MapOriginOutOfRange`] unless [`origin_ok`]), counts against the `config`
+    /// caps ([`FailureCode::MapCountOutOfRange`]), section table against the
+    /// layout implied by the counts ([`FailureCode::MapInconsistent`]), total length
+    /// ([`FailureCode::MapTruncated`] if short, [`FailureCode::MapInconsistent`] if
+    /// trailing bytes), section CRCs, then content: finite vertices, UVs and
+    /// bounds ([`FailureCode::MapNonFinite`]), UVs within ±[`MAX_UV_PX`]
+    /// ([`FailureCode::MapUvOutOfRange`]), vertex and triangle indices
+    /// ([`FailureCode::MapIndexOutOfRange`]), at least one triangle of non-zero
+    /// area ([`FailureCode::MapNoSurface`]), tile runs covering the triangles in
+    /// order, boxes bounding their triangles, vertices inside the header bounds,
+    /// triangle flags, strictly increasing mask vertices ([`FailureCode::MapInconsistent`]).
+    ///
+    /// # Errors
+    /// The first failed check's code, as above.
+    #[allow(
+        clippy::arithmetic_side_effects,
+        clippy::cast_possible_truncation,
+        reason = "capacities from config are below u32::MAX; header offsets are constants of the layout (i < SECTIONS, k < 3, header_len from header_len_of ≥ 4 + the fixed fields), and the tile product is formed in u64 from two u32"
+    )]
+    pub fn new_checked(bytes: &'a [u8]) -> Result<Self, FailureCode> {
+        use FailureCode as F;
+        let (version, header_len) = check_header(bytes)?;
+        let h = |off: usize| rd_u32(bytes, off).ok_or(F::MapTruncated);
+        let origin = if version == 1 {
+            [0.0; 3]
+        } else {
+            let c = |k: usize| rd_f64(bytes, OFF_ORIGIN + 8 * k).ok_or(F::MapTruncated);
+            [c(0)?, c(1)?, c(2)?]
+        };
+        if !origin_ok(&origin) {
+            return Err(F::MapOriginOutOfRange);
+        }
+        let (vc, tc, kc, mc) = (h(16)?, h(20)?, h(24)?, h(28)?);
+        let (tw, th, tx, ty) = (h(32)?, h(36)?, h(40)?, h(44)?);
+        let counts_ok = (3..=MAX_MAP_VERTICES as u32).contains(&vc)
+            && (1..=MAX_MAP_TRIANGLES as u32).contains(&tc)
+            && (1..=MAX_MAP_TILES as u32).contains(&kc)
+            && mc <= vc
+            && (1..=MAX_TEXTURE_DIM as u32).contains(&tw)
+            && (1..=MAX_TEXTURE_DIM as u32).contains(&th)
+            && (1..=MAX_MAP_TILES as u32).contains(&tx)
+            && (1..=MAX_MAP_TILES as u32).contains(&ty);
+        if !counts_ok {
+            return Err(F::MapCountOutOfRange);
+        }
+        if u64::from(tx) * u64::from(ty) != u64::from(kc) {
+            return Err(F::MapInconsistent);
+        }
+        let tile_size_m = f32::from_bits(h(48)?);
+        let min = rd_vec3(bytes, 52).ok_or(F::MapTruncated)?;
+        let max = rd_vec3(bytes, 64).ok_or(F::MapTruncated)?;
+        if !(tile_size_m.is_finite() && vec_finite(&min) && vec_finite(&max)) {
+            return Err(F::MapNonFinite);
+        }
+        if tile_size_m <= 0.0 || !(min.x <= max.x && min.y <= max.y && min.z <= max.z) {
+            return Err(F::MapInconsistent);
+        }
+        let layout = Layout::new(
+            header_len,
+            vc as usize,
+            tc as usize,
+            kc as usize,
+            mc as usize,
+            tw as usize,
+            th as usize,
+        );
+        check_sections(bytes, &layout)?;
+        let tex_sec = layout.sec.get(SEC_TEXTURE).copied().unwrap_or_default();
+        let tex_bytes = bytes
+            .get(tex_sec.off..tex_sec.off.saturating_add(tex_sec.len))
+            .ok_or(F::MapTruncated)?;
+        let texture = GrayView::new(tex_bytes, tw as usize, th as usize, tw as usize)
+            .map_err(|_| F::MapCountOutOfRange)?;
+        let view = Self {
+            bytes,
+            layout,
+            vertex_count: vc,
+            triangle_count: tc,
+            tile_count: kc,
+            mask_vertex_count: mc,
+            tiles_x: tx,
+            tiles_y: ty,
+            tile_size_m,
+            min,
+            max,
+            origin,
+            texture,
+        };
+        view.check_content()?;
+        Ok(view)
+    }
+
+    #[allow(
+        clippy::cast_possible_truncation,
+        reason = "i < triangle_count, itself a u32"
+    )]
+    pub(super) fn check_content(&self) -> Result<(), FailureCode> {
+        use FailureCode as F;
+        for i in 0..self.vertex_count {
+            let p = self.vertex(i).ok_or(F::MapTruncated)?;
+            if !vec_finite(&p) {
+                return Err(F::MapNonFinite);
+            }
+            if !inside(&p, &self.min, &self.max) {
+                return Err(F::MapInconsistent);
+            }
+        }
+        let tri_off = self.layout.off(SEC_TRIANGLES);
+        // Whether some triangle has non-zero area (checked until one has).
+        let mut surface = false;
+        for i in 0..self.triangle_count as usize {
+            let flags = record_at(tri_off, i as u32, TRIANGLE_BYTES)
+                .and_then(|o| rd_u32(self.bytes, o.checked_add(12)?))
+                .ok_or(F::MapTruncated)?;
+            if flags & !FLAG_MASK != 0 {
+                return Err(F::MapInconsistent);
+            }
+            let t = self.triangle(i as u32).ok_or(F::MapTruncated)?;
+            if t.v.iter().any(|v| *v >= self.vertex_count) {
+                return Err(F::MapIndexOutOfRange);
+            }
+            if !t.uv.iter().flatten().all(|c| c.is_finite()) {
+                return Err(F::MapNonFinite);
+            }
+            if !t.uv.iter().flatten().all(|c| uv_in_range(*c)) {
+                return Err(F::MapUvOutOfRange);
+            }
+            if !surface {
+                let w = self
+                    .triangle_vertices(i as u32)
+                    .ok_or(F::MapIndexOutOfRange)?;
+                surface = has_area(&w[0], &w[1], &w[2]);
+            }
+        }
+        if !surface {
+            return Err(F::MapNoSurface);
+        }
+        let mut next = 0u32;
+        for k in 0..self.tile_count {
+            let tile = self.tile(k).ok_or(F::MapTruncated)?;
+            if !(vec_finite(&tile.min) && vec_finite(&tile.max)) {
+                return Err(F::MapNonFinite);
+            }
+            if tile.first_triangle != next {
+                return Err(F::MapInconsistent);
+            }
+            let end = tile
+                .first_triangle
+                .checked_add(tile.triangle_count)
+                .filter(|e| *e <= self.triangle_count)
+                .ok_or(F::MapIndexOutOfRange)?;
+            for i in tile.first_triangle..end {
+                let t = self.triangle(i).ok_or(F::MapTruncated)?;
+                for v in t.v {
+                    let p = self.vertex(v).ok_or(F::MapIndexOutOfRange)?;
+                    if !inside(&p, &tile.min, &tile.max) {
+                        return Err(F::MapInconsistent);
+                    }
+                }
+            }
+            next = end;
+        }
+        if next != self.triangle_count {
+            return Err(F::MapInconsistent);
+        }
+        let mut prev: Option<u32> = None;
+        for k in 0..self.mask_vertex_count {
+            let v = self.mask_vertex(k).ok_or(F::MapTruncated)?;
+            if v >= self.vertex_count {
+                return Err(F::MapIndexOutOfRange);
+            }
+            if prev.is_some_and(|p| v <= p) {
+                return Err(F::MapInconsistent);
+            }
+            prev = Some(v);
+        }
+        Ok(())
+    }
+
+    /// Number of vertices.
+    pub fn vertex_count(&self) -> u32 {
+        self.vertex_count
+    }
+
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> u32 {
+        self.triangle_count
+    }
+
+    /// Number of tiles (`tiles_x · tiles_y`, empty cells included).
+    pub fn tile_count(&self) -> u32 {
+        self.tile_count
+    }
+
+    /// Tiling grid: cells along x, cells along y, cell size in metres.
+    pub fn tile_grid(&self) -> (u32, u32, f32) {
+        (self.tiles_x, self.tiles_y, self.tile_size_m)
+    }
+
+    /// Bounds of all vertices (min, max), local metres.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        (self.min, self.max)
+    }
+
+    /// Origin of the local frame in the mesh's own (user) frame, metres:
+    /// `p_user = p_local + origin`, in f64. `[0, 0, 0]` for a version-1 product.
+    pub fn origin(&self) -> [f64; 3] {
+        self.origin
+    }
+
+    /// Format version of the product (1 or 2).
+    pub fn version(&self) -> u32 {
+        if self.layout.off(SEC_TILES) == HEADER_LEN_V1 {
+            1
+        } else {
+            VERSION
+        }
+    }
+
+    /// Vertex `i` in local metres.
+    #[inline]
+    pub fn vertex(&self, i: u32) -> Option<Vec3> {
+        if i >= self.vertex_count {
+            return None;
+        }
+        rd_vec3(
+            self.bytes,
+            record_at(self.layout.off(SEC_VERTICES), i, VERTEX_BYTES)?,
+        )
+    }
+
+    /// Triangle `i` with its UVs and mask bit.
+    #[inline]
+    #[allow(
+        clippy::arithmetic_side_effects,
+        reason = "k < 3 corner index: the field offsets are small constants"
+    )]
+    pub fn triangle(&self, i: u32) -> Option<Triangle> {
+        if i >= self.triangle_count {
+            return None;
+        }
+        let t = record_at(self.layout.off(SEC_TRIANGLES), i, TRIANGLE_BYTES)?;
+        let u = record_at(self.layout.off(SEC_UVS), i, UV_BYTES)?;
+        let b = self.bytes;
+        // One bounds check per record; the fields then sit at constant offsets.
+        let tri: &[u8; TRIANGLE_BYTES] = b.get(t..)?.first_chunk()?;
+        let uvs: &[u8; UV_BYTES] = b.get(u..)?.first_chunk()?;
+        let c = |k: usize| -> Option<[f32; 2]> {
+            let at = uvs.get(8 * k..)?;
+            Some([rd_f32(at, 0)?, rd_f32(at, 4)?])
+        };
+        Some(Triangle {
+            v: [rd_u32(tri, 0)?, rd_u32(tri, 4)?, rd_u32(tri, 8)?],
+            uv: [c(0)?, c(1)?, c(2)?],
+            mask: rd_u32(tri, 12)? & FLAG_MASK != 0,
+        })
+    }
+
+    /// The three corners of triangle `i` in local metres (one read of its indices
+    /// and vertices, without its UVs and flags).
+    #[inline]
+    #[allow(
+        clippy::arithmetic_side_effects,
+        reason = "k < 3 corner index: the field offsets are small constants"
+    )]
+    pub fn triangle_vertices(&self, i: u32) -> Option<[Vec3; 3]> {
+        if i >= self.triangle_count {
+            return None;
+        }
+        let t = record_at(self.layout.off(SEC_TRIANGLES), i, TRIANGLE_BYTES)?;
+        let b = self.bytes;
+        let tri: &[u8; TRIANGLE_BYTES] = b.get(t..)?.first_chunk()?;
+        let sec = self.layout.off(SEC_VERTICES);
+        let v = |k: usize| -> Option<Vec3> {
+            let j = rd_u32(tri.get(4 * k..)?, 0)?;
+            if j >= self.vertex_count {
+                return None;
+            }
+            rd_vec3(b, record_at(sec, j, VERTEX_BYTES)?)
+        };
+        Some([v(0)?, v(1)?, v(2)?])
+    }
+
+    /// Tile `i`.
+    #[inline]
+    pub fn tile(&self, i: u32) -> Option<Tile> {
+        if i >= self.tile_count {
+            return None;
+        }
+        let o = record_at(self.layout.off(SEC_TILES), i, TILE_BYTES)?;
+        let rec: &[u8; TILE_BYTES] = self.bytes.get(o..)?.first_chunk()?;
+        Some(Tile {
+            min: rd_vec3(rec, 0)?,
+            max: rd_vec3(rec, 12)?,
+            first_triangle: rd_u32(rec, 24)?,
+            triangle_count: rd_u32(rec, 28)?,
+        })
+    }
+
+    /// The gray texture (stride = width).
+    pub fn texture(&self) -> GrayView<'a> {
+        self.texture
+    }
+
+    /// The whole encoded product this view was checked from (to check it again).
+    pub fn bytes(&self) -> &'a [u8] {
+        self.bytes
+    }
+
+    /// This view's layout (counts, bounds, section offsets) over `bytes`,
+    /// unchecked: what the engine reads when the memory holding a checked
+    /// product has changed since its check, for upset campaigns (feature
+    /// `upset-injection`, never in a flight build). The accessors stay
+    /// bounds-checked; their contents are whatever `bytes` hold. `None`
+    /// unless `bytes` is exactly as long as the checked product.
+    #[cfg(feature = "upset-injection")]
+    pub fn with_changed_bytes<'b>(&self, bytes: &'b [u8]) -> Option<MapView<'b>> {
+        if bytes.len() != self.bytes.len() {
+            return None;
+        }
+        let tex = self
+            .layout
+            .sec
+            .get(SEC_TEXTURE)
+            .copied()
+            .unwrap_or_default();
+        let texture = GrayView::new(
+            bytes.get(tex.off..tex.off.checked_add(tex.len)?)?,
+            self.texture.width(),
+            self.texture.height(),
+            self.texture.width(),
+        )
+        .ok()?;
+        Some(MapView {
+            bytes,
+            layout: self.layout,
+            vertex_count: self.vertex_count,
+            triangle_count: self.triangle_count,
+            tile_count: self.tile_count,
+            mask_vertex_count: self.mask_vertex_count,
+            tiles_x: self.tiles_x,
+            tiles_y: self.tiles_y,
+            tile_size_m: self.tile_size_m,
+            min: self.min,
+            max: self.max,
+            origin: self.origin,
+            texture,
+        })
+    }
+
+    /// The texture's texels, row-major with stride = width (`width · height` bytes).
+    pub fn texture_bytes(&self) -> &'a [u8] {
+        // The view was made from exactly the texture section (stride = width).
+        self.texture.data()
+    }
+
+    /// Number of vertices of the sampling mask M̂.
+    pub fn mask_vertex_count(&self) -> u32 {
+        self.mask_vertex_count
+    }
+
+    /// The `k`-th vertex index of M̂ (indices are strictly increasing in `k`).
+    pub fn mask_vertex(&self, k: u32) -> Option<u32> {
+        if k >= self.mask_vertex_count {
+            return None;
+        }
+        rd_u32(
+            self.bytes,
+            record_at(self.layout.off(SEC_MASK), k, MASK_VERTEX_BYTES)?,
+        )
+    }
+}
+
+/// The fixed start of the header: length, magic, a known version, the header
+/// CRC and the header-length field. Returns the version and its header length.
+///
+/// # Errors
+/// [`FailureCode::MapTruncated`], [`FailureCode::MapBadMagic`],
+/// [`FailureCode::MapUnsupportedVersion`], [`FailureCode::MapCrcMismatch`],
+/// [`FailureCode::MapInconsistent`], the first that applies in that order.
+#[allow(
+    clippy::arithmetic_side_effects,
+    reason = "header_len from header_len_of is at least 4 + the fixed fields"
+)]
+fn check_header(bytes: &[u8]) -> Result<(u32, usize), FailureCode> {
+    use FailureCode as F;
+    if bytes.len() < HEADER_LEN_V1 {
+        return Err(F::MapTruncated);
+    }
+    if bytes.get(0..8) != Some(&MAGIC[..]) {
+        return Err(F::MapBadMagic);
+    }
+    let h = |off: usize| rd_u32(bytes, off).ok_or(F::MapTruncated);
+    let version = h(8)?;
+    let header_len = header_len_of(version).ok_or(F::MapUnsupportedVersion)?;
+    if bytes.len() < header_len {
+        return Err(F::MapTruncated);
+    }
+    let crc_off = header_len - 4;
+    let head = bytes.get(..crc_off).ok_or(F::MapTruncated)?;
+    if crc32(head) != h(crc_off)? {
+        return Err(F::MapCrcMismatch);
+    }
+    if h(12)? as usize != header_len {
+        return Err(F::MapInconsistent);
+    }
+    Ok((version, header_len))
+}
+
+/// The section table against the layout implied by the counts, the total
+/// length, then each section's CRC.
+///
+/// # Errors
+/// [`FailureCode::MapInconsistent`] (table or trailing bytes),
+/// [`FailureCode::MapTruncated`], [`FailureCode::MapCrcMismatch`].
+#[allow(
+    clippy::arithmetic_side_effects,
+    reason = "header offsets are constants of the layout (i < SECTIONS)"
+)]
+fn check_sections(bytes: &[u8], layout: &Layout) -> Result<(), FailureCode> {
+    use FailureCode as F;
+    let h = |off: usize| rd_u32(bytes, off).ok_or(F::MapTruncated);
+    for (i, s) in layout.sec.iter().enumerate() {
+        let e = OFF_SECTIONS + 12 * i;
+        if h(e)? as usize != s.off || h(e + 4)? as usize != s.len {
+            return Err(F::MapInconsistent);
+        }
+    }
+    if bytes.len() < layout.total {
+        return Err(F::MapTruncated);
+    }
+    if bytes.len() > layout.total {
+        return Err(F::MapInconsistent);
+    }
+    for (i, s) in layout.sec.iter().enumerate() {
+        let body = bytes
+            .get(s.off..s.off.saturating_add(s.len))
+            .ok_or(F::MapTruncated)?;
+        // i < SECTIONS: the header offset is a small constant.
+        if crc32(body)
+            != h(OFF_SECTIONS
+                .wrapping_add(12usize.wrapping_mul(i))
+                .wrapping_add(8))?
+        {
+            return Err(F::MapCrcMismatch);
+        }
+    }
+    Ok(())
+}
