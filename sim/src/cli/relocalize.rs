@@ -256,7 +256,7 @@ pub fn load_inputs_with_map(args: &Args, calib: &Calibration, map: Vec<u8>) -> R
     };
     Ok(Inputs {
         map,
-        calib: calib.calib.clone(),
+        calib: calib.calib,
         rig: calib.rig,
         left,
         right,
