@@ -12,17 +12,19 @@
 //! re-read whole at most `product_attempts` times when its check fails;
 //! [`Runner::drive`] calls the engine at most `max_steps` times.
 //!
-//! [`Runner::relocalize`] is the flight path of one relocalization: it
-//! acquires the map (checked with `MapView::new_checked`), the prior and the
-//! stereo pair through the devices, builds the engine with the core's one
-//! constructor ([`Setup`]) over the caller's workspace, with the upset checks
-//! the configuration asks for ([`RunnerConfig::verify`]), and drives it with
-//! `now` from the clock under a step, work and tick budget ([`DriveLimits`]),
-//! ending with the anytime result when the budget runs out. The outcome and
-//! the failure log go out as telemetry frames. [`Runner::relocalize_by_stage`]
-//! is the same path with the engine stepped one [`Stage`] at a time and each
-//! stage reported to an observer, so a host can time the stages with its own
-//! clock; the outcome is the same.
+//! [`Runner::run`] is the one entry of a relocalization, on the flight path
+//! and every host path: a [`Job`] (rig, parameters, seed, limits, upset
+//! checks) and a source of the stereo pair ([`RamPair`]: captured into RAM;
+//! [`InStore`]: left in the camera's frame memory, read window by window).
+//! It acquires the map product (checked once with `MapView::new_checked`, in
+//! place when the store is memory-mapped), the prior and the pair through
+//! the devices, builds the engine with the core's one constructor
+//! ([`Setup`]) over the caller's workspace, and drives it with `now` from the
+//! clock under a step, work and tick budget ([`DriveLimits`]), ending with
+//! the anytime result when the budget runs out. An optional observer gets
+//! each engine [`Stage`] as it runs, so a host can time the stages with its
+//! own clock; the outcome is the same. The outcome and the failure log go
+//! out as telemetry frames.
 
 use crate::camera::{FrameInfo, StereoCamera};
 use crate::clock::Clock;
@@ -36,7 +38,8 @@ use crate::telemetry::{
 use crate::telemetry::{outcome_payload, OutcomeSummary};
 use vtsm_core::config::Params;
 use vtsm_core::failure::{FailureLog, Retry};
-use vtsm_core::geom::StereoRig;
+use vtsm_core::frame::FrameSource;
+use vtsm_core::geom::{Pose, StereoRig};
 use vtsm_core::image::GrayView;
 use vtsm_core::map::MapView;
 use vtsm_core::reloc::{Engine, Outcome, Setup, Stage, StepResult, Workspace};
@@ -92,8 +95,6 @@ pub struct RunnerConfig {
     pub capture_timeout_ticks: u64,
     /// Expected image size (width, height) from the calibration.
     pub image_size: (u32, u32),
-    /// Upset checks of the engine built by [`Runner::relocalize`].
-    pub verify: VerifyChecks,
 }
 
 impl RunnerConfig {
@@ -397,7 +398,7 @@ pub struct DriveReport {
     pub done: bool,
 }
 
-/// How [`Runner::relocalize`] may spend time: engine work units per step
+/// How [`Runner::run`] may spend time: engine work units per step
 /// call, step calls, and clock ticks from the first step.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -420,7 +421,7 @@ impl DriveLimits {
     };
 }
 
-/// What [`Runner::relocalize_by_stage`] tells its observer, in order: one
+/// What [`Runner::run`] tells its observer, in order: one
 /// `Start`, then one `Ran` per engine step.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -432,7 +433,7 @@ pub enum StageEvent {
     Ran(Stage),
 }
 
-/// What one [`Runner::relocalize`] did besides the engine's outcome.
+/// What one [`Runner::run`] did besides the engine's outcome.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RelocReport {
@@ -448,7 +449,7 @@ pub struct RelocReport {
     /// stated one ([`PriorEstimate::uncertainty`]) or, without it, the
     /// caller's parameters'.
     pub prior_uncertainty: PriorUncertainty,
-    /// Window reads from the frame store ([`Runner::relocalize_from_store`];
+    /// Window reads from the frame store ([`InStore`];
     /// zero when the pair was captured into RAM).
     pub windows: WindowReport,
 }
@@ -720,111 +721,300 @@ where
             map_read,
         })
     }
+}
 
-    /// One relocalization on the flight path: [`Runner::acquire`] the map,
-    /// prior and stereo pair into `bufs`, build the engine with [`Setup`]
-    /// (`params` — with t̃₀, r̃₀ replaced by the prior's stated uncertainty
-    /// when it has one, [`Params::with_uncertainty`] —, `rig`, `seed`, the
-    /// prior's pose, the upset checks of [`RunnerConfig::verify`]) over `ws`,
-    /// and drive it with the clock under `limits`; if the budget ends first,
-    /// the engine's anytime result ([`FailureCode::RelocBudgetExhausted`]) is
-    /// returned. The outcome and the failure log are sent as telemetry.
+/// One relocalization job: what the engine is built and driven with besides
+/// the map product, the prior and the stereo pair, which the devices serve.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Job {
+    /// Calibrated rig.
+    pub rig: StereoRig,
+    /// Relocalization parameters; t̃₀, r̃₀ are replaced by the prior's stated
+    /// uncertainty when it has one ([`PriorEstimate::uncertainty`]).
+    pub params: Params,
+    /// Seed of the relocalization's random streams.
+    pub seed: u64,
+    /// Step, work and tick budget of the drive.
+    pub limits: DriveLimits,
+    /// The engine's upset checks.
+    pub verify: VerifyChecks,
+}
+
+/// The devices and the acquisition state a [`PairSource`] runs with: the
+/// camera, the clock, the failure log, the runner configuration and the
+/// clock times when acquisition started and when the pair is captured.
+#[derive(Debug)]
+pub struct PairContext<'r, C, K> {
+    /// The stereo camera (or frame store).
+    pub camera: &'r mut C,
+    /// The runner's clock.
+    pub clock: &'r mut K,
+    /// The runner's failure log.
+    pub log: &'r mut FailureLog,
+    /// The runner's configuration.
+    pub cfg: &'r RunnerConfig,
+    /// Clock time when acquisition started (build errors are logged at it).
+    pub start: u64,
+    /// Clock time of the capture.
+    pub now: u64,
+}
+
+/// What a [`PairSource`] gives back: the engine's outcome and the work of
+/// the capture, the drive and the window reads.
+#[derive(Clone, Debug)]
+pub struct PairRun {
+    /// The engine's outcome.
+    pub outcome: Outcome,
+    /// Frame metadata of the pair used.
+    pub frame: FrameInfo,
+    /// Capture work.
+    pub capture: CaptureReport,
+    /// Engine driving.
+    pub drive: DriveReport,
+    /// Window reads from a frame store (zero for a pair in RAM).
+    pub windows: WindowReport,
+}
+
+/// Where the stereo pair of a job comes from: captured into RAM
+/// ([`RamPair`], camera `C: StereoCamera`) or left in the camera's frame
+/// memory ([`InStore`], `C: FrameStore`). [`Runner::run`] has checked the map
+/// and the prior; the source captures the pair, builds the engine with
+/// [`Setup`] over `ws` and drives it ([`drive_engine`]).
+pub trait PairSource<'w, C> {
+    /// Capture, build and drive. `params` are the job's with the prior's
+    /// uncertainty applied; `prior` is the prior pose.
+    ///
+    /// # Errors
+    /// The capture's code or [`Setup::build`]'s (logged at `ctx.start`).
+    #[allow(clippy::too_many_arguments)] // the job's parts, checked by the runner
+    fn run<K: Clock>(
+        self,
+        ctx: PairContext<'_, C, K>,
+        map: &MapView<'_>,
+        job: &Job,
+        params: &Params,
+        prior: &Pose,
+        ws: Workspace<'w>,
+        observe: Option<&mut dyn FnMut(StageEvent)>,
+    ) -> Result<PairRun, FailureCode>;
+}
+
+/// A caller's work before every engine step of a pair in RAM: a watchdog, a
+/// ground abort through [`vtsm_core::reloc::Relocalizer::stop`], or a
+/// simulator's upset injection (core feature `upset-injection`).
+pub type Between<'h> = &'h mut dyn for<'m, 'w> FnMut(&mut Engine<'m, 'w>, u64);
+
+/// A stereo pair captured into caller-owned RAM ([`capture_pair`]).
+pub struct RamPair<'b, 'h> {
+    /// Left image, at least one full frame.
+    pub left: &'b mut [u8],
+    /// Right image, at least one full frame.
+    pub right: &'b mut [u8],
+    /// Called before every step call, when given.
+    pub between: Option<Between<'h>>,
+}
+
+impl core::fmt::Debug for RamPair<'_, '_> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("RamPair")
+            .field("left", &self.left.len())
+            .field("right", &self.right.len())
+            .field("between", &self.between.is_some())
+            .finish()
+    }
+}
+
+impl<'b, 'h> RamPair<'b, 'h> {
+    /// A pair captured into `left` and `right`, without a hook.
+    pub fn new(left: &'b mut [u8], right: &'b mut [u8]) -> Self {
+        Self {
+            left,
+            right,
+            between: None,
+        }
+    }
+}
+
+impl<'w, C: StereoCamera> PairSource<'w, C> for RamPair<'_, '_> {
+    fn run<K: Clock>(
+        self,
+        ctx: PairContext<'_, C, K>,
+        map: &MapView<'_>,
+        job: &Job,
+        params: &Params,
+        prior: &Pose,
+        ws: Workspace<'w>,
+        observe: Option<&mut dyn FnMut(StageEvent)>,
+    ) -> Result<PairRun, FailureCode> {
+        let (frame, capture) =
+            capture_pair(ctx.camera, self.left, self.right, ctx.cfg, ctx.now, ctx.log)?;
+        let (left, right) = frame.views(ctx.cfg.image_size, self.left, self.right)?;
+        let setup = Setup::new(map, left, right, &job.rig, params, prior, job.seed);
+        let mut engine = build(setup, job.verify, ws, ctx.log, ctx.start)?;
+        let mut between = self.between;
+        let (outcome, drive) = drive_engine(
+            &mut engine,
+            ctx.clock,
+            ctx.log,
+            &job.limits,
+            &mut |e, now| {
+                if let Some(b) = between.as_mut() {
+                    b(e, now);
+                }
+            },
+            observe,
+        );
+        Ok(PairRun {
+            outcome,
+            frame,
+            capture,
+            drive,
+            windows: WindowReport::default(),
+        })
+    }
+}
+
+/// The pair left in the camera's frame memory ([`capture_to_store`]): the
+/// engine reads each search window (and the preflight's rows) from the store
+/// when it needs it, each read retried on transient faults at most
+/// [`RunnerConfig::attempts`] times, so RAM holds the workspace and no frame.
+/// A read that still fails ends the relocalization with
+/// [`FailureCode::RelocFrameReadFailed`] in the outcome; every failed read is
+/// in the runner's log with [`FailureCode::HalFrameStoreRead`]. With the same
+/// pixels the outcome is bit-identical to a [`RamPair`]'s.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct InStore;
+
+impl<'w, C: FrameStore> PairSource<'w, C> for InStore {
+    fn run<K: Clock>(
+        self,
+        ctx: PairContext<'_, C, K>,
+        map: &MapView<'_>,
+        job: &Job,
+        params: &Params,
+        prior: &Pose,
+        ws: Workspace<'w>,
+        observe: Option<&mut dyn FnMut(StageEvent)>,
+    ) -> Result<PairRun, FailureCode> {
+        let (frame, capture) = capture_to_store(ctx.camera, ctx.cfg, ctx.now, ctx.log)?;
+        let frames = StoreFrames::new(ctx.camera, &frame, ctx.cfg.attempts, ctx.now);
+        let setup = Setup::with_frames(map, frames, &job.rig, params, prior, job.seed);
+        let mut engine = build(setup, job.verify, ws, ctx.log, ctx.start)?;
+        let (outcome, drive) = drive_engine(
+            &mut engine,
+            ctx.clock,
+            ctx.log,
+            &job.limits,
+            &mut |_, _| {},
+            observe,
+        );
+        let frames = engine.attempt_ref().frames();
+        ctx.log.absorb(&frames.log);
+        Ok(PairRun {
+            outcome,
+            frame,
+            capture,
+            drive,
+            windows: frames.report,
+        })
+    }
+}
+
+/// Build the engine of `setup` with the upset checks `verify` over `ws`; a
+/// rejected setup is logged at `start`.
+fn build<'a, 'w, F: FrameSource>(
+    mut setup: Setup<'a, F>,
+    verify: VerifyChecks,
+    ws: Workspace<'w>,
+    log: &mut FailureLog,
+    start: u64,
+) -> Result<Engine<'a, 'w, F>, FailureCode> {
+    setup.options.verify.repeat_solve = verify.repeat_solve;
+    setup.options.verify.recheck_map = verify.recheck_map;
+    setup.build(ws).inspect_err(|&c| log.record(c, start, 0))
+}
+
+/// Drive a built engine with the clock under `limits`, calling `between`
+/// before every step; stepped one stage at a time with each stage reported
+/// to `observe` when given (`limits.units_per_step` is then not used and
+/// `limits.max_steps` counts stages), else `limits.units_per_step` units per
+/// step. Ends with the engine's anytime result when the budget runs out.
+fn drive_engine<'a, 'w, F: FrameSource, K: Clock>(
+    engine: &mut Engine<'a, 'w, F>,
+    clock: &mut K,
+    log: &mut FailureLog,
+    limits: &DriveLimits,
+    between: &mut dyn FnMut(&mut Engine<'a, 'w, F>, u64),
+    observe: Option<&mut dyn FnMut(StageEvent)>,
+) -> (Outcome, DriveReport) {
+    let status = |r: StepResult<'_>| match r {
+        StepResult::Running => StepStatus::Continue,
+        StepResult::Done(_) => StepStatus::Done,
+    };
+    let (drive, _) = match observe {
+        None => {
+            let units = limits.units_per_step.max(1);
+            drive_steps(clock, log, limits.max_steps, limits.budget_ticks, |now| {
+                between(engine, now);
+                Ok(status(engine.step_n(now, units)))
+            })
+        }
+        Some(observe) => {
+            observe(StageEvent::Start);
+            drive_steps(clock, log, limits.max_steps, limits.budget_ticks, |now| {
+                between(engine, now);
+                let (stage, r) = engine.step_stage(now);
+                if let Some(s) = stage {
+                    observe(StageEvent::Ran(s));
+                }
+                Ok(status(r))
+            })
+        }
+    };
+    let now = time_or_zero(clock, log);
+    (engine.stop(now).clone(), drive)
+}
+
+impl<C, K, S, P, T> Runner<C, K, S, P, T>
+where
+    K: Clock,
+    S: MapStore,
+    P: PosePrior,
+    T: Telemetry,
+{
+    /// One relocalization, the one entry of every path (flight, host,
+    /// tests): check the map product once — in place when the store is
+    /// memory-mapped ([`MapStore::mapped`]; `map` is then unused and may be
+    /// empty), else read into `map` with bounded retries and checked —, get
+    /// the checked prior, then let `pair` ([`RamPair`] or [`InStore`])
+    /// capture the stereo pair, build the engine with [`Setup`] (the job's
+    /// rig, seed and upset checks; its parameters with t̃₀, r̃₀ replaced by
+    /// the prior's stated uncertainty when it has one,
+    /// [`Params::with_uncertainty`]) over `ws` and drive it with `now` from
+    /// the clock under `job.limits`; if the budget ends first, the engine's
+    /// anytime result ([`FailureCode::RelocBudgetExhausted`]) is returned.
+    /// With `observe`, the engine is stepped one [`Stage`] at a time and
+    /// `observe` gets [`StageEvent::Start`] once the engine is built and
+    /// [`StageEvent::Ran`] after each step, so a host can time the stages
+    /// with its own clock; with a clock that does not move between steps the
+    /// outcome is bit-identical. The outcome and the failure log are sent as
+    /// telemetry.
     ///
     /// # Errors
     /// The failure code of acquisition (device faults after their retries, a
     /// map product that fails its check, an invalid prior, a frame that
     /// disagrees with the calibration) or of [`Setup::build`]; each is also in
     /// [`Runner::log`] and sent with the failure log.
-    pub fn relocalize<'w>(
+    pub fn run<'w, Src: PairSource<'w, C>>(
         &mut self,
-        bufs: Buffers<'_>,
-        rig: &StereoRig,
-        params: &Params,
+        job: &Job,
+        map: &mut [u8],
+        pair: Src,
         ws: Workspace<'w>,
-        seed: u64,
-        limits: &DriveLimits,
-    ) -> Result<(Outcome, RelocReport), FailureCode> {
-        self.relocalize_inner(bufs, rig, params, ws, seed, limits, |_, _| {}, None)
-    }
-
-    /// [`Runner::relocalize`], calling `between(engine, now)` before every
-    /// step call: the caller's own work between engine steps (a watchdog, a
-    /// ground abort through [`vtsm_core::reloc::Relocalizer::stop`]), or a
-    /// simulator's upset injection (core feature `upset-injection`).
-    ///
-    /// # Errors
-    /// As [`Runner::relocalize`].
-    #[allow(clippy::too_many_arguments)] // `relocalize`'s inputs and the hook
-    pub fn relocalize_with<'w, F>(
-        &mut self,
-        bufs: Buffers<'_>,
-        rig: &StereoRig,
-        params: &Params,
-        ws: Workspace<'w>,
-        seed: u64,
-        limits: &DriveLimits,
-        between: F,
-    ) -> Result<(Outcome, RelocReport), FailureCode>
-    where
-        F: FnMut(&mut Engine<'_, 'w>, u64),
-    {
-        self.relocalize_inner(bufs, rig, params, ws, seed, limits, between, None)
-    }
-
-    /// [`Runner::relocalize`] with the engine stepped one stage at a time
-    /// ([`vtsm_core::reloc::Relocalizer::step_stage`]): `observe` gets
-    /// [`StageEvent::Start`] once the engine is built and
-    /// [`StageEvent::Ran`] after each step, so a host can read its own clock
-    /// at each event and attribute the time between two events to the stage
-    /// just reported. `limits.units_per_step` is not used (each step is one
-    /// stage) and `limits.max_steps` counts stages. With a clock that does
-    /// not move between steps, the outcome is bit-identical to
-    /// [`Runner::relocalize`]'s.
-    ///
-    /// # Errors
-    /// As [`Runner::relocalize`].
-    #[allow(clippy::too_many_arguments)]
-    pub fn relocalize_by_stage<'w>(
-        &mut self,
-        bufs: Buffers<'_>,
-        rig: &StereoRig,
-        params: &Params,
-        ws: Workspace<'w>,
-        seed: u64,
-        limits: &DriveLimits,
-        observe: &mut dyn FnMut(StageEvent),
-    ) -> Result<(Outcome, RelocReport), FailureCode> {
-        self.relocalize_inner(
-            bufs,
-            rig,
-            params,
-            ws,
-            seed,
-            limits,
-            |_, _| {},
-            Some(observe),
-        )
-    }
-
-    /// The one path of every `relocalize*`: acquire, build, drive with the
-    /// hook before each step (and the observer after each stage when
-    /// stepping by stage), then send the outcome and the failure log.
-    #[allow(clippy::too_many_arguments)] // `relocalize`'s inputs, the hook and the observer
-    fn relocalize_inner<'w, F>(
-        &mut self,
-        bufs: Buffers<'_>,
-        rig: &StereoRig,
-        params: &Params,
-        ws: Workspace<'w>,
-        seed: u64,
-        limits: &DriveLimits,
-        between: F,
         observe: Option<&mut dyn FnMut(StageEvent)>,
-    ) -> Result<(Outcome, RelocReport), FailureCode>
-    where
-        F: FnMut(&mut Engine<'_, 'w>, u64),
-    {
-        let result = self.run_engine(bufs, rig, params, ws, seed, limits, between, observe);
+    ) -> Result<(Outcome, RelocReport), FailureCode> {
+        let result = self.run_job(job, map, pair, ws, observe);
         if let Ok((o, _)) = &result {
             let summary = outcome_payload(&OutcomeSummary::of(o));
             self.send(FrameKind::Outcome as u8, &summary);
@@ -833,131 +1023,13 @@ where
         result
     }
 
-    #[allow(clippy::too_many_arguments)] // as `relocalize_inner`
-    fn run_engine<'w, F>(
+    fn run_job<'w, Src: PairSource<'w, C>>(
         &mut self,
-        bufs: Buffers<'_>,
-        rig: &StereoRig,
-        params: &Params,
+        job: &Job,
+        map: &mut [u8],
+        pair: Src,
         ws: Workspace<'w>,
-        seed: u64,
-        limits: &DriveLimits,
-        mut between: F,
         observe: Option<&mut dyn FnMut(StageEvent)>,
-    ) -> Result<(Outcome, RelocReport), FailureCode>
-    where
-        F: FnMut(&mut Engine<'_, 'w>, u64),
-    {
-        // Acquisition logs its own faults; the checks after it log theirs here.
-        let inputs = self.acquire(bufs, |b| MapView::new_checked(b).map(|_| ()))?;
-        let start = inputs.start_ticks;
-        let map =
-            MapView::new_checked(inputs.map).inspect_err(|&c| self.log.record(c, start, 0))?;
-        let prior = inputs.prior.world_from_left;
-        // The prior's stated half-widths size the search (one start, as the
-        // caller's `seeds` says); `Setup::build` validates them again with the
-        // rest of the parameters.
-        let params = match inputs.prior.uncertainty {
-            Some(u) => params.with_uncertainty(u),
-            None => *params,
-        };
-        let mut setup = Setup::new(&map, inputs.left, inputs.right, rig, &params, &prior, seed);
-        setup.options.verify.repeat_solve = self.cfg.verify.repeat_solve;
-        setup.options.verify.recheck_map = self.cfg.verify.recheck_map;
-        let mut engine = setup
-            .build(ws)
-            .inspect_err(|&c| self.log.record(c, start, 0))?;
-        let status = |r: StepResult<'_>| match r {
-            StepResult::Running => StepStatus::Continue,
-            StepResult::Done(_) => StepStatus::Done,
-        };
-        let (drive, _) = match observe {
-            None => {
-                let units = limits.units_per_step.max(1);
-                self.drive(limits.max_steps, limits.budget_ticks, |now| {
-                    between(&mut engine, now);
-                    Ok(status(engine.step_n(now, units)))
-                })
-            }
-            Some(observe) => {
-                observe(StageEvent::Start);
-                self.drive(limits.max_steps, limits.budget_ticks, |now| {
-                    between(&mut engine, now);
-                    let (stage, r) = engine.step_stage(now);
-                    if let Some(s) = stage {
-                        observe(StageEvent::Ran(s));
-                    }
-                    Ok(status(r))
-                })
-            }
-        };
-        let now = self.now();
-        let outcome = engine.stop(now).clone();
-        Ok((
-            outcome,
-            RelocReport {
-                frame: inputs.frame,
-                capture: inputs.capture,
-                map_read: inputs.map_read,
-                drive,
-                prior_uncertainty: params.uncertainty(),
-                windows: WindowReport::default(),
-            },
-        ))
-    }
-}
-
-impl<C, K, S, P, T> Runner<C, K, S, P, T>
-where
-    C: FrameStore,
-    K: Clock,
-    S: MapStore,
-    P: PosePrior,
-    T: Telemetry,
-{
-    /// [`Runner::relocalize`] with the pair left in the camera's frame memory:
-    /// check the map product in place when the store is memory-mapped
-    /// ([`MapStore::mapped`]; `map` is then unused and may be empty) or else
-    /// read and check it into `map`, get the prior, capture the pair
-    /// into the store ([`capture_to_store`]), build the engine with
-    /// [`Setup::with_frames`] over a [`StoreFrames`] of the camera, and drive
-    /// it. The engine reads each search window (and the preflight's rows)
-    /// from the store when it needs it, each read retried on transient
-    /// faults at most [`RunnerConfig::attempts`] times, so RAM holds the
-    /// workspace, no frame and, from memory-mapped storage, no map. A read that still fails ends the
-    /// relocalization with [`FailureCode::RelocFrameReadFailed`] in the
-    /// outcome; every failed read is in [`Runner::log`] with
-    /// [`FailureCode::HalFrameStoreRead`]. With the same pixels the outcome
-    /// is bit-identical to [`Runner::relocalize`]'s.
-    ///
-    /// # Errors
-    /// As [`Runner::relocalize`].
-    pub fn relocalize_from_store<'w>(
-        &mut self,
-        map: &mut [u8],
-        rig: &StereoRig,
-        params: &Params,
-        ws: Workspace<'w>,
-        seed: u64,
-        limits: &DriveLimits,
-    ) -> Result<(Outcome, RelocReport), FailureCode> {
-        let result = self.run_from_store(map, rig, params, ws, seed, limits);
-        if let Ok((o, _)) = &result {
-            let summary = outcome_payload(&OutcomeSummary::of(o));
-            self.send(FrameKind::Outcome as u8, &summary);
-        }
-        self.send_failure_log();
-        result
-    }
-
-    fn run_from_store<'w>(
-        &mut self,
-        map: &mut [u8],
-        rig: &StereoRig,
-        params: &Params,
-        ws: Workspace<'w>,
-        seed: u64,
-        limits: &DriveLimits,
     ) -> Result<(Outcome, RelocReport), FailureCode> {
         self.cfg.validate()?;
         let start = self.now();
@@ -979,45 +1051,39 @@ where
         };
         let prior = read_prior(&mut self.prior, &mut self.log, start)?;
         let now = time_or_zero(&mut self.clock, &mut self.log);
-        let (frame, capture) = capture_to_store(&mut self.camera, &self.cfg, now, &mut self.log)?;
+        // The prior's stated half-widths size the search (one start, as the
+        // caller's `seeds` says); `Setup::build` validates them again with the
+        // rest of the parameters.
         let params = match prior.uncertainty {
-            Some(u) => params.with_uncertainty(u),
-            None => *params,
+            Some(u) => job.params.with_uncertainty(u),
+            None => job.params,
         };
-        let frames = StoreFrames::new(&mut self.camera, &frame, self.cfg.attempts, now);
-        let pose = prior.world_from_left;
-        let mut setup = Setup::with_frames(&view, frames, rig, &params, &pose, seed);
-        setup.options.verify.repeat_solve = self.cfg.verify.repeat_solve;
-        setup.options.verify.recheck_map = self.cfg.verify.recheck_map;
-        let mut engine = setup
-            .build(ws)
-            .inspect_err(|&c| self.log.record(c, start, 0))?;
-        let units = limits.units_per_step.max(1);
-        let (drive, _) = drive_steps(
-            &mut self.clock,
-            &mut self.log,
-            limits.max_steps,
-            limits.budget_ticks,
-            |now| {
-                Ok(match engine.step_n(now, units) {
-                    StepResult::Running => StepStatus::Continue,
-                    StepResult::Done(_) => StepStatus::Done,
-                })
-            },
-        );
-        let now = time_or_zero(&mut self.clock, &mut self.log);
-        let outcome = engine.stop(now).clone();
-        let frames = engine.attempt_ref().frames();
-        self.log.absorb(&frames.log);
+        let ctx = PairContext {
+            camera: &mut self.camera,
+            clock: &mut self.clock,
+            log: &mut self.log,
+            cfg: &self.cfg,
+            start,
+            now,
+        };
+        let run = pair.run(
+            ctx,
+            &view,
+            job,
+            &params,
+            &prior.world_from_left,
+            ws,
+            observe,
+        )?;
         Ok((
-            outcome,
+            run.outcome,
             RelocReport {
-                frame,
-                capture,
+                frame: run.frame,
+                capture: run.capture,
                 map_read,
-                drive,
+                drive: run.drive,
                 prior_uncertainty: params.uncertainty(),
-                windows: frames.report,
+                windows: run.windows,
             },
         ))
     }

@@ -730,7 +730,6 @@ mod tests {
             chunk_len: 100,
             capture_timeout_ticks: 50,
             image_size: (16, 8),
-            verify: vtsm_hal::runner::VerifyChecks::OFF,
         }
     }
 

@@ -23,7 +23,8 @@ use vtsm_core::raster::{self, Target};
 use vtsm_core::reloc::{Engine, MatchPolicy, Outcome, Workspace, WorkspaceSizes};
 use vtsm_core::FailureCode;
 use vtsm_hal::runner::{
-    Buffers, DriveLimits, RelocReport, Runner, RunnerConfig, StageEvent, VerifyChecks,
+    Between, DriveLimits, InStore, Job, RamPair, RelocReport, Runner, RunnerConfig, StageEvent,
+    VerifyChecks,
 };
 use vtsm_hal::{Covariance, FramedTelemetry, PriorEstimate};
 
@@ -88,7 +89,6 @@ pub fn runner_config(width: u32, height: u32) -> RunnerConfig {
         chunk_len: 1 << 16,
         capture_timeout_ticks: 1_000,
         image_size: (width, height),
-        verify: VerifyChecks::OFF,
     }
 }
 
@@ -136,12 +136,12 @@ pub fn relocalize_on_devices(
     faults: &DeviceFaults,
     limits: &DriveLimits,
 ) -> Result<Report> {
-    let run = run_on_devices_observed(req, faults, limits, |_, _| {}, None)?;
+    let run = run_job(req, faults, limits, PairPath::Ram, None, None)?;
     into_report(req, run)
 }
 
 /// [`relocalize`] with the engine stepped one stage at a time through
-/// [`Runner::relocalize_by_stage`]: `observe` gets [`StageEvent::Start`] once
+/// [`Runner::run`]'s observer: `observe` gets [`StageEvent::Start`] once
 /// the engine is built and [`StageEvent::Ran`] after each stage, and may read
 /// a clock at each event. The outcome is bit-identical to [`relocalize`]'s
 /// (the simulated clock does not move between steps).
@@ -152,11 +152,12 @@ pub fn relocalize_by_stage(
     req: &Request<'_>,
     observe: &mut dyn FnMut(StageEvent),
 ) -> Result<Report> {
-    let run = run_on_devices_observed(
+    let run = run_job(
         req,
         &DeviceFaults::default(),
         &DriveLimits::UNLIMITED,
-        |_, _| {},
+        PairPath::Ram,
+        None,
         Some(observe),
     )?;
     into_report(req, run)
@@ -217,6 +218,27 @@ impl DeviceRun {
     }
 }
 
+/// How the simulated devices serve a run: where the pair goes (RAM or the
+/// camera's frame memory) and how the map is stored.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PairPath {
+    /// The pair is captured into RAM buffers ([`RamPair`]); the map is read
+    /// into a RAM buffer.
+    #[default]
+    Ram,
+    /// The pair stays in the camera's memory and the engine reads each
+    /// search window from it ([`InStore`]), with `window_faults` drawn once
+    /// per window read (seeded from the devices' seed); with `map_in_place`
+    /// the map store is memory-mapped ([`MemMapStore::memory_mapped`]) and
+    /// the product is checked and used in place, without a RAM copy.
+    Store {
+        /// Faults of the window reads.
+        window_faults: FaultConfig,
+        /// Whether the map store is memory-mapped.
+        map_in_place: bool,
+    },
+}
+
 /// [`relocalize_on_devices`], keeping the runner's log and telemetry whatever
 /// the result.
 ///
@@ -229,11 +251,11 @@ pub fn run_on_devices(
     faults: &DeviceFaults,
     limits: &DriveLimits,
 ) -> Result<DeviceRun> {
-    run_on_devices_observed(req, faults, limits, |_, _| {}, None)
+    run_job(req, faults, limits, PairPath::Ram, None, None)
 }
 
-/// [`run_on_devices`] through [`Runner::relocalize_with`]: `between(engine,
-/// now)` is called before every step call (upset injection between steps).
+/// [`run_on_devices`] with `between(engine, now)` called before every step
+/// call (upset injection between steps).
 ///
 /// # Errors
 /// As [`run_on_devices`].
@@ -241,57 +263,16 @@ pub fn run_on_devices_with<F>(
     req: &Request<'_>,
     faults: &DeviceFaults,
     limits: &DriveLimits,
-    between: F,
+    mut between: F,
 ) -> Result<DeviceRun>
 where
     F: for<'m, 'w> FnMut(&mut Engine<'m, 'w>, u64),
 {
-    run_on_devices_observed(req, faults, limits, between, None)
+    run_job(req, faults, limits, PairPath::Ram, Some(&mut between), None)
 }
 
-fn run_on_devices_observed<F>(
-    req: &Request<'_>,
-    faults: &DeviceFaults,
-    limits: &DriveLimits,
-    between: F,
-    observe: Option<&mut dyn FnMut(StageEvent)>,
-) -> Result<DeviceRun>
-where
-    F: for<'m, 'w> FnMut(&mut Engine<'m, 'w>, u64),
-{
-    let (n, mut storage) = checked_storage(req)?;
-    let sizes = storage.sizes;
-    let ws = storage.workspace()?;
-    let (mut runner, probe) = devices_for(req, faults)?;
-    let (mut left, mut right, mut map) = (vec![0u8; n], vec![0u8; n], vec![0u8; req.map.len()]);
-    let bufs = Buffers {
-        left: &mut left,
-        right: &mut right,
-        map: &mut map,
-    };
-    let start = Instant::now();
-    let result = match observe {
-        None => runner.relocalize_with(bufs, &req.rig, &req.params, ws, req.seed, limits, between),
-        Some(observe) => {
-            runner.relocalize_by_stage(bufs, &req.rig, &req.params, ws, req.seed, limits, observe)
-        }
-    };
-    Ok(DeviceRun::of(
-        result,
-        &runner,
-        start,
-        sizes.total_bytes(),
-        &probe,
-    ))
-}
-
-/// [`run_on_devices`] on the frame-store path ([`Runner::relocalize_from_store`]):
-/// the camera keeps the pair in its own memory and the engine reads each
-/// search window from it, with `window_faults` drawn once per window read
-/// (seeded from `faults.seed`); no RAM copy of the pair is made. With
-/// `map_in_place` the map store is memory-mapped ([`MemMapStore::memory_mapped`])
-/// and the runner checks and uses the product in place, without a RAM copy
-/// (`faults.store` then has nothing to act on).
+/// [`run_on_devices`] on the frame-store path ([`PairPath::Store`]): no RAM
+/// copy of the pair is made.
 ///
 /// # Errors
 /// As [`run_on_devices`].
@@ -302,20 +283,69 @@ pub fn run_from_store(
     map_in_place: bool,
     limits: &DriveLimits,
 ) -> Result<DeviceRun> {
-    let (_, mut storage) = checked_storage(req)?;
+    let path = PairPath::Store {
+        window_faults,
+        map_in_place,
+    };
+    run_job(req, faults, limits, path, None, None)
+}
+
+/// The one run of `req` on the simulated devices: set them up with
+/// `faults`, serve the pair by `path`, and make the one runner call
+/// ([`Runner::run`]) with the job of `req` and `limits`, the hook `between`
+/// (RAM path) and the stage observer `observe`.
+///
+/// # Errors
+/// As [`run_on_devices`].
+pub fn run_job<'h>(
+    req: &Request<'_>,
+    faults: &DeviceFaults,
+    limits: &DriveLimits,
+    path: PairPath,
+    between: Option<Between<'h>>,
+    observe: Option<&mut dyn FnMut(StageEvent)>,
+) -> Result<DeviceRun> {
+    let (n, mut storage) = checked_storage(req)?;
     let sizes = storage.sizes;
     let ws = storage.workspace()?;
     let (mut runner, probe) = devices_for(req, faults)?;
-    runner.camera.window_faults = FaultInjector::new(window_faults, faults.seed ^ 0xf4a3e)?;
+    let job = Job {
+        rig: req.rig,
+        params: req.params,
+        seed: req.seed,
+        limits: *limits,
+        verify: req.verify,
+    };
     let mut map = Vec::new();
-    if map_in_place {
-        runner.store = runner.store.memory_mapped();
-    } else {
-        map.resize(req.map.len(), 0);
-    }
-    let start = Instant::now();
-    let result =
-        runner.relocalize_from_store(&mut map, &req.rig, &req.params, ws, req.seed, limits);
+    let (mut left, mut right) = (Vec::new(), Vec::new());
+    let start;
+    let result = match path {
+        PairPath::Ram => {
+            map.resize(req.map.len(), 0);
+            left.resize(n, 0);
+            right.resize(n, 0);
+            let pair = RamPair {
+                left: &mut left,
+                right: &mut right,
+                between,
+            };
+            start = Instant::now();
+            runner.run(&job, &mut map, pair, ws, observe)
+        }
+        PairPath::Store {
+            window_faults,
+            map_in_place,
+        } => {
+            runner.camera.window_faults = FaultInjector::new(window_faults, faults.seed ^ 0xf4a3e)?;
+            if map_in_place {
+                runner.store = runner.store.memory_mapped();
+            } else {
+                map.resize(req.map.len(), 0);
+            }
+            start = Instant::now();
+            runner.run(&job, &mut map, InStore, ws, observe)
+        }
+    };
     Ok(DeviceRun::of(
         result,
         &runner,
@@ -392,10 +422,7 @@ fn devices_for(req: &Request<'_>, faults: &DeviceFaults) -> Result<(SimRunner, M
     let telemetry = FramedTelemetry::new(RecordingSink::new());
     let probe = clock.clone();
     let clock = clock.with_ticks_per_read(faults.clock_ticks_per_read);
-    let cfg = RunnerConfig {
-        verify: req.verify,
-        ..runner_config(w, h)
-    };
+    let cfg = runner_config(w, h);
     Ok((
         Runner::new(camera, clock, store, prior, telemetry, cfg),
         probe,

@@ -641,3 +641,71 @@ fn eval_verify_records_the_checks_per_trial() {
         .is_none());
     assert_eq!(plain["trials"][0]["final_t_mm"], t["final_t_mm"]);
 }
+
+// ---- --pairs with every calibration form ------------------------------------
+
+/// `vtsm relocalize --pairs` reads `--calib` with the same reader as a single
+/// pair: in every form (rectified, OpenCV, ROS camera_info, Kalibr, the
+/// FileStorage form and a FileStorage YAML or XML file given itself) the batch
+/// is accepted and its one pair fails alone, on its missing image (exit 1, an
+/// `"error"` line naming the image), not the batch on its calibration (exit 2).
+///
+/// Verifies: VTSM-CLI-038, VTSM-CLI-043, VTSM-CLI-044, VTSM-CLI-045
+#[test]
+fn pairs_batch_accepts_every_calibration_form() {
+    let d = dir("pairs_calib");
+    let (mesh, _) = scene(&d);
+    let rectified = d.join("calib.json");
+    std::fs::write(
+        &rectified,
+        r#"{"width":32,"height":24,"fx":30,"fy":30,"cx":15.5,"cy":11.5,"baseline_m":0.4}"#,
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("prior.json"),
+        r#"{"world_from_left":{"t":[1,1,2],"q":[1,0,0,0]}}"#,
+    )
+    .unwrap();
+    let pairs = d.join("pairs.jsonl");
+    std::fs::write(
+        &pairs,
+        "{\"left\": \"missing.png\", \"right\": \"missing.png\", \"prior\": \"prior.json\"}\n",
+    )
+    .unwrap();
+    let ex = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fsw-docs/interfaces/examples");
+    let forms = [
+        rectified,
+        ex.join("calib-opencv.json"),
+        ex.join("ros/calib.json"),
+        ex.join("kalibr/calib.json"),
+        ex.join("opencv-storage/calib.json"),
+        ex.join("opencv-storage/stereo.yml"),
+        ex.join("opencv-storage/stereo.xml"),
+    ];
+    for calib in &forms {
+        let o = vtsm(&[
+            "relocalize",
+            "--mesh",
+            s(&mesh),
+            "--calib",
+            s(calib),
+            "--pairs",
+            s(&pairs),
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{}: {err}", calib.display());
+        let stdout = String::from_utf8(o.stdout).unwrap();
+        let lines: Vec<serde_json::Value> = stdout
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect();
+        assert_eq!(lines.len(), 1, "{}: {stdout}", calib.display());
+        assert_eq!(lines[0]["status"], "error", "{}", calib.display());
+        let message = lines[0]["message"].as_str().unwrap();
+        assert!(
+            message.contains("missing.png"),
+            "{}: {message}",
+            calib.display()
+        );
+    }
+}

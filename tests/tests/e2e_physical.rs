@@ -9,11 +9,12 @@
 
 use std::path::{Path, PathBuf};
 use vtsm_core::geom::Pose;
+use vtsm_sim::cli::batch;
 use vtsm_sim::cli::eval::{
     config_from_args, run_suite, write_run, Args as EvalArgs, Suite, SuiteConfig,
 };
 use vtsm_sim::cli::map_build::DEFAULT_TILE_SIZE_M;
-use vtsm_sim::cli::relocalize::{load_inputs, run_engine, Args};
+use vtsm_sim::cli::relocalize::{load_inputs, outcome_result, run_engine, Args};
 use vtsm_sim::io::calib_opencv::{opencv_calib_text, OpenCvCalib, OpenCvCamera};
 use vtsm_sim::io::calib_ros::{self, camera_info_text};
 use vtsm_sim::rectify::Rectifier;
@@ -127,7 +128,7 @@ fn relocalize_calib(dir: &Path, calib: &Path, truth: &Pose) -> (f32, f32, Pose) 
 /// 3 cm and 0.3° of the rectified pair's (and under 5 cm, 0.5° absolute), and
 /// the reported pose is nearer the physical left camera than the rectified one.
 ///
-/// Verifies: VTSM-CLI-033, VTSM-CLI-043, VTSM-CLI-044, VTSM-CLI-045, VTSM-SIM-014
+/// Verifies: VTSM-CLI-033, VTSM-CLI-038, VTSM-CLI-043, VTSM-CLI-044, VTSM-CLI-045, VTSM-SIM-014
 #[test]
 fn physical_pair_relocalizes_like_the_rectified_one() {
     let scene = Scene::new(TerrainKind::Flagstone, SEED, Profile::Test);
@@ -169,6 +170,23 @@ fn physical_pair_relocalizes_like_the_rectified_one() {
         let (rt, rr, _) = relocalize(&rect_dir, &truth);
         let (pt, pr, pose) = relocalize(&phys_dir, &truth);
         if stop == 3 {
+            // The same pair as a `--pairs` batch of one with the OpenCV form
+            // as `--calib`: accepted, and the same estimate as the single pair.
+            let pairs = phys_dir.join("pairs.jsonl");
+            std::fs::write(
+                &pairs,
+                "{\"left\": \"left.png\", \"right\": \"right.png\", \"prior\": \"prior.json\"}\n",
+            )
+            .unwrap();
+            let summary = batch::run_batch(&args(&phys_dir), &pairs, false).unwrap();
+            let line = &summary.results[0];
+            assert_eq!(line.status, "ok", "{line:?}");
+            let single = run_engine(&load_inputs(&args(&phys_dir)).unwrap()).unwrap();
+            assert_eq!(
+                line.world_from_left,
+                outcome_result(&single).world_from_left,
+                "OpenCV-form batch"
+            );
             // The same pair with its calibration as two ROS camera_info files
             // (the `ros_camera_info` form of calib.json): the same estimate.
             let ros_dir = root.join("ros-3");

@@ -217,8 +217,15 @@ fn failed_line(index: usize, e: &Entry, id: Option<String>, err: &Error) -> Pair
     }
 }
 
-/// Relocalize one pair against the loaded map.
-fn run_pair(args: &Args, map: &[u8], index: usize, e: &Entry) -> PairResult {
+/// Relocalize one pair against the loaded map, with its own calibration
+/// when it names one, else `calib` (the batch's `--calib`, read once).
+fn run_pair(
+    args: &Args,
+    calib: &relocalize::Calibration,
+    map: &[u8],
+    index: usize,
+    e: &Entry,
+) -> PairResult {
     let t0 = Instant::now();
     let spec = match &e.spec {
         Ok(s) => s,
@@ -247,12 +254,15 @@ fn run_pair(args: &Args, map: &[u8], index: usize, e: &Entry) -> PairResult {
             .as_ref()
             .map(|t| json::read_user_pose(&resolve(&e.base, t)))
             .transpose()?;
-        let inputs = relocalize::load_inputs_with_map(&a, map.to_vec())?;
-        let outcome = relocalize::run_engine(&inputs)?;
-        let result = relocalize::outcome_result(&outcome);
-        if let Some(out) = &a.out {
-            json::write_result(out, &result, args.force)?;
-        }
+        let own;
+        let calib = match &spec.calib {
+            Some(_) => {
+                own = relocalize::read_calibration(&a.calib, &a.interp)?;
+                &own
+            }
+            None => calib,
+        };
+        let (outcome, result) = relocalize::relocalize_pair(&a, calib, map.to_vec())?;
         let user = outcome
             .pose
             .as_ref()
@@ -294,7 +304,8 @@ pub fn run_batch(args: &Args, pairs: &Path, progress: bool) -> Result<Summary> {
         io::check_output(out, args.force)?;
     }
     let entries = read_entries(pairs)?;
-    json::read_calib(&args.calib)?;
+    // Every form of calibration the single-pair path reads, by the same reader.
+    let calib = relocalize::read_calibration(&args.calib, &args.interp)?;
     let t_map = Instant::now();
     let map = relocalize::load_map(args)?;
     let map_load_s = t_map.elapsed().as_secs_f64();
@@ -313,7 +324,7 @@ pub fn run_batch(args: &Args, pairs: &Path, progress: bool) -> Result<Summary> {
     let t_pairs = Instant::now();
     let mut results = Vec::with_capacity(entries.len());
     for (i, e) in entries.iter().enumerate() {
-        let line = run_pair(args, &map, i, e);
+        let line = run_pair(args, &calib, &map, i, e);
         if args.out.is_none() {
             let text = serde_json::to_string(&line).unwrap_or_default();
             bar.suspend(|| {

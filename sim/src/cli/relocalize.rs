@@ -20,7 +20,7 @@ use crate::io::json::{self, Calib, ResultFile, Verified};
 use crate::io::{self, mesh};
 use crate::rectify::{Interp, Rectifier};
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use vtsm_core::config::PriorUncertainty;
 use vtsm_core::geom::{Pose, StereoRig};
 use vtsm_core::map::MapView;
@@ -155,6 +155,54 @@ pub fn check_args(args: &Args) -> Result<()> {
     Ok(())
 }
 
+/// The calibration of a pair, read from any form of `calib.json` (or a
+/// `cv::FileStorage` file given itself) and checked once: the rectified
+/// calibration the core sees, its rig, and for a physical pair the rectifier
+/// and the physical image size.
+#[derive(Clone, Debug)]
+pub struct Calibration {
+    /// The calibration as read (for a physical pair: the rectified one).
+    pub calib: Calib,
+    /// The checked stereo rig.
+    pub rig: StereoRig,
+    /// The rectifier of a physical pair, else `None`.
+    pub physical: Option<Rectifier>,
+    /// Size (width, height) of the images as captured.
+    pub image_size: (u32, u32),
+}
+
+/// Read and check a calibration in every form `vtsm relocalize` accepts,
+/// with `interp` the kernel of the host rectification of a physical pair.
+/// The one reader of `--calib` and of a batch pair's `calib`.
+///
+/// # Errors
+/// The file is unreadable or malformed, cannot be rectified, or its rig is
+/// rejected by the core (with its code).
+pub fn read_calibration(path: &Path, interp: &str) -> Result<Calibration> {
+    let (calib, physical) = match calib_opencv::read_calib_any(path)? {
+        CalibFile::Rectified(c) => (c, None),
+        CalibFile::OpenCv(c) => {
+            let interp = Interp::parse(interp).map_err(Error::msg)?;
+            let r = Rectifier::new(&c)
+                .map_err(|why| Error::file(path, why))?
+                .with_interp(interp);
+            (r.calib(), Some((r, c.size())))
+        }
+    };
+    let rig = calib
+        .rig()
+        .map_err(|c| Error::file(path, format!("rejected: {}", c.description())).with_code(c))?;
+    let image_size = physical
+        .as_ref()
+        .map_or((calib.width, calib.height), |p| p.1);
+    Ok(Calibration {
+        calib,
+        rig,
+        physical: physical.map(|p| p.0),
+        image_size,
+    })
+}
+
 /// Load and validate every input named by `args`.
 ///
 /// # Errors
@@ -163,9 +211,9 @@ pub fn load_inputs(args: &Args) -> Result<Inputs> {
     check_args(args)?;
     // The small file first: a bad calibration is reported before a map
     // product is read or built from a mesh.
-    calib_opencv::read_calib_any(&args.calib)?;
+    let calib = read_calibration(&args.calib, &args.interp)?;
     let map = load_map(args)?;
-    load_inputs_with_map(args, map)
+    load_inputs_with_map(args, &calib, map)
 }
 
 /// A required single-pair path (clap requires it unless `--pairs` is given).
@@ -174,30 +222,18 @@ fn required<'a>(p: &'a Option<PathBuf>, name: &str) -> Result<&'a PathBuf> {
         .ok_or_else(|| Error::msg(format!("--{name} is required (or give --pairs)")))
 }
 
-/// Load and validate the calibration, images and prior named by `args`
-/// against a map product already loaded by [`load_map`].
+/// Load and validate the images and prior named by `args`, for the
+/// calibration `calib` already read by [`read_calibration`], against a map
+/// product already loaded by [`load_map`].
 ///
 /// # Errors
 /// The first bad input, as a one-line error naming its file.
-pub fn load_inputs_with_map(args: &Args, map: Vec<u8>) -> Result<Inputs> {
+pub fn load_inputs_with_map(args: &Args, calib: &Calibration, map: Vec<u8>) -> Result<Inputs> {
     let (left_path, right_path, prior_path) = (
         required(&args.left, "left")?,
         required(&args.right, "right")?,
         required(&args.prior, "prior")?,
     );
-    let (calib, physical) = match calib_opencv::read_calib_any(&args.calib)? {
-        CalibFile::Rectified(c) => (c, None),
-        CalibFile::OpenCv(c) => {
-            let interp = Interp::parse(&args.interp).map_err(Error::msg)?;
-            let r = Rectifier::new(&c)
-                .map_err(|why| Error::file(&args.calib, why))?
-                .with_interp(interp);
-            (r.calib(), Some((r, c.size())))
-        }
-    };
-    let rig = calib.rig().map_err(|c| {
-        Error::file(&args.calib, format!("rejected: {}", c.description())).with_code(c)
-    })?;
     let origin = MapView::new_checked(&map).map_err(Error::from)?.origin();
     let prior_file = json::read_prior(prior_path)?;
     let uncertainty = prior_file.uncertainty.map(|u| u.core());
@@ -208,12 +244,10 @@ pub fn load_inputs_with_map(args: &Args, map: Vec<u8>) -> Result<Inputs> {
         )
         .with_code(c)
     })?;
-    let (w, h) = physical
-        .as_ref()
-        .map_or((calib.width, calib.height), |p| p.1);
+    let (w, h) = calib.image_size;
     let left = img::read_gray_sized(left_path, w, h)?;
     let right = img::read_gray_sized(right_path, w, h)?;
-    let physical = physical.map(|p| p.0);
+    let physical = calib.physical.clone();
     // A physical pair: the core sees the rectified left camera (a rotation
     // of the physical one about its centre, so the origin shift commutes).
     let (left, right, prior) = match &physical {
@@ -222,8 +256,8 @@ pub fn load_inputs_with_map(args: &Args, map: Vec<u8>) -> Result<Inputs> {
     };
     Ok(Inputs {
         map,
-        calib,
-        rig,
+        calib: calib.calib,
+        rig: calib.rig,
         left,
         right,
         prior,
@@ -233,6 +267,27 @@ pub fn load_inputs_with_map(args: &Args, map: Vec<u8>) -> Result<Inputs> {
         physical,
         origin,
     })
+}
+
+/// Relocalize the one pair `args` names (its images, prior, seed, and
+/// `out` when given) with the calibration `calib` against the loaded map
+/// product: load its inputs, run the engine, write `args.out`. The same
+/// code for a single pair and for every pair of a batch.
+///
+/// # Errors
+/// The first bad input, as a one-line error naming its file.
+pub fn relocalize_pair(
+    args: &Args,
+    calib: &Calibration,
+    map: Vec<u8>,
+) -> Result<(Outcome, ResultFile)> {
+    let inputs = load_inputs_with_map(args, calib, map)?;
+    let outcome = run_engine(&inputs)?;
+    let result = outcome_result(&outcome);
+    if let Some(out) = &args.out {
+        json::write_result(out, &result, args.force)?;
+    }
+    Ok((outcome, result))
 }
 
 /// Load the map product named by `args`: read and check `--map`, or build it
@@ -433,12 +488,11 @@ pub fn run(args: &Args) -> Result<u8> {
     if let Some(out) = &args.out {
         io::check_output(out, args.force)?;
     }
-    let inputs = load_inputs(args)?;
-    let outcome = run_engine(&inputs)?;
-    let result = outcome_result(&outcome);
-    match &args.out {
-        Some(out) => json::write_result(out, &result, args.force)?,
-        None => print!("{}", json::result_text(&result)),
+    let calib = read_calibration(&args.calib, &args.interp)?;
+    let map = load_map(args)?;
+    let (outcome, result) = relocalize_pair(args, &calib, map)?;
+    if args.out.is_none() {
+        print!("{}", json::result_text(&result));
     }
     Ok(if outcome.failure.is_none() {
         0

@@ -15,7 +15,7 @@ use vtsm_core::config::Params;
 use vtsm_core::geom::{Camera, Pose, StereoRig, Vec3};
 use vtsm_core::ncc::Search;
 use vtsm_core::reloc::{MatchPolicy, Storage, WorkspaceSizes};
-use vtsm_hal::runner::{DriveLimits, Runner, RunnerConfig, VerifyChecks};
+use vtsm_hal::runner::{DriveLimits, InStore, Job, Runner, RunnerConfig, VerifyChecks};
 
 pub mod scene {
     include!(concat!(env!("VTSM_FLIGHT_DIR"), "/scene.rs"));
@@ -70,14 +70,15 @@ pub fn run(clock: &dyn Fn() -> u64) -> FlightSummary {
         FlashStore(&MAP_FLASH),
         FixedPrior(prior),
         CountingTelemetry::default(),
-        RunnerConfig { attempts: 3, product_attempts: 2, chunk_len: 1 << 16, capture_timeout_ticks: u64::MAX, image_size: (WIDTH as u32, HEIGHT as u32), verify: VerifyChecks::OFF },
+        RunnerConfig { attempts: 3, product_attempts: 2, chunk_len: 1 << 16, capture_timeout_ticks: u64::MAX, image_size: (WIDTH as u32, HEIGHT as u32) },
     );
     // SAFETY: `run` is called once, from the single thread of the image, and
     // this static is not touched anywhere else: the reference is unique.
     let storage = unsafe { &mut *addr_of_mut!(STORAGE) };
     let Ok(ws) = storage.workspace(WS) else { return fail(4) };
     let limits = DriveLimits { units_per_step: 16, max_steps: u32::MAX, budget_ticks: u64::MAX };
-    let (out, report) = match runner.relocalize_from_store(&mut [], &rig, &PARAMS, ws, scene::SEED, &limits) {
+    let job = Job { rig, params: PARAMS, seed: scene::SEED, limits, verify: VerifyChecks::OFF };
+    let (out, report) = match runner.run(&job, &mut [], InStore, ws, None) {
         Ok(r) => r,
         Err(e) => return fail(e.code()),
     };

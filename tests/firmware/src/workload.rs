@@ -165,7 +165,7 @@ fn reloc_block(d: &mut Digest, clock: &dyn Fn() -> u64) -> Summary {
     use vtsm_core::map::{MapSource, MapView};
     use vtsm_core::reloc::{MatchPolicy, Storage, WorkspaceSizes};
     use vtsm_core::rng::Rng;
-    use vtsm_hal::runner::{Buffers, DriveLimits, Runner, RunnerConfig, VerifyChecks};
+    use vtsm_hal::runner::{DriveLimits, Job, RamPair, Runner, RunnerConfig, VerifyChecks};
 
     let fail = |code: u16| Summary { success: false, failure: code, final_error_um: u32::MAX, initial_error_um: 0, attempts: 0, engine_ticks: 0, steps: 0, telemetry_frames: 0, telemetry_bytes: 0 };
     let mut rng = Rng::new(7);
@@ -264,7 +264,7 @@ fn reloc_block(d: &mut Digest, clock: &dyn Fn() -> u64) -> Summary {
         devices::FlashStore(encoded),
         devices::FixedPrior(prior),
         devices::CountingTelemetry::default(),
-        RunnerConfig { attempts: 3, product_attempts: 2, chunk_len: 4096, capture_timeout_ticks: u64::MAX, image_size: (W as u32, H as u32), verify: VerifyChecks::OFF },
+        RunnerConfig { attempts: 3, product_attempts: 2, chunk_len: 4096, capture_timeout_ticks: u64::MAX, image_size: (W as u32, H as u32) },
     );
     let mut left = [0u8; W * H];
     let mut right = [0u8; W * H];
@@ -273,8 +273,8 @@ fn reloc_block(d: &mut Digest, clock: &dyn Fn() -> u64) -> Summary {
     let mut storage = Storage::<{ WS.bytes }, { WS.words }, { WS.runs }>::new();
     let Ok(ws) = storage.workspace(WS) else { return fail(8) };
     let limits = DriveLimits { units_per_step: 16, max_steps: u32::MAX, budget_ticks: u64::MAX };
-    let bufs = Buffers { left: &mut left, right: &mut right, map: map_buf };
-    let (out, report) = match runner.relocalize(bufs, &rig, &p, ws, 2026, &limits) {
+    let job = Job { rig, params: p, seed: 2026, limits, verify: VerifyChecks::OFF };
+    let (out, report) = match runner.run(&job, map_buf, RamPair::new(&mut left, &mut right), ws, None) {
         Ok(r) => r,
         Err(e) => return fail(e.code()),
     };
