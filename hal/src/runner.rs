@@ -780,8 +780,9 @@ pub struct PairRun {
 /// ([`RamPair`], camera `C: StereoCamera`) or left in the camera's frame
 /// memory ([`InStore`], `C: FrameStore`). [`Runner::run`] has checked the map
 /// and the prior; the source captures the pair, builds the engine with
-/// [`Setup`] over `ws` and drives it ([`drive_engine`]).
-pub trait PairSource<'w, C> {
+/// [`Setup`] over `ws` and drives it with the runner's one drive loop.
+/// Sealed: these two are the pair paths the runner knows how to drive.
+pub trait PairSource<'w, C>: sealed::Sealed {
     /// Capture, build and drive. `params` are the job's with the prior's
     /// uncertainty applied; `prior` is the prior pose.
     ///
@@ -798,6 +799,13 @@ pub trait PairSource<'w, C> {
         ws: Workspace<'w>,
         observe: Option<&mut dyn FnMut(StageEvent)>,
     ) -> Result<PairRun, FailureCode>;
+}
+
+mod sealed {
+    /// Seals [`super::PairSource`] to the runner's own pair paths.
+    pub trait Sealed {}
+    impl Sealed for super::RamPair<'_, '_> {}
+    impl Sealed for super::InStore {}
 }
 
 /// A caller's work before every engine step of a pair in RAM: a watchdog, a

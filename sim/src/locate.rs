@@ -55,7 +55,7 @@ pub struct Request<'a> {
     pub params: Params,
     /// Seed of the relocalization's random streams.
     pub seed: u64,
-    /// The engine's upset checks (the runner's [`RunnerConfig::verify`]).
+    /// The engine's upset checks ([`Job::verify`](vtsm_hal::runner::Job::verify)).
     pub verify: VerifyChecks,
 }
 

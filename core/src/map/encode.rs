@@ -178,14 +178,14 @@ pub fn encoded_len(src: &MapSource) -> Result<usize, FailureCode> {
 /// vertices in the vertex section before the vertices are written.
 ///
 /// Triangles are grouped by the grid cell of their centroid (stable within a
-/// cell); UVs are converted from OBJ convention to texture pixels (see [`Triangle`]).
+/// cell); UVs are converted from OBJ convention to texture pixels (see [`Triangle`](super::Triangle)).
 ///
 /// # Errors
 /// [`FailureCode::MapCountOutOfRange`] (counts or texture size above the caps,
 /// vertex extent beyond f32), [`FailureCode::MapTileSizeOutOfRange`] (tile size
 /// not positive and finite, or a tile grid above `MAX_MAP_TILES`),
 /// [`FailureCode::MapInconsistent`] (slice lengths disagree),
-/// [`FailureCode::MapOriginOutOfRange`] (origin not finite or beyond ±[`MAX_MAP_ORIGIN_M`]),
+/// [`FailureCode::MapOriginOutOfRange`] (origin not finite or beyond ±[`MAX_MAP_ORIGIN_M`](crate::config::MAX_MAP_ORIGIN_M)),
 /// [`FailureCode::MapNonFinite`], [`FailureCode::MapUvOutOfRange`] (a UV beyond
 /// ±[`MAX_UV_PX`] texture pixels once converted), [`FailureCode::MapNoSurface`]
 /// (every triangle has zero area), [`FailureCode::MapIndexOutOfRange`],

@@ -30,7 +30,7 @@
 //! | 48 | tile size, metres (f32) |
 //! | 52..76 | bounds min xyz, max xyz (f32, local frame) |
 //! | 76..148 | six sections × (offset u32, length u32, CRC-32 u32) |
-//! | 148..172 | origin x, y, z (f64, metres in the user frame), finite, each within ±[`MAX_MAP_ORIGIN_M`] |
+//! | 148..172 | origin x, y, z (f64, metres in the user frame), finite, each within ±[`MAX_MAP_ORIGIN_M`](crate::config::MAX_MAP_ORIGIN_M) |
 //! | 172 | CRC-32 of bytes 0..172 |
 //!
 //! Version 1 is the same without the origin: header length [`HEADER_LEN_V1`]

@@ -11,7 +11,7 @@
 //! if all corners lie outside one window side plane (world frame), moved to the
 //! camera frame, rejected if all corners lie in front of the near plane,
 //! clipped in camera space against the near plane and, only when a corner lies
-//! outside it, against the guard band ([`RASTER_GUARD_PX`] beyond the window);
+//! outside it, against the guard band ([`RASTER_GUARD_PX`](crate::config::RASTER_GUARD_PX) beyond the window);
 //! the clipped convex polygon is snapped to 28.4 fixed point in absolute image
 //! pixels and filled span by span as one polygon (never fanned, so snapping
 //! cannot make pieces of one triangle overlap). Coverage is decided exactly on

@@ -22,7 +22,7 @@ pub struct Target<'b> {
     pub mask_depth: &'b mut [u32],
 }
 
-/// Work done by one [`render_window`] call.
+/// Work done by one [`render_window`](super::render_window) call.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RenderStats {
