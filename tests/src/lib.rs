@@ -3,7 +3,7 @@
 //! This library holds what those tests share with the `failure_table` tool:
 //! the generator of `fsw-docs/failure-codes.md` and the parsers of the
 //! requirement tables and `Verifies:` tags; the seeded mutation fuzzer
-//! ([`fuzz`]) run by `tests/tests/fuzz_smoke.rs` and the `fuzz` tool; the
+//! ([`fuzz`]) run by `tests/tests/integration/fuzz_smoke.rs` and the `fuzz` tool; the
 //! core's test kit ([`testkit`]) and the flight-path scene built on it
 //! ([`scene`]); and the upset campaign ([`upsets`]).
 
@@ -60,7 +60,7 @@ pub fn failure_table_markdown() -> String {
     s.push_str(
         "Generated from `vtsm_core::FailureCode::ALL` by\n\
          `cargo run -p vtsm-tests --bin failure_table > fsw-docs/failure-codes.md`;\n\
-         do not edit by hand. `tests/tests/failure_codes.rs` checks this table\n\
+         do not edit by hand. `tests/tests/integration/failure_codes.rs` checks this table\n\
          against the enum in both directions.\n\n\
          Groups (high byte): 0x01 config, 0x02 image, 0x03 map, 0x04 raster, 0x05 ncc,\n\
          0x06 stereo, 0x07 pose, 0x08 reloc, 0x09 hardware (HAL). Zero is never an error.\n\n\

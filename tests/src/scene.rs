@@ -1,5 +1,5 @@
-//! The scene of the flight-path tests (`tests/tests/runner_path.rs`,
-//! `tests/tests/fault_scenarios.rs`) and of the upset campaign ([`crate::upsets`]):
+//! The scene of the flight-path tests (`tests/tests/integration/runner_path.rs`,
+//! `tests/tests/integration/fault_scenarios.rs`) and of the upset campaign ([`crate::upsets`]):
 //! the test kit's map product (seed 1), a 640×480 pair rendered from the left
 //! camera at (0.6, 0.2) m, a prior 12 cm off the truth, and the runner
 //! requests over them (test kit rig, test profile, seed [`RELOC_SEED`]).

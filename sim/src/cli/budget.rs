@@ -499,7 +499,7 @@ fn write(dir: &std::path::Path, rows: &[Row]) -> crate::Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| crate::Error::file(dir, e.to_string()))?;
     let mut md = String::from(
         "# Budget (generated)\n\nWritten by `vtsm budget --write fsw-docs/budgets/`; do not edit: \
-         `tests/tests/e2e_budget.rs` compares `budget.snapshot.json` with the code \
+         `tests/tests/integration/e2e_budget.rs` compares `budget.snapshot.json` with the code \
          (static rows exactly, measured counters within 2 %). The `firmware` rows, when \
          present, are read from the ELF images by `--firmware tests/firmware/target` \
          (after `cargo build --release --target <t>` in `tests/firmware/`) and are not \

@@ -1,5 +1,5 @@
 // Determinism workload shared by the firmware images (Cortex-M7, RISC-V 64 and
-// AArch64 under QEMU) and the host test `tests/tests/cross_target.rs` (via
+// AArch64 under QEMU) and the host test `tests/tests/integration/cross_target.rs` (via
 // `include!`). It exercises the core's floating-point and integer paths and folds
 // every output, bit for bit, into one FNV-1a digest: equal digests mean
 // bit-identical results on every target.

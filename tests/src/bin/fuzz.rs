@@ -238,7 +238,7 @@ fn markdown(o: &Opts, args: &[String], stats: &[Stats], start: &str, load0: &str
          hook that writes the input; the release profile has `overflow-checks = true`,\n\
          so integer overflow is a crash too. Seed corpora: `tests/fuzz/corpus/<target>/`\n\
          and the examples of `fsw-docs/interfaces/examples/`. CI runs every target for a\n\
-         bounded number of executions (`tests/tests/fuzz_smoke.rs`).\n\n",
+         bounded number of executions (`tests/tests/integration/fuzz_smoke.rs`).\n\n",
     );
     s.push_str(&format!("Command: `{cmd}`\n\n"));
     s.push_str(&format!(

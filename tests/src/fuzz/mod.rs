@@ -16,7 +16,7 @@
 //! input is replayed with `fuzz --target T --replay FILE`.
 //!
 //! Used by `tests/src/bin/fuzz.rs` (long runs, `fsw-docs/verification/fuzz.md`)
-//! and `tests/tests/fuzz_smoke.rs` (bounded runs in CI).
+//! and `tests/tests/integration/fuzz_smoke.rs` (bounded runs in CI).
 
 pub mod corpus;
 pub mod mutate;

@@ -21,7 +21,7 @@ fn on_big_stack<T: Send + 'static>(f: fn() -> T) -> T {
 /// Verifies: VTSM-RNG-002
 #[test]
 fn host_digest_matches_the_checked_in_cross_target_digest() {
-    let expected = include_str!("../firmware/expected-digest.txt").trim();
+    let expected = include_str!("../../firmware/expected-digest.txt").trim();
     let got = format!("{:016x}", on_big_stack(workload_mod::workload));
     assert_eq!(
         got, expected,

@@ -6,11 +6,10 @@
 
 use std::path::PathBuf;
 
-mod common;
-use common::{s, vtsm};
+use crate::common::{s, vtsm};
 
 fn dir(name: &str) -> PathBuf {
-    common::dir("bench_cli", name)
+    crate::common::dir("bench_cli", name)
 }
 
 /// Seconds in a printed duration (`1.55 s`, `392.3 ms`, `0.6 µs`).

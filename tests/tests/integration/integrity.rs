@@ -10,7 +10,7 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-#[path = "../../core/testkit/testkit.rs"]
+#[path = "../../../core/testkit/testkit.rs"]
 mod testkit;
 
 use std::sync::OnceLock;

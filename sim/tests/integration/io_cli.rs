@@ -7,11 +7,10 @@ use std::path::{Path, PathBuf};
 use vtsm_core::map::MapView;
 use vtsm_sim::io::image::{write_png, Gray8};
 
-mod common;
-use common::{s, vtsm};
+use crate::common::{s, vtsm};
 
 fn dir(name: &str) -> PathBuf {
-    common::dir("io_cli", name)
+    crate::common::dir("io_cli", name)
 }
 
 /// A 3x3-vertex textured patch and a mask holding two of its eight triangles.
@@ -437,7 +436,7 @@ fn budget_prints_the_config_capacities() {
 
 // ---- --verify ------------------------------------------------------------------
 
-/// A test-profile Flagstone scene (the one of `tests/tests/e2e_file_path.rs`)
+/// A test-profile Flagstone scene (the one of `tests/tests/integration/e2e_file_path.rs`)
 /// written by `vtsm scene export`, and its map product built by
 /// `vtsm map build`.
 fn exported() -> PathBuf {
