@@ -237,7 +237,7 @@ pub fn load_inputs_with_map(args: &Args, calib: &Calibration, map: Vec<u8>) -> R
     let origin = MapView::new_checked(&map).map_err(Error::from)?.origin();
     let prior_file = json::read_prior(prior_path)?;
     let uncertainty = prior_file.uncertainty.map(|u| u.core());
-    let prior = crate::frame::json_to_local(&prior_file.world_from_left, origin).map_err(|c| {
+    let prior = prior_file.world_from_left.to_local(origin).map_err(|c| {
         Error::file(
             prior_path,
             format!("pose rejected in the map's local frame: {}", c.name()),
@@ -464,7 +464,7 @@ pub fn outcome_result(o: &Outcome) -> ResultFile {
         world_from_left: o
             .pose
             .as_ref()
-            .map(|p| crate::frame::local_to_json(p, o.origin)),
+            .map(|p| json::PoseJson::from_local(p, o.origin)),
         inliers: o.inliers,
         iterations: o.iterations,
         stats: o.stats.clone(),
