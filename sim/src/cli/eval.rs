@@ -68,7 +68,7 @@
 use crate::cli::demo::MAP_HOURS;
 use crate::error::{Error, Result};
 use crate::eval::{self, GroupSummary, RunMeta, Series, TrialOutcome};
-use crate::io::calib_opencv::OpenCvCalib;
+use crate::io::calib::model::OpenCvCalib;
 use crate::io::image::Gray8;
 use crate::io::mesh::MeshData;
 use crate::locate::{self, Request};

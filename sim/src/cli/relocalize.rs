@@ -14,7 +14,7 @@
 //! result echoes the pair used as `prior_uncertainty`.
 
 use crate::error::{Error, Result, EXIT_RELOC_FAILED};
-use crate::io::calib_opencv::{self, CalibFile};
+use crate::io::calib::{self, CalibFile};
 use crate::io::image::{self as img, Gray8};
 use crate::io::json::{self, Calib, ResultFile, Verified};
 use crate::io::{self, mesh};
@@ -179,7 +179,7 @@ pub struct Calibration {
 /// The file is unreadable or malformed, cannot be rectified, or its rig is
 /// rejected by the core (with its code).
 pub fn read_calibration(path: &Path, interp: &str) -> Result<Calibration> {
-    let (calib, physical) = match calib_opencv::read_calib_any(path)? {
+    let (calib, physical) = match calib::read_calib_any(path)? {
         CalibFile::Rectified(c) => (c, None),
         CalibFile::OpenCv(c) => {
             let interp = Interp::parse(interp).map_err(Error::msg)?;
