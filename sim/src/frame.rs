@@ -17,7 +17,6 @@
 //! shift in the local frame and change the f32 rounding of every vertex.
 
 use crate::error::{Error, Result};
-use crate::io::json::PoseJson;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use vtsm_core::geom::Pose;
 use vtsm_core::FailureCode;
@@ -48,27 +47,6 @@ pub fn to_local(p: &UserPose, origin: [f64; 3]) -> std::result::Result<Pose, Fai
     let (t, q) = user_t_q(p);
     let local = [t[0] - origin[0], t[1] - origin[1], t[2] - origin[2]];
     Pose::from_t_q(local.map(|v| v as f32), q.map(|v| v as f32))
-}
-
-/// The core (local-frame) pose of a pose as written in JSON: `t − origin` in
-/// f64, then `t` and `q` rounded to f32 and `q` renormalised by the core, so at
-/// origin 0 this is exactly the pose an f32 reader would get.
-///
-/// # Errors
-/// As [`to_local`].
-pub fn json_to_local(p: &PoseJson, origin: [f64; 3]) -> std::result::Result<Pose, FailureCode> {
-    let t = [0, 1, 2].map(|k| (p.t[k] - origin[k]) as f32);
-    Pose::from_t_q(t, p.q.map(|v| v as f32))
-}
-
-/// The JSON form of a core (local-frame) pose in the user frame: the origin
-/// added to `t` in f64, `q` as the core has it.
-pub fn local_to_json(p: &Pose, origin: [f64; 3]) -> PoseJson {
-    let t = p.t();
-    PoseJson {
-        t: [0, 1, 2].map(|k| f64::from(t[k]) + origin[k]),
-        q: p.q().map(f64::from),
-    }
 }
 
 /// The user-frame pose of a core (local-frame) pose: the origin is added in f64.

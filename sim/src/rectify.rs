@@ -1,5 +1,5 @@
 //! Host-side stereo rectification of a physical pair calibrated by OpenCV
-//! ([`crate::io::calib_opencv::OpenCvCalib`]), so the core only ever sees an
+//! ([`crate::io::calib::model::OpenCvCalib`]), so the core only ever sees an
 //! ideal rectified pair.
 //!
 //! [`stereo_rectify`] follows `cv2.stereoRectify` with its default arguments:
@@ -35,7 +35,7 @@
 //! Work is bounded: one map entry per rectified pixel, a fixed number of
 //! iterations per undistortion.
 
-use crate::io::calib_opencv::{OpenCvCalib, OpenCvCamera};
+use crate::io::calib::model::{OpenCvCalib, OpenCvCamera};
 use crate::io::image::Gray8;
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;

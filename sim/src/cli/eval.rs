@@ -68,7 +68,7 @@
 use crate::cli::demo::MAP_HOURS;
 use crate::error::{Error, Result};
 use crate::eval::{self, GroupSummary, RunMeta, Series, TrialOutcome};
-use crate::io::calib_opencv::OpenCvCalib;
+use crate::io::calib::model::OpenCvCalib;
 use crate::io::image::Gray8;
 use crate::io::mesh::MeshData;
 use crate::locate::{self, Request};
@@ -1076,7 +1076,7 @@ fn run_trial(
         Some(o) => {
             // Translation through the offset frame in f64; the rotation is the
             // same in every frame, so it is kept as is (no renormalisation).
-            let user = crate::frame::local_to_json(&prior, o);
+            let user = crate::io::json::PoseJson::from_local(&prior, o);
             let t = [0, 1, 2].map(|k| (user.t[k] - map.origin[k]) as f32);
             if t.iter().all(|c| c.is_finite()) {
                 (

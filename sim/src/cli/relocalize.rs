@@ -14,7 +14,7 @@
 //! result echoes the pair used as `prior_uncertainty`.
 
 use crate::error::{Error, Result, EXIT_RELOC_FAILED};
-use crate::io::calib_opencv::{self, CalibFile};
+use crate::io::calib::{self, CalibFile};
 use crate::io::image::{self as img, Gray8};
 use crate::io::json::{self, Calib, ResultFile, Verified};
 use crate::io::{self, mesh};
@@ -179,7 +179,7 @@ pub struct Calibration {
 /// The file is unreadable or malformed, cannot be rectified, or its rig is
 /// rejected by the core (with its code).
 pub fn read_calibration(path: &Path, interp: &str) -> Result<Calibration> {
-    let (calib, physical) = match calib_opencv::read_calib_any(path)? {
+    let (calib, physical) = match calib::read_calib_any(path)? {
         CalibFile::Rectified(c) => (c, None),
         CalibFile::OpenCv(c) => {
             let interp = Interp::parse(interp).map_err(Error::msg)?;
@@ -237,7 +237,7 @@ pub fn load_inputs_with_map(args: &Args, calib: &Calibration, map: Vec<u8>) -> R
     let origin = MapView::new_checked(&map).map_err(Error::from)?.origin();
     let prior_file = json::read_prior(prior_path)?;
     let uncertainty = prior_file.uncertainty.map(|u| u.core());
-    let prior = crate::frame::json_to_local(&prior_file.world_from_left, origin).map_err(|c| {
+    let prior = prior_file.world_from_left.to_local(origin).map_err(|c| {
         Error::file(
             prior_path,
             format!("pose rejected in the map's local frame: {}", c.name()),
@@ -464,7 +464,7 @@ pub fn outcome_result(o: &Outcome) -> ResultFile {
         world_from_left: o
             .pose
             .as_ref()
-            .map(|p| crate::frame::local_to_json(p, o.origin)),
+            .map(|p| json::PoseJson::from_local(p, o.origin)),
         inliers: o.inliers,
         iterations: o.iterations,
         stats: o.stats.clone(),

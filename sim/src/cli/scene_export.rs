@@ -2,7 +2,7 @@
 //! `vtsm relocalize` reads (design §5), plus `scene.json` describing the scene.
 
 use crate::error::{Error, Result};
-use crate::io::calib_opencv::opencv_calib_text;
+use crate::io::calib::opencv::opencv_calib_text;
 use crate::scene::export::{existing, write_scene, write_scene_with_calib, SceneFiles};
 use crate::scene::physical::capture_physical;
 use crate::scene::{parse_hours, perturbed_prior, Capture, Profile, Scene, STOPS_PER_CIRCLE};

@@ -30,7 +30,7 @@
 //! O(atlas texels), remapping O(triangles).
 
 use crate::io::image::Gray8;
-use crate::io::mesh::CornerUvs;
+use crate::io::mesh::raw::CornerUvs;
 use vtsm_core::config::{MAX_IMAGE_DIM, MAX_TEXTURE_DIM};
 
 /// Texels of safety margin beyond the bilinear footprint of a page's faces.

@@ -156,6 +156,28 @@ impl PoseJson {
         crate::frame::user_pose(self.t, self.q)
     }
 
+    /// The core (local-frame) pose of this pose: `t − origin` in f64, then
+    /// `t` and `q` rounded to f32 and `q` renormalised by the core, so at
+    /// origin 0 this is exactly the pose an f32 reader would get.
+    ///
+    /// # Errors
+    /// The core's code when the local pose is not finite in f32
+    /// ([`Pose::from_t_q`]), e.g. a prior millions of metres from the map.
+    pub fn to_local(&self, origin: [f64; 3]) -> std::result::Result<Pose, FailureCode> {
+        let t = [0, 1, 2].map(|k| (self.t[k] - origin[k]) as f32);
+        Pose::from_t_q(t, self.q.map(|v| v as f32))
+    }
+
+    /// The JSON form, in the user frame, of a core (local-frame) pose: the
+    /// origin added to `t` in f64, `q` as the core has it.
+    pub fn from_local(p: &Pose, origin: [f64; 3]) -> Self {
+        let t = p.t();
+        Self {
+            t: [0, 1, 2].map(|k| f64::from(t[k]) + origin[k]),
+            q: p.q().map(f64::from),
+        }
+    }
+
     /// Check finiteness and unit norm; returns the reason.
     pub fn validate(&self) -> std::result::Result<(), String> {
         if !self

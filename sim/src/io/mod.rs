@@ -14,10 +14,7 @@
 //! existing output is only replaced when asked.
 
 pub mod atlas;
-pub mod calib_kalibr;
-pub mod calib_opencv;
-pub mod calib_ros;
-pub mod calib_storage;
+pub mod calib;
 pub mod image;
 pub mod json;
 pub mod mesh;

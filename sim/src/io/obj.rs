@@ -23,7 +23,7 @@
 use crate::error::{Error, Result};
 use crate::io::atlas;
 use crate::io::image::Gray8;
-use crate::io::mesh::{CornerUvs, RawMesh};
+use crate::io::mesh::raw::{check_capacity, CornerUvs, RawMesh};
 use crate::io::{clip, parse_finite, parse_finite_f64};
 use indicatif::ProgressBar;
 use std::collections::BTreeMap;
@@ -251,7 +251,7 @@ fn parse_with_progress(
     let vertex_gray = vertex_gray(&colours);
     let mut uvs = uvs;
     let texture = if appearance {
-        super::mesh::check_capacity(path, vertices.len(), triangles.len())?;
+        check_capacity(path, vertices.len(), triangles.len())?;
         let faces = FaceMaterials {
             mats: &mat_list,
             tri_mat: &tri_mat,

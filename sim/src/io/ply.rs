@@ -21,7 +21,7 @@
 //! or byte offset (binary).
 
 use crate::error::{Error, Result};
-use crate::io::mesh::RawMesh;
+use crate::io::mesh::raw::{check_capacity, RawMesh};
 use crate::io::{atlas, clip};
 use indicatif::ProgressBar;
 use std::path::{Path, PathBuf};
@@ -653,7 +653,7 @@ fn parse_with_progress(
     };
     bar.set_position(bytes.len() as u64);
     if appearance {
-        super::mesh::check_capacity(path, vertices.len(), triangles.len())?;
+        check_capacity(path, vertices.len(), triangles.len())?;
     }
     let mut uvs = uvs;
     let texture = if appearance && !h.textures.is_empty() {

@@ -1,7 +1,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use super::*;
-use crate::io::calib_opencv::{OpenCvCalib, OpenCvCamera};
+use crate::io::calib::model::{OpenCvCalib, OpenCvCamera};
 use vtsm_core::rng::Rng;
 
 fn cam(fx: f64, fy: f64, cx: f64, cy: f64, dist: &[f64]) -> OpenCvCamera {

@@ -14,7 +14,7 @@
 //! the capture does (the truth pose); the right camera follows from `R`, `T`.
 
 use super::{capture_pose, Capture, Scene, StereoPair};
-use crate::io::calib_opencv::{OpenCvCalib, OpenCvCamera};
+use crate::io::calib::model::{OpenCvCalib, OpenCvCamera};
 use crate::rectify::PhysicalCamera;
 use crate::render::{render_rays, Lighting, RenderOptions};
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};

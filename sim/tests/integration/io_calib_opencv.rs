@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use vtsm_sim::io::calib_opencv::{parse_calib_any, CalibFile};
+use vtsm_sim::io::calib::{parse_calib_any, CalibFile};
 
 const GOOD: &str = r#"{"image_size": [640, 480],
  "left":  {"K": [[500.0, 0, 320.5], [0, 501.0, 240.2], [0, 0, 1]],

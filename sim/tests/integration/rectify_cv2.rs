@@ -6,7 +6,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use vtsm_sim::io::calib_opencv::{opencv_calib_text, parse_opencv_calib};
+use vtsm_sim::io::calib::opencv::{opencv_calib_text, parse_opencv_calib};
 use vtsm_sim::io::image::{read_gray, Gray8};
 use vtsm_sim::rectify::{Interp, Rectifier};
 use vtsm_sim::scene::export::write_png_gray;

@@ -227,7 +227,7 @@ pub const TARGETS: &[FuzzTarget] = &[
     FuzzTarget {
         name: "calib",
         kind: Kind::Parser,
-        about: "`io::calib_opencv::parse_calib_any` (rectified and OpenCV forms), `Calib::rig`",
+        about: "`io::calib::parse_calib_any` (rectified and OpenCV forms), `Calib::rig`",
         text: true,
         dict: JSON_DICT,
         max_len: 1 << 12,

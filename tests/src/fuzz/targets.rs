@@ -301,12 +301,12 @@ pub fn ply(env: &Env, d: &[u8]) -> Verdict {
     }
 }
 
-/// `calib.json` in either form (`calib_opencv::parse_calib_any`); an accepted
+/// `calib.json` in either form (`calib::parse_calib_any`); an accepted
 /// rectified calibration must give a rig (`Calib::rig`).
 pub fn calib(env: &Env, d: &[u8]) -> Verdict {
     let path = env.dir.join("calib.json");
-    match io::calib_opencv::parse_calib_any(d, &path) {
-        Ok(io::calib_opencv::CalibFile::Rectified(c)) => {
+    match io::calib::parse_calib_any(d, &path) {
+        Ok(io::calib::CalibFile::Rectified(c)) => {
             let rig = c.rig();
             assert!(
                 rig.is_ok(),
@@ -315,7 +315,7 @@ pub fn calib(env: &Env, d: &[u8]) -> Verdict {
             );
             Verdict::Accepted
         }
-        Ok(io::calib_opencv::CalibFile::OpenCv(c)) => {
+        Ok(io::calib::CalibFile::OpenCv(c)) => {
             let (w, h) = c.size();
             assert!(w > 0 && h > 0, "accepted OpenCV calibration of size 0");
             let _ = (c.left.intrinsics(), c.right.dist8());

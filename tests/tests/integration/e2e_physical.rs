@@ -15,8 +15,9 @@ use vtsm_sim::cli::eval::{
 };
 use vtsm_sim::cli::map_build::DEFAULT_TILE_SIZE_M;
 use vtsm_sim::cli::relocalize::{load_inputs, outcome_result, run_engine, Args};
-use vtsm_sim::io::calib_opencv::{opencv_calib_text, OpenCvCalib, OpenCvCamera};
-use vtsm_sim::io::calib_ros::{self, camera_info_text};
+use vtsm_sim::io::calib::model::{OpenCvCalib, OpenCvCamera};
+use vtsm_sim::io::calib::opencv::opencv_calib_text;
+use vtsm_sim::io::calib::ros::{self as calib_ros, camera_info_text};
 use vtsm_sim::rectify::Rectifier;
 use vtsm_sim::scene::export::{write_scene, write_scene_with_calib, SceneFiles};
 use vtsm_sim::scene::physical::{capture_physical, physical_calib};

@@ -148,7 +148,7 @@ fn known_bad_inputs_get_their_codes() {
     ));
     let fx = br#"{"width": 640, "height": 480, "fx": 1e300, "fy": 457, "cx": 319.5, "cy": 239.5, "baseline_m": 0.3}"#;
     assert!(matches!(verdict("calib", &env, fx), Verdict::Rejected(_)));
-    let e = vtsm_sim::io::calib_opencv::parse_calib_any(fx, std::path::Path::new("c.json"))
+    let e = vtsm_sim::io::calib::parse_calib_any(fx, std::path::Path::new("c.json"))
         .err()
         .unwrap();
     assert!(e.msg.contains("fx"), "{e}");

@@ -21,12 +21,13 @@
 //! so the rectified cameras are the host rectifier's, as for the OpenCV form.
 //! Only horizontal pairs are accepted (`P₂[1][3] = 0`), as the core needs.
 
-use super::calib_opencv::{OpenCvCalib, OpenCvCamera};
-use super::json::short_number;
+use super::model::{OpenCvCalib, OpenCvCamera};
+use super::yaml::{get, number_list, resolve, yaml_mapping};
 use crate::error::{Error, Result};
+use crate::io::json::short_number;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
-use yaml_rust2::{Yaml, YamlLoader};
+use yaml_rust2::Yaml;
 
 /// Largest accepted size of one `camera_info` file, bytes.
 pub const MAX_CAMERA_INFO_BYTES: usize = 1 << 20;
@@ -68,44 +69,6 @@ pub struct RosCameraInfo {
     pub p: [[f64; 4]; 3],
 }
 
-/// Look up `key` in a YAML mapping.
-pub(super) fn get<'a>(doc: &'a Yaml, key: &str) -> Option<&'a Yaml> {
-    doc.as_hash()?.get(&Yaml::String(key.into()))
-}
-
-/// A YAML number (integer or real) as `f64`.
-fn number(y: &Yaml) -> Option<f64> {
-    match y {
-        Yaml::Real(_) => y.as_f64(),
-        Yaml::Integer(i) => Some(*i as f64),
-        _ => None,
-    }
-}
-
-/// `y` (the value named `name`, `None` when absent) as a list of exactly `n`
-/// finite numbers.
-pub(super) fn number_list(
-    y: Option<&Yaml>,
-    name: &str,
-    n: usize,
-) -> std::result::Result<Vec<f64>, String> {
-    let list = y
-        .and_then(Yaml::as_vec)
-        .ok_or_else(|| format!("`{name}` is missing or not a list"))?;
-    let v: Vec<f64> = list
-        .iter()
-        .map(number)
-        .collect::<Option<_>>()
-        .ok_or_else(|| format!("`{name}` has an element that is not a number"))?;
-    if v.len() != n {
-        return Err(format!("`{name}` has {} numbers, not {n}", v.len()));
-    }
-    if !v.iter().all(|x| x.is_finite()) {
-        return Err(format!("`{name}` has a non-finite element"));
-    }
-    Ok(v)
-}
-
 /// The `data` of a `{rows, cols, data}` matrix, checked against the expected
 /// shape (`rows` and `cols`, when given, must match).
 fn matrix(
@@ -131,58 +94,6 @@ fn m3(v: &[f64]) -> [[f64; 3]; 3] {
         m[i / 3][i % 3] = *x;
     }
     m
-}
-
-/// `bytes` (the file `path`) as one YAML mapping: at most `max` bytes, UTF-8,
-/// one document whose top level is a mapping (`what` names it in the message).
-///
-/// # Errors
-/// Each of those conditions, naming `path` (and the line for a YAML syntax error).
-pub(super) fn yaml_mapping(bytes: &[u8], path: &Path, max: usize, what: &str) -> Result<Yaml> {
-    let text = bounded_text(bytes, path, max, what)?;
-    let mut docs = YamlLoader::load_from_str(text).map_err(|e| {
-        Error::at(
-            path,
-            e.marker().line().max(1),
-            format!("not YAML: {}", e.info()),
-        )
-    })?;
-    match docs.as_slice() {
-        [d] if d.as_hash().is_some() => Ok(docs.remove(0)),
-        _ => Err(Error::file(
-            path,
-            format!("must hold one YAML mapping ({what})"),
-        )),
-    }
-}
-
-/// `bytes` (the file `path`) as text: at most `max` bytes and UTF-8 (`what`
-/// names the file in the message).
-///
-/// # Errors
-/// Either condition, naming `path`.
-pub(super) fn bounded_text<'a>(
-    bytes: &'a [u8],
-    path: &Path,
-    max: usize,
-    what: &str,
-) -> Result<&'a str> {
-    if bytes.len() > max {
-        return Err(Error::file(
-            path,
-            format!("{} bytes; {what} file is at most {max}", bytes.len()),
-        ));
-    }
-    std::str::from_utf8(bytes).map_err(|e| Error::file(path, format!("not UTF-8: {e}")))
-}
-
-/// `p` as named in `calib.json` at `path`: relative to its directory unless absolute.
-pub(super) fn resolve(path: &Path, p: &Path) -> PathBuf {
-    if p.is_absolute() {
-        p.to_path_buf()
-    } else {
-        path.parent().unwrap_or(Path::new("")).join(p)
-    }
 }
 
 /// Parse one `camera_info` YAML file.
@@ -334,10 +245,10 @@ pub fn to_opencv(
 /// or parsed (naming that file); a pair that [`to_opencv`] refuses (naming
 /// `path`).
 pub fn parse_ros_calib(bytes: &[u8], path: &Path) -> Result<OpenCvCalib> {
-    let f: RosCalibFile = super::json::parse_json(bytes, path)?;
+    let f: RosCalibFile = crate::io::json::parse_json(bytes, path)?;
     let read = |p: &Path| {
         let full = resolve(path, p);
-        parse_camera_info(&super::read_file(&full)?, &full)
+        parse_camera_info(&crate::io::read_file(&full)?, &full)
     };
     let left = read(&f.ros_camera_info.left)?;
     let right = read(&f.ros_camera_info.right)?;
@@ -576,13 +487,10 @@ mod tests {
     #[test]
     fn the_opencv_written_example_pair_reads_back_to_its_calibration() {
         let ex = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fsw-docs/interfaces/examples");
-        let want =
-            super::super::calib_opencv::read_calib_any(&ex.join("calib-opencv.json")).unwrap();
-        let got = super::super::calib_opencv::read_calib_any(&ex.join("ros/calib.json")).unwrap();
-        let (
-            super::super::calib_opencv::CalibFile::OpenCv(want),
-            super::super::calib_opencv::CalibFile::OpenCv(got),
-        ) = (want, got)
+        let want = super::super::read_calib_any(&ex.join("calib-opencv.json")).unwrap();
+        let got = super::super::read_calib_any(&ex.join("ros/calib.json")).unwrap();
+        let (super::super::CalibFile::OpenCv(want), super::super::CalibFile::OpenCv(got)) =
+            (want, got)
         else {
             panic!("both are physical pairs");
         };
@@ -610,7 +518,7 @@ mod tests {
         ) {
             let (l, r) = from_opencv(&physical()).unwrap();
             let text = camera_info_text("right", &r);
-            let bytes = super::super::damaged(&text, cut, &edits, drop_line);
+            let bytes = crate::io::damaged(&text, cut, &edits, drop_line);
             if let Ok(right) = parse_camera_info(&bytes, Path::new("right.yaml")) {
                 if let Ok(c) = to_opencv(&l, &right) {
                     prop_assert!(c.validate().is_ok());

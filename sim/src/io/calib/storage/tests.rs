@@ -1,6 +1,6 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 use super::*;
-use crate::io::calib_opencv::{parse_calib_any, read_calib_any, CalibFile};
+use crate::io::calib::{parse_calib_any, read_calib_any, CalibFile};
 
 fn examples() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../fsw-docs/interfaces/examples")

@@ -31,8 +31,8 @@
 //! ([`xml`]); the JSON form of FileStorage is refused with a message saying
 //! so.
 
-use super::calib_opencv::{OpenCvCalib, OpenCvCamera};
-use super::calib_ros::{bounded_text, get, resolve, yaml_mapping};
+use super::model::{OpenCvCalib, OpenCvCamera};
+use super::yaml::{bounded_text, get, resolve, yaml_mapping};
 use crate::error::{Error, Result};
 use nalgebra::{Rotation3, Vector3};
 use serde::Deserialize;
@@ -428,7 +428,7 @@ fn from_files(
 /// every file, given twice differently, or of the wrong shape; then what
 /// [`OpenCvCalib::validate`] refuses, naming the file and key.
 pub fn parse_storage_calib(bytes: &[u8], path: &Path) -> Result<OpenCvCalib> {
-    let c: StorageCalibFile = super::json::parse_json(bytes, path)?;
+    let c: StorageCalibFile = crate::io::json::parse_json(bytes, path)?;
     let files = match c.opencv_storage {
         StorageFiles::One(p) => vec![p],
         StorageFiles::Many(v) => v,
@@ -456,7 +456,7 @@ pub fn parse_storage_calib(bytes: &[u8], path: &Path) -> Result<OpenCvCalib> {
     let mut sources = Vec::with_capacity(files.len());
     for p in &files {
         let p = resolve(path, p);
-        let bytes = super::read_file(&p)?;
+        let bytes = crate::io::read_file(&p)?;
         sources.push((p, bytes));
     }
     from_files(&sources, c.image_size, t_scale, path)

@@ -21,8 +21,8 @@
 //! distortion) are refused: the host rectifier implements OpenCV's pinhole
 //! model only.
 
-use super::calib_opencv::{OpenCvCalib, OpenCvCamera};
-use super::calib_ros::{get, number_list, resolve, yaml_mapping};
+use super::model::{OpenCvCalib, OpenCvCamera};
+use super::yaml::{get, number_list, resolve, yaml_mapping};
 use crate::error::{Error, Result};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -199,10 +199,10 @@ pub fn to_opencv(
 /// be read, is larger than [`MAX_CAMCHAIN_BYTES`], is not one YAML mapping, or
 /// that [`to_opencv`] refuses (naming the chain file).
 pub fn parse_kalibr_calib(bytes: &[u8], path: &Path) -> Result<OpenCvCalib> {
-    let f: KalibrCalibFile = super::json::parse_json(bytes, path)?;
+    let f: KalibrCalibFile = crate::io::json::parse_json(bytes, path)?;
     let full = resolve(path, &f.kalibr_camchain);
     let chain = yaml_mapping(
-        &super::read_file(&full)?,
+        &crate::io::read_file(&full)?,
         &full,
         MAX_CAMCHAIN_BYTES,
         "a camera chain: cam0, cam1, …",
@@ -401,7 +401,7 @@ cam1:
     /// Verifies: VTSM-CLI-044
     #[test]
     fn the_example_chain_reads_to_the_opencv_example() {
-        use super::super::calib_opencv::{read_calib_any, CalibFile};
+        use super::super::{read_calib_any, CalibFile};
         let ex = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fsw-docs/interfaces/examples");
         let (CalibFile::OpenCv(want), CalibFile::OpenCv(got)) = (
             read_calib_any(&ex.join("calib-opencv.json")).unwrap(),

@@ -1,38 +1,15 @@
-//! The in-memory textured mesh ([`MeshData`]) shared by the file readers and
-//! the simulator's mapping stage, and its conversion to a map product.
-//!
-//! Readers produce a [`RawMesh`] (geometry plus whatever appearance the file
-//! had); [`MeshData::from_raw`] turns it into a mesh that always has a gray
-//! texture and per-corner texture coordinates:
-//!
-//! * texture + texture coordinates: used as they are;
-//! * per-vertex colour and no texture: a texture atlas is synthesised
-//!   ([`synthesize_atlas`]): every triangle gets its own
-//!   [`ATLAS_CELL_PX`]² cell, painted with the barycentric interpolation of
-//!   its three vertex grays, its corners at pixel centres of the cell so that
-//!   bilinear sampling anywhere inside the triangle reads only its own cell;
-//! * neither: an error.
-//!
-//! Texture coordinates are normalised and follow OBJ: `u = 0` is the left edge
-//! of the texture image, `v = 0` its bottom edge; texel `(i, j)` (column,
-//! row from the top) has its centre at `u = (i + 0.5) / W`, `v = 1 − (j + 0.5) / H`.
-//!
-//! Readers keep vertex coordinates in f64, in the file's own (user) frame;
-//! [`MeshData::from_raw_at`] chooses the map origin (given, or
-//! [`crate::frame::default_origin`]) and stores the vertices relative to it as
-//! f32 ([`crate::frame::local_vertices`]), the only f64 → f32 conversion.
-//!
-//! The sampling mask M̂ ([`MeshData::apply_mask`]) marks the triangles of the
-//! mesh that coincide with a triangle of a mask mesh K: vertices are matched by
-//! position within [`MASK_MATCH_TOL_M`], triangles as unordered vertex triples.
+//! The textured mesh with its sampling mask ([`MeshData`]): a raw mesh given
+//! its texture ([`MeshData::from_raw`], [`synthesize_atlas`]), the mask M̂
+//! ([`MeshData::apply_mask`]) and the map product ([`MeshData::encode_map`]).
+//! See the folder's doc ([`crate::io::mesh`]).
 
+use super::raw::{check_capacity, CornerUvs, RawMesh};
 use crate::error::{Error, Result};
 use crate::io::image::Gray8;
 use crate::io::json::short_number;
-use indicatif::ProgressBar;
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
-use vtsm_core::config::{MAX_IMAGE_DIM, MAX_MAP_TILES, MAX_MAP_TRIANGLES, MAX_MAP_VERTICES};
+use vtsm_core::config::{MAX_IMAGE_DIM, MAX_MAP_TILES};
 use vtsm_core::map::{self, MapSource};
 use vtsm_core::FailureCode;
 
@@ -43,25 +20,6 @@ pub const ATLAS_CELL_PX: u32 = 4;
 /// Two vertices closer than this in every coordinate (metres) are the same
 /// vertex when matching a mask mesh against a mesh.
 pub const MASK_MATCH_TOL_M: f32 = 1.0e-4;
-
-/// Texture coordinates of a triangle's three corners (normalised, OBJ convention).
-pub type CornerUvs = [[f32; 2]; 3];
-
-/// A mesh as read from a file, before it is given a texture.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct RawMesh {
-    /// Vertex positions, metres in the file's own (user) frame, as read (f64).
-    pub vertices: Vec<[f64; 3]>,
-    /// Triangles as vertex indices (polygons already fan-triangulated).
-    pub triangles: Vec<[u32; 3]>,
-    /// Per-corner texture coordinates (normalised, OBJ convention), one entry
-    /// per triangle, or `None` when the file had none.
-    pub uvs: Option<Vec<[[f32; 2]; 3]>>,
-    /// Per-vertex gray (BT.601 luma of the file's colour), if the file had colour.
-    pub vertex_gray: Option<Vec<u8>>,
-    /// The texture image, converted to gray, if the file named one.
-    pub texture: Option<Gray8>,
-}
 
 /// A textured triangle mesh with its sampling mask: the in-memory form of a
 /// depot map before it is encoded as a map product.
@@ -490,39 +448,6 @@ impl<'a> VertexIndex<'a> {
     }
 }
 
-/// Refuse a mesh above the map product's capacities (`config::MAX_MAP_VERTICES`,
-/// `config::MAX_MAP_TRIANGLES`) before anything else is spent on it. The readers
-/// call this once the geometry is read, before loading textures; `path` names the mesh.
-///
-/// # Errors
-/// [`FailureCode::MapCountOutOfRange`] with a message giving the count and the cap.
-pub fn check_capacity(path: &Path, vertices: usize, triangles: usize) -> Result<()> {
-    let code = FailureCode::MapCountOutOfRange;
-    let tag = format!("({}, 0x{:04x})", code.name(), code.code());
-    let over = |what: &str, n: usize, cap: usize, name: &str| {
-        Err(Error::file(
-            path,
-            format!(
-                "mesh has {n} {what}, above the map product's capacity of {cap} \
-                 (config::{name}); decimate it or split the depot {tag}"
-            ),
-        )
-        .with_code(code))
-    };
-    if triangles > MAX_MAP_TRIANGLES {
-        return over(
-            "triangles",
-            triangles,
-            MAX_MAP_TRIANGLES,
-            "MAX_MAP_TRIANGLES",
-        );
-    }
-    if vertices > MAX_MAP_VERTICES {
-        return over("vertices", vertices, MAX_MAP_VERTICES, "MAX_MAP_VERTICES");
-    }
-    Ok(())
-}
-
 /// Build a texture atlas for a vertex-coloured mesh: one [`ATLAS_CELL_PX`]² cell
 /// per triangle, cells laid out row by row in a square-ish image. Returns the
 /// per-corner uvs and the texture.
@@ -586,54 +511,4 @@ pub fn synthesize_atlas(
         }
     }
     Ok((uvs, tex))
-}
-
-/// Load a textured mesh, OBJ or PLY by extension.
-///
-/// # Errors
-/// Unknown extension or any reader error.
-pub fn load_mesh(path: &Path) -> Result<MeshData> {
-    load_mesh_at(path, None)
-}
-
-/// [`load_mesh`] with the map origin given (`None`: the default origin).
-///
-/// # Errors
-/// As [`MeshData::from_raw_at`].
-pub fn load_mesh_at(path: &Path, origin: Option<[f64; 3]>) -> Result<MeshData> {
-    load_mesh_with_progress(path, origin, &ProgressBar::hidden())
-}
-
-/// [`load_mesh_at`], reporting the bytes of the file parsed so far on `bar`.
-///
-/// # Errors
-/// Unknown extension or any reader error.
-pub fn load_mesh_with_progress(
-    path: &Path,
-    origin: Option<[f64; 3]>,
-    bar: &ProgressBar,
-) -> Result<MeshData> {
-    let raw = load_raw(path, true, bar)?;
-    MeshData::from_raw_at(raw, path, origin)
-}
-
-/// Load only the geometry of a mesh (for a mask mesh: textures are not read).
-///
-/// # Errors
-/// Unknown extension or any reader error.
-pub fn load_geometry(path: &Path) -> Result<RawMesh> {
-    load_raw(path, false, &ProgressBar::hidden())
-}
-
-fn load_raw(path: &Path, appearance: bool, bar: &ProgressBar) -> Result<RawMesh> {
-    if super::has_extension(path, "obj") {
-        super::obj::read_with_progress(path, appearance, bar)
-    } else if super::has_extension(path, "ply") {
-        super::ply::read_with_progress(path, appearance, bar)
-    } else {
-        Err(Error::file(
-            path,
-            "unknown mesh format (expected a .obj or .ply file)",
-        ))
-    }
 }
