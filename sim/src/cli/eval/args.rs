@@ -128,9 +128,14 @@ pub enum MaskArg {
 /// Arguments of `vtsm eval`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
-    /// Suite.
-    #[arg(long, value_enum, ignore_case = true)]
-    pub suite: Suite,
+    /// Suite (not with `--replot`, which reads it).
+    #[arg(
+        long,
+        value_enum,
+        ignore_case = true,
+        required_unless_present = "replot"
+    )]
+    pub suite: Option<Suite>,
     /// Trials per group.
     #[arg(long, default_value_t = 2)]
     pub trials: usize,
@@ -202,6 +207,11 @@ pub struct Args {
     /// (`Terrain::with_wind`); the maps stay those of the mapping-time depot.
     #[arg(long, value_name = "S", default_value_t = 0.0)]
     pub wind: f32,
+    /// Run nothing: draw the figures of the run recorded in DIR again from its
+    /// `trials.csv` (suite and terrains from its `summary.json`), into DIR
+    /// (`--force` to replace them).
+    #[arg(long, value_name = "DIR", conflicts_with = "suite")]
+    pub replot: Option<PathBuf>,
 }
 
 impl Args {
@@ -209,7 +219,7 @@ impl Args {
     /// profile, no progress bar.
     pub fn new(suite: Suite) -> Self {
         Self {
-            suite,
+            suite: Some(suite),
             trials: 1,
             seed: 1,
             profile: ProfileArg::Test,
@@ -228,6 +238,7 @@ impl Args {
             light_model: LightModelArg::Full,
             mask: MaskArg::Paper,
             wind: 0.0,
+            replot: None,
         }
     }
 }
@@ -235,13 +246,16 @@ impl Args {
 /// Build the config from command-line arguments.
 ///
 /// # Errors
-/// Out-of-range numbers, an unusable origin, or a baseline with a suite that
-/// has none.
+/// No suite, out-of-range numbers, an unusable origin, or a baseline with a
+/// suite that has none.
 pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
+    let suite = args
+        .suite
+        .ok_or_else(|| Error::msg("--suite is required to run a suite"))?;
     if args.trials == 0 {
         return Err(Error::msg("--trials must be at least 1"));
     }
-    let mut cfg = SuiteConfig::new(args.suite, args.profile.into(), args.trials, args.seed);
+    let mut cfg = SuiteConfig::new(suite, args.profile.into(), args.trials, args.seed);
     if let Some(t) = &args.terrains {
         cfg.terrains = t.iter().map(|&t| t.into()).collect();
     }
@@ -267,7 +281,7 @@ pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
     }
     cfg.seeds_k = args.seeds_k;
     if let Some(b) = args.baseline {
-        if !args.suite.def().takes_baseline() {
+        if !suite.def().takes_baseline() {
             return Err(Error::msg(
                 "--baseline runs with the paper and baseline suites only",
             ));

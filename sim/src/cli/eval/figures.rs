@@ -1,25 +1,69 @@
 //! The figures of the suites, built from the trials and their groups' styles.
 
 use super::config::SuiteConfig;
-use super::group::Group;
 use super::plot::{Figure, Kind, Series, Style};
 use crate::eval::TrialOutcome;
+use crate::terrain::TerrainKind;
+
+/// Every figure of a run of `cfg`'s suite: the error CDF, then the suite's.
+pub fn all(cfg: &SuiteConfig, outcomes: &[TrialOutcome]) -> Vec<Figure> {
+    let styled = styles(&cfg.terrains, outcomes);
+    let mut figs = vec![error_cdf(cfg, &styled, outcomes)];
+    figs.extend(cfg.suite.def().figures(cfg, &styled, outcomes));
+    figs
+}
+
+/// The style of each group, in order of first appearance in `outcomes`:
+/// colour per terrain (the first word of the label), line style (or marker)
+/// per rank among the terrain's groups (per lighting change in `paper` and
+/// `baseline`, per kind of group in the others); a baseline relocalizer's
+/// groups in grey, in the style of the VTSM group they pair with.
+pub fn styles(terrains: &[TerrainKind], outcomes: &[TrialOutcome]) -> Vec<(String, Style)> {
+    let mut seen: Vec<(&str, &str)> = Vec::new();
+    for o in outcomes {
+        if !seen.iter().any(|(g, _)| *g == o.group) {
+            seen.push((&o.group, &o.method));
+        }
+    }
+    let terrain = |label: &str| {
+        let first = label.split(' ').next().unwrap_or("");
+        terrains.iter().position(|k| k.name() == first).unwrap_or(0)
+    };
+    let mut ranks: Vec<(usize, &str, usize)> = Vec::new();
+    seen.iter()
+        .map(|&(label, method)| {
+            let t = terrain(label);
+            let rank = ranks
+                .iter()
+                .filter(|(rt, rm, _)| *rt == t && *rm == method)
+                .count();
+            ranks.push((t, method, rank));
+            let style = Style::new(t, rank);
+            let style = if method == "vtsm" {
+                style
+            } else {
+                style.greyed()
+            };
+            (label.to_string(), style)
+        })
+        .collect()
+}
 
 /// The distribution of the final translation error of every group (its
 /// successful trials), one step CDF per group.
 pub fn error_cdf(
     cfg: &SuiteConfig,
-    groups: &[(Group, Style)],
+    groups: &[(String, Style)],
     outcomes: &[TrialOutcome],
 ) -> Figure {
     let series = groups
         .iter()
-        .map(|(g, style)| Series {
-            name: g.label.clone(),
+        .map(|(label, style)| Series {
+            name: label.clone(),
             style: *style,
             points: outcomes
                 .iter()
-                .filter(|o| o.group == g.label && o.success)
+                .filter(|o| &o.group == label && o.success)
                 .map(|o| (o.final_t_mm, 0.0))
                 .collect(),
         })
@@ -43,18 +87,18 @@ pub fn scatter(
     stem: &str,
     title: &str,
     x_label: &str,
-    groups: &[(Group, Style)],
+    groups: &[(String, Style)],
     outcomes: &[TrialOutcome],
     x: fn(&TrialOutcome) -> f64,
 ) -> Figure {
     let mut series: Vec<Series> = groups
         .iter()
-        .map(|(g, style)| Series {
-            name: g.label.clone(),
+        .map(|(label, style)| Series {
+            name: label.clone(),
             style: *style,
             points: outcomes
                 .iter()
-                .filter(|o| o.group == g.label && o.success)
+                .filter(|o| &o.group == label && o.success)
                 .map(|o| (x(o), o.final_t_mm))
                 .collect(),
         })
@@ -85,7 +129,7 @@ pub fn scatter(
 /// mapping view (`paper`, `baseline`).
 pub fn view_scatters(
     cfg: &SuiteConfig,
-    groups: &[(Group, Style)],
+    groups: &[(String, Style)],
     outcomes: &[TrialOutcome],
 ) -> Vec<Figure> {
     let title = format!("{}: final error vs nearest mapping view", cfg.suite.name());

@@ -69,7 +69,8 @@
 //! [`suites`] (one module per suite behind one trait, and the registry),
 //! [`protocol`] (captures, seeds, priors), [`depot`] and [`maps`] (what is
 //! built once), [`group`], [`frames`] and [`trial`] (one trial), [`run`]
-//! (a whole run), [`tables`], [`figures`] and [`plot`] (what is reported).
+//! (a whole run), [`tables`], [`figures`] and [`plot`] (what is reported),
+//! [`replot`] (the figures of a recorded run drawn again from its trials).
 
 pub mod args;
 pub mod config;
@@ -81,6 +82,7 @@ pub mod group;
 pub mod maps;
 pub mod plot;
 pub mod protocol;
+pub mod replot;
 pub mod run;
 pub mod suites;
 pub mod tables;
@@ -114,10 +116,7 @@ pub fn write_run(dir: &Path, run: &SuiteRun, force: bool) -> Result<()> {
         let table = eval::markdown_table(&run.meta, &run.groups) + &run.notes;
         eval::write_new(&dir.join("table.md"), &table, true)?;
     }
-    for fig in &run.plots {
-        eval::write_new(&dir.join(format!("{}.svg", fig.stem)), &fig.svg()?, force)?;
-        eval::write_bytes_new(&dir.join(format!("{}.png", fig.stem)), &fig.png()?, force)?;
-    }
+    replot::write_figures(dir, &run.plots, force)?;
     Ok(())
 }
 
@@ -130,6 +129,12 @@ fn default_out(suite: Suite) -> PathBuf {
 
 /// Run the command; returns the exit code.
 pub fn run(args: &Args) -> Result<u8> {
+    if let Some(dir) = &args.replot {
+        for p in replot::replot(dir, args.force)? {
+            println!("wrote {}", p.display());
+        }
+        return Ok(0);
+    }
     let cfg = config_from_args(args)?;
     let out = args.out.clone().unwrap_or_else(|| default_out(cfg.suite));
     std::fs::create_dir_all(&out)

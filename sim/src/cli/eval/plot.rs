@@ -7,6 +7,7 @@
 //! `sans-serif` family.
 
 use crate::error::{Error, Result};
+use plotters::coord::ranged1d::ValueFormatter;
 use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::element::DashedPathElement;
@@ -35,8 +36,20 @@ const PALETTE: [RGBColor; 6] = [
 ];
 /// Colour of a baseline relocalizer's series.
 const GREY: RGBColor = RGBColor(128, 128, 128);
+/// A scatter's y axis is logarithmic when its positive values span more
+/// than this ratio.
+const LOG_SPAN: f64 = 30.0;
 /// Dash and gap lengths (pixels) of the line styles; `(0, 0)` is solid.
-const DASHES: [(u32, u32); 5] = [(0, 0), (9, 5), (2, 4), (16, 5), (5, 3)];
+const DASHES: [(u32, u32); 8] = [
+    (0, 0),
+    (9, 5),
+    (2, 4),
+    (16, 5),
+    (5, 3),
+    (12, 3),
+    (3, 8),
+    (24, 6),
+];
 
 /// How a series is drawn.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -186,13 +199,35 @@ impl Figure {
     ) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
         root.fill(&WHITE)?;
         let (plot, legend) = root.split_horizontally(PLOT_W);
-        let (x, y) = self.ranges();
-        let mut chart = ChartBuilder::on(&plot)
-            .caption(&self.title, (FAMILY, 19))
-            .margin(14)
-            .x_label_area_size(52)
-            .y_label_area_size(72)
-            .build_cartesian_2d(x.0..x.1, y.0..y.1)?;
+        let (x, y, log_y) = self.ranges();
+        let builder = || {
+            let mut b = ChartBuilder::on(&plot);
+            b.caption(&self.title, (FAMILY, 19))
+                .margin(14)
+                .x_label_area_size(52)
+                .y_label_area_size(72);
+            b
+        };
+        if log_y {
+            let chart = builder().build_cartesian_2d(x.0..x.1, (y.0..y.1).log_scale())?;
+            self.draw_chart(chart, x.1)?;
+        } else {
+            let chart = builder().build_cartesian_2d(x.0..x.1, y.0..y.1)?;
+            self.draw_chart(chart, x.1)?;
+        }
+        self.draw_legend(&legend)
+    }
+
+    /// Axes, grid and series on a chart with a linear or a log y axis.
+    fn draw_chart<DB, Y>(
+        &self,
+        mut chart: ChartContext<'_, DB, Cartesian2d<RangedCoordf64, Y>>,
+        x_end: f64,
+    ) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>>
+    where
+        DB: DrawingBackend,
+        Y: Ranged<ValueType = f64> + ValueFormatter<f64>,
+    {
         chart
             .configure_mesh()
             .x_desc(self.x_label.as_str())
@@ -208,11 +243,11 @@ impl Figure {
             .draw()?;
         for s in &self.series {
             match self.kind {
-                Kind::Cdf => draw_path(&mut chart, &cdf_steps(&s.points, x.1), s.style)?,
+                Kind::Cdf => draw_path(&mut chart, &cdf_steps(&s.points, x_end), s.style)?,
                 Kind::Scatter => draw_points(&mut chart, &s.points, s.style)?,
             }
         }
-        self.draw_legend(&legend)
+        Ok(())
     }
 
     /// The legend: a sample of each series' line or marker and its label.
@@ -242,8 +277,10 @@ impl Figure {
     }
 
     /// Axis ranges: from 0 (or the smallest value below it) to a round value
-    /// above the largest; a CDF's y axis is 0–100 % with a margin.
-    fn ranges(&self) -> ((f64, f64), (f64, f64)) {
+    /// above the largest; a CDF's y axis is 0–100 % with a margin. A scatter
+    /// whose positive y values span more than [`LOG_SPAN`] gets a log y axis
+    /// (third value), from the power of ten at or below the smallest.
+    fn ranges(&self) -> ((f64, f64), (f64, f64), bool) {
         let pts = || {
             self.series
                 .iter()
@@ -253,13 +290,20 @@ impl Figure {
         let x_lo = pts().map(|p| p.0).fold(0.0, f64::min);
         let x_hi = pts().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max);
         let y_hi = pts().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
+        let y_min_pos = pts()
+            .map(|p| p.1)
+            .filter(|&y| y > 0.0)
+            .fold(f64::INFINITY, f64::min);
         // 4 % headroom, so no point sits on the frame.
         let x = (-round_up(-1.04 * x_lo), round_up(1.04 * x_hi));
-        let y = match self.kind {
-            Kind::Cdf => (-2.0, 102.0),
-            Kind::Scatter => (0.0, round_up(1.04 * y_hi)),
-        };
-        (x, y)
+        match self.kind {
+            Kind::Cdf => (x, (-2.0, 102.0), false),
+            Kind::Scatter if y_hi / y_min_pos > LOG_SPAN => {
+                let lo = 10f64.powi(y_min_pos.log10().floor() as i32);
+                (x, (lo, round_up(1.3 * y_hi)), true)
+            }
+            Kind::Scatter => (x, (0.0, round_up(1.04 * y_hi)), false),
+        }
     }
 }
 
@@ -316,10 +360,10 @@ pub fn cdf_steps(values: &[(f64, f64)], x_end: f64) -> Vec<(f64, f64)> {
     out
 }
 
-type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+type Chart<'a, DB, Y> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, Y>>;
 
-fn draw_path<DB: DrawingBackend>(
-    chart: &mut Chart<'_, DB>,
+fn draw_path<DB: DrawingBackend, Y: Ranged<ValueType = f64>>(
+    chart: &mut Chart<'_, DB, Y>,
     pts: &[(f64, f64)],
     style: Style,
 ) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
@@ -333,15 +377,15 @@ fn draw_path<DB: DrawingBackend>(
     Ok(())
 }
 
-fn draw_points<DB: DrawingBackend>(
-    chart: &mut Chart<'_, DB>,
+fn draw_points<DB: DrawingBackend, Y: Ranged<ValueType = f64>>(
+    chart: &mut Chart<'_, DB, Y>,
     pts: &[(f64, f64)],
     style: Style,
 ) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     let pts = pts
         .iter()
         .copied()
-        .filter(|p| p.0.is_finite() && p.1.is_finite());
+        .filter(|p| p.0.is_finite() && p.1.is_finite() && p.1 > 0.0);
     let c = style.rgb();
     if style.failed {
         chart.draw_series(pts.map(|p| Cross::new(p, 5, c.stroke_width(2))))?;

@@ -6,7 +6,7 @@ use super::depot::Depot;
 use super::figures;
 use super::group::{with_baseline_groups, Group};
 use super::maps::MapEntry;
-use super::plot::{Figure, Style};
+use super::plot::Figure;
 use super::protocol::{MAP_VIEW_RANGE_M, PRIOR_MAX_DEG, TILE_M};
 use super::suites::SuiteDef;
 use super::tables::{integrity_table, side_by_side};
@@ -57,9 +57,7 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
     let trials_s = t_trials.elapsed().as_secs_f64();
     let summary = eval::summarize(&outcomes);
     let meta = run_meta(cfg, def, &depot, command);
-    let styled = styled_groups(cfg, def, groups);
-    let mut plots = vec![figures::error_cdf(cfg, &styled, &outcomes)];
-    plots.extend(def.figures(cfg, &styled, &outcomes));
+    let plots = figures::all(cfg, &outcomes);
     let mut notes = def.notes(&outcomes);
     notes.push_str(&integrity_table(&outcomes));
     if let Some(m) = cfg.baseline {
@@ -93,22 +91,6 @@ fn run_trials(
         maps,
     };
     eval::run_parallel(&specs, |s| run_trial(&shared, s), cfg.progress)
-}
-
-/// Each group with its style in the figures; a baseline relocalizer's in grey.
-fn styled_groups(cfg: &SuiteConfig, def: &dyn SuiteDef, groups: Vec<Group>) -> Vec<(Group, Style)> {
-    groups
-        .into_iter()
-        .map(|g| {
-            let style = def.style(cfg, &g);
-            let style = if g.method == Method::Vtsm {
-                style
-            } else {
-                style.greyed()
-            };
-            (g, style)
-        })
-        .collect()
 }
 
 /// The reproducibility record of a run.

@@ -201,7 +201,7 @@ fn feature_baseline_runs_on_the_same_trials_and_is_reported_side_by_side() {
         ..Args::new(Suite::Uncertainty50)
     };
     assert!(config_from_args(&args).is_err());
-    args.suite = Suite::Baseline;
+    args.suite = Some(Suite::Baseline);
     let parsed = config_from_args(&args).unwrap();
     assert_eq!(parsed.baseline, Some(Method::Features));
     assert_eq!(

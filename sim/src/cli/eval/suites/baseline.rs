@@ -39,7 +39,7 @@ impl SuiteDef for Baseline {
     fn figures(
         &self,
         cfg: &SuiteConfig,
-        groups: &[(Group, Style)],
+        groups: &[(String, Style)],
         outcomes: &[TrialOutcome],
     ) -> Vec<Figure> {
         figures::view_scatters(cfg, groups, outcomes)

@@ -1,7 +1,7 @@
 //! One module per suite behind [`SuiteDef`]: its groups (rows of the table),
 //! the maps and lightings they need, the columns its trials write (through
 //! each group's [`crate::eval::columns::GroupColumns`]), its figures and
-//! notes. [`Suite::def`] is the registry, the one place a [`Suite`] is
+//! notes. Every figure styles a group alike ([`super::figures::styles`]). [`Suite::def`] is the registry, the one place a [`Suite`] is
 //! matched.
 
 use super::config::{Suite, SuiteConfig};
@@ -80,22 +80,11 @@ pub trait SuiteDef: Sync {
         "wave mapping path, step 1 (60 views)"
     }
 
-    /// The line or marker style of group `g` in the figures: colour per
-    /// terrain, line style per time difference.
-    fn style(&self, cfg: &SuiteConfig, g: &Group) -> Style {
-        let hour = cfg
-            .hours
-            .iter()
-            .position(|&h| h == g.columns.hours())
-            .unwrap_or(0);
-        Style::new(g.terrain, hour)
-    }
-
     /// The suite's figures besides the error CDF.
     fn figures(
         &self,
         _cfg: &SuiteConfig,
-        _groups: &[(Group, Style)],
+        _groups: &[(String, Style)],
         _outcomes: &[TrialOutcome],
     ) -> Vec<Figure> {
         Vec::new()

@@ -32,7 +32,7 @@ impl SuiteDef for Paper {
     fn figures(
         &self,
         cfg: &SuiteConfig,
-        groups: &[(Group, Style)],
+        groups: &[(String, Style)],
         outcomes: &[TrialOutcome],
     ) -> Vec<Figure> {
         figures::view_scatters(cfg, groups, outcomes)

@@ -95,21 +95,10 @@ impl SuiteDef for Stepsize {
         "sub-sampled mapping path of the group"
     }
 
-    /// Colour per terrain, line style per step size (the forward path's
-    /// after the wave path's).
-    fn style(&self, cfg: &SuiteConfig, g: &Group) -> Style {
-        let (step, forward) = match g.columns {
-            GroupColumns::Step { step, forward, .. } => (step, forward),
-            _ => (0, false),
-        };
-        let si = cfg.steps.iter().position(|&s| s == step).unwrap_or(0);
-        Style::new(g.terrain, si + usize::from(forward) * cfg.steps.len())
-    }
-
     fn figures(
         &self,
         _cfg: &SuiteConfig,
-        groups: &[(Group, Style)],
+        groups: &[(String, Style)],
         outcomes: &[TrialOutcome],
     ) -> Vec<Figure> {
         vec![figures::scatter(

@@ -16,7 +16,6 @@ use crate::cli::eval::group::Group;
 use crate::cli::eval::maps::MapEntry;
 use crate::cli::eval::plot::{Figure, Style};
 use crate::cli::eval::protocol::{PRIOR_50_M, UNCERTAINTY_50};
-use crate::eval::columns::GroupColumns;
 use crate::eval::TrialOutcome;
 use vtsm_core::config::PriorUncertainty;
 
@@ -54,16 +53,6 @@ fn kinds(cfg: &SuiteConfig) -> Vec<(String, PriorSpec)> {
     kinds
 }
 
-/// Which kind of [`kinds`] a group is: 0 reference, 1 told, 2 untold, 3 K seeds.
-fn kind_of(g: &Group) -> usize {
-    match g.columns {
-        GroupColumns::Prior { seeds_k, .. } if seeds_k > 0 => 3,
-        _ if g.prior_m != PRIOR_50_M => 0,
-        _ if g.uncertainty.is_some() => 1,
-        _ => 2,
-    }
-}
-
 impl SuiteDef for Uncertainty50 {
     fn name(&self) -> &'static str {
         "uncertainty50"
@@ -93,15 +82,10 @@ impl SuiteDef for Uncertainty50 {
         Some(UNCERTAINTY_50)
     }
 
-    /// Colour per terrain, line style per kind of group.
-    fn style(&self, _cfg: &SuiteConfig, g: &Group) -> Style {
-        Style::new(g.terrain, kind_of(g))
-    }
-
     fn figures(
         &self,
         _cfg: &SuiteConfig,
-        groups: &[(Group, Style)],
+        groups: &[(String, Style)],
         outcomes: &[TrialOutcome],
     ) -> Vec<Figure> {
         vec![figures::scatter(

@@ -10,7 +10,6 @@ use crate::cli::eval::config::SuiteConfig;
 use crate::cli::eval::depot::Depot;
 use crate::cli::eval::group::{Frames, Group};
 use crate::cli::eval::maps::MapEntry;
-use crate::cli::eval::plot::Style;
 use crate::cli::eval::protocol::SHIFT_PX;
 use crate::eval::columns::GroupColumns;
 
@@ -65,16 +64,5 @@ impl SuiteDef for Wrongplace {
             }
         }
         groups
-    }
-
-    /// Colour per terrain, line style per kind of input.
-    fn style(&self, _cfg: &SuiteConfig, g: &Group) -> Style {
-        let kind = match g.frames {
-            Frames::Truth => 0,
-            Frames::ShiftedRight(_) => 1,
-            Frames::OtherSpot => 2,
-            Frames::OtherDepot(_) => 3,
-        };
-        Style::new(g.terrain, kind)
     }
 }
