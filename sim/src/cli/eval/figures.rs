@@ -17,7 +17,7 @@ pub fn all(cfg: &SuiteConfig, outcomes: &[TrialOutcome]) -> Vec<Figure> {
 /// colour per terrain (the first word of the label), line style (or marker)
 /// per rank among the terrain's groups (per lighting change in `paper` and
 /// `baseline`, per kind of group in the others); a baseline relocalizer's
-/// groups in grey, in the style of the VTSM group they pair with.
+/// groups in the style of the VTSM group they pair with, thin or hollow.
 pub fn styles(terrains: &[TerrainKind], outcomes: &[TrialOutcome]) -> Vec<(String, Style)> {
     let mut seen: Vec<(&str, &str)> = Vec::new();
     for o in outcomes {
@@ -42,7 +42,7 @@ pub fn styles(terrains: &[TerrainKind], outcomes: &[TrialOutcome]) -> Vec<(Strin
             let style = if method == "vtsm" {
                 style
             } else {
-                style.greyed()
+                style.as_baseline()
             };
             (label.to_string(), style)
         })

@@ -34,8 +34,6 @@ const PALETTE: [RGBColor; 6] = [
     RGBColor(86, 180, 233),
     RGBColor(213, 94, 0),
 ];
-/// Colour of a baseline relocalizer's series.
-const GREY: RGBColor = RGBColor(128, 128, 128);
 /// A scatter's y axis is logarithmic when its positive values span more
 /// than this ratio.
 const LOG_SPAN: f64 = 30.0;
@@ -58,8 +56,8 @@ pub struct Style {
     pub color: usize,
     /// Line style (CDF) or marker (scatter) index (per lighting change).
     pub line: usize,
-    /// Grey: a baseline relocalizer.
-    pub grey: bool,
+    /// A baseline relocalizer: thin lines, hollow markers.
+    pub baseline: bool,
     /// Black crosses: failed trials.
     pub failed: bool,
 }
@@ -70,29 +68,34 @@ impl Style {
         Self {
             color,
             line,
-            grey: false,
+            baseline: false,
             failed: false,
         }
     }
 
-    /// The same line style in grey.
-    pub fn greyed(self) -> Self {
-        Self { grey: true, ..self }
+    /// The same colour and line style, drawn as a baseline relocalizer's.
+    pub fn as_baseline(self) -> Self {
+        Self {
+            baseline: true,
+            ..self
+        }
+    }
+
+    fn stroke(self) -> ShapeStyle {
+        self.rgb().stroke_width(if self.baseline { 1 } else { 2 })
     }
 
     /// Failed trials.
     pub const FAILED: Self = Self {
         color: 0,
         line: 0,
-        grey: false,
+        baseline: false,
         failed: true,
     };
 
     fn rgb(self) -> RGBColor {
         if self.failed {
             BLACK
-        } else if self.grey {
-            GREY
         } else {
             PALETTE[self.color % PALETTE.len()]
         }
@@ -239,7 +242,7 @@ impl Figure {
             .label_style((FAMILY, 14))
             .axis_desc_style((FAMILY, 15))
             .bold_line_style(RGBColor(220, 220, 220))
-            .light_line_style(WHITE)
+            .max_light_lines(0)
             .draw()?;
         for s in &self.series {
             match self.kind {
@@ -262,7 +265,7 @@ impl Figure {
                 Kind::Cdf => {
                     let (dash, gap) = DASHES[s.style.line % DASHES.len()];
                     let pts = [(6, y), (46, y)];
-                    let st = s.style.rgb().stroke_width(2);
+                    let st = s.style.stroke();
                     if dash == 0 {
                         area.draw(&PathElement::new(pts, st))?;
                     } else {
@@ -368,7 +371,7 @@ fn draw_path<DB: DrawingBackend, Y: Ranged<ValueType = f64>>(
     style: Style,
 ) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     let (dash, gap) = DASHES[style.line % DASHES.len()];
-    let st = style.rgb().stroke_width(2);
+    let st = style.stroke();
     if dash == 0 {
         chart.draw_series(LineSeries::new(pts.iter().copied(), st))?;
     } else {
@@ -394,7 +397,10 @@ fn draw_points<DB: DrawingBackend, Y: Ranged<ValueType = f64>>(
     let st = marker_style(style);
     match style.line % 3 {
         0 => chart.draw_series(pts.map(|p| Circle::new(p, 5, st)))?,
-        1 => chart.draw_series(pts.map(|p| TriangleMarker::new(p, 6, st)))?,
+        1 if !st.filled => {
+            chart.draw_series(pts.map(|p| EmptyElement::at(p) + PathElement::new(TRIANGLE, st)))?
+        }
+        1 => chart.draw_series(pts.map(|p| TriangleMarker::new(p, 7, st)))?,
         _ => chart.draw_series(
             pts.map(|p| EmptyElement::at(p) + Rectangle::new([(-4, -4), (4, 4)], st)),
         )?,
@@ -402,13 +408,17 @@ fn draw_points<DB: DrawingBackend, Y: Ranged<ValueType = f64>>(
     Ok(())
 }
 
-/// Filled markers for the first three line indices, hollow for the next three.
+/// The outline of a hollow triangle marker, pixels about its centre.
+const TRIANGLE: [(i32, i32); 4] = [(0, -7), (6, 4), (-6, 4), (0, -7)];
+
+/// Filled markers for the first three line indices, hollow for the next
+/// three and for a baseline relocalizer.
 fn marker_style(style: Style) -> ShapeStyle {
     let c = style.rgb();
-    if style.line / 3 % 2 == 0 {
+    if style.line / 3 % 2 == 0 && !style.baseline {
         c.mix(0.85).filled()
     } else {
-        c.stroke_width(2)
+        c.stroke_width(1)
     }
 }
 
@@ -426,7 +436,11 @@ fn draw_marker<DB: DrawingBackend>(
     let st = marker_style(style);
     match style.line % 3 {
         0 => area.draw(&Circle::new((x, y), 5, st)),
-        1 => area.draw(&TriangleMarker::new((x, y), 6, st)),
+        1 if !st.filled => area.draw(&PathElement::new(
+            TRIANGLE.map(|(dx, dy)| (x + dx, y + dy)),
+            st,
+        )),
+        1 => area.draw(&TriangleMarker::new((x, y), 7, st)),
         _ => area.draw(&Rectangle::new([(x - 4, y - 4), (x + 4, y + 4)], st)),
     }
 }

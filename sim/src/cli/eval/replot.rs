@@ -81,8 +81,9 @@ fn recorded_config(path: &Path) -> Result<SuiteConfig> {
     Ok(cfg)
 }
 
-/// The trials of a `trials.csv`, with what the figures read: group, method,
-/// success, initial and final errors and the nearest mapping view.
+/// The trials of a `trials.csv`, with what the figures read: group, method
+/// (`vtsm` if the file has none), success, initial and final errors and the
+/// nearest mapping view.
 ///
 /// # Errors
 /// A missing column or a malformed row, with its line number.
@@ -91,7 +92,8 @@ pub fn parse_trials(text: &str) -> std::result::Result<Vec<TrialOutcome>, String
     let header = split_csv(lines.next().ok_or("empty file")?);
     let col = |name: &str| header.iter().position(|h| h == name);
     let need = |name: &str| col(name).ok_or(format!("no column `{name}`"));
-    let (cg, cm, cs) = (need("group")?, need("method")?, need("success")?);
+    // Runs recorded before the baselines had no `method` column: all VTSM.
+    let (cg, cm, cs) = (need("group")?, col("method"), need("success")?);
     let (ci, cf) = (need("init_t_mm")?, need("final_t_mm")?);
     let (cd, ca) = (col("view_dist_m"), col("view_angle_deg"));
     lines
@@ -113,7 +115,7 @@ pub fn parse_trials(text: &str) -> std::result::Result<Vec<TrialOutcome>, String
             };
             Ok(TrialOutcome {
                 group: at(cg).to_string(),
-                method: at(cm).to_string(),
+                method: cm.map_or("vtsm", at).to_string(),
                 trial: i,
                 seed: 0,
                 success: at(cs) == "true",
