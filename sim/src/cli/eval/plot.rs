@@ -258,9 +258,12 @@ impl Figure {
         &self,
         area: &DrawingArea<DB, Shift>,
     ) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
-        let font = (FAMILY, 14).into_font().color(&BLACK);
+        // 24 px a line, closer (and smaller) when that would not fit.
+        let n = self.series.len().max(1) as i32;
+        let step = (24).min((HEIGHT as i32 - 80) / n).max(10);
+        let font = (FAMILY, (step - 9).clamp(9, 14)).into_font().color(&BLACK);
         for (i, s) in self.series.iter().enumerate() {
-            let y = 62 + 24 * i as i32;
+            let y = 62 + step * i as i32;
             match self.kind {
                 Kind::Cdf => {
                     let (dash, gap) = DASHES[s.style.line % DASHES.len()];
@@ -274,7 +277,7 @@ impl Figure {
                 }
                 Kind::Scatter => draw_marker(area, (26, y), s.style)?,
             }
-            area.draw(&Text::new(s.name.clone(), (54, y - 8), font.clone()))?;
+            area.draw(&Text::new(s.name.clone(), (54, y - step / 3), font.clone()))?;
         }
         Ok(())
     }
@@ -385,45 +388,30 @@ fn draw_points<DB: DrawingBackend, Y: Ranged<ValueType = f64>>(
     pts: &[(f64, f64)],
     style: Style,
 ) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
-    let pts = pts
+    let area = chart.plotting_area();
+    let base = area.get_base_pixel();
+    let pixels = area.strip_coord_spec();
+    for p in pts
         .iter()
-        .copied()
-        .filter(|p| p.0.is_finite() && p.1.is_finite() && p.1 > 0.0);
-    let c = style.rgb();
-    if style.failed {
-        chart.draw_series(pts.map(|p| Cross::new(p, 5, c.stroke_width(2))))?;
-        return Ok(());
+        .filter(|p| p.0.is_finite() && p.1.is_finite() && p.1 > 0.0)
+    {
+        let (x, y) = chart.backend_coord(p);
+        draw_marker(&pixels, (x - base.0, y - base.1), style)?;
     }
-    let st = marker_style(style);
-    match style.line % 3 {
-        0 => chart.draw_series(pts.map(|p| Circle::new(p, 5, st)))?,
-        1 if !st.filled => {
-            chart.draw_series(pts.map(|p| EmptyElement::at(p) + PathElement::new(TRIANGLE, st)))?
-        }
-        1 => chart.draw_series(pts.map(|p| TriangleMarker::new(p, 7, st)))?,
-        _ => chart.draw_series(
-            pts.map(|p| EmptyElement::at(p) + Rectangle::new([(-4, -4), (4, 4)], st)),
-        )?,
-    };
     Ok(())
 }
 
-/// The outline of a hollow triangle marker, pixels about its centre.
-const TRIANGLE: [(i32, i32); 4] = [(0, -7), (6, 4), (-6, 4), (0, -7)];
+/// Outlines (closed) of the triangle, square and diamond markers, pixels
+/// about the centre.
+const OUTLINES: [[(i32, i32); 5]; 3] = [
+    [(0, -7), (6, 4), (-6, 4), (0, -7), (0, -7)],
+    [(-4, -4), (4, -4), (4, 4), (-4, 4), (-4, -4)],
+    [(0, -6), (6, 0), (0, 6), (-6, 0), (0, -6)],
+];
 
-/// Filled markers for the first three line indices, hollow for the next
-/// three and for a baseline relocalizer.
-fn marker_style(style: Style) -> ShapeStyle {
-    let c = style.rgb();
-    if style.line / 3 % 2 == 0 && !style.baseline {
-        c.mix(0.85).filled()
-    } else {
-        c.stroke_width(1)
-    }
-}
-
-/// A marker at pixel `at`: per line index a filled circle, triangle or
-/// square, then the same hollow; a cross for failed trials.
+/// A marker at pixel `(x, y)` of `area`: per line index a circle, triangle,
+/// square or diamond, filled for the first four indices and hollow for the
+/// next four (and for a baseline relocalizer); a cross for failed trials.
 fn draw_marker<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     (x, y): (i32, i32),
@@ -433,15 +421,21 @@ fn draw_marker<DB: DrawingBackend>(
     if style.failed {
         return area.draw(&Cross::new((x, y), 5, c.stroke_width(2)));
     }
-    let st = marker_style(style);
-    match style.line % 3 {
-        0 => area.draw(&Circle::new((x, y), 5, st)),
-        1 if !st.filled => area.draw(&PathElement::new(
-            TRIANGLE.map(|(dx, dy)| (x + dx, y + dy)),
-            st,
-        )),
-        1 => area.draw(&TriangleMarker::new((x, y), 7, st)),
-        _ => area.draw(&Rectangle::new([(x - 4, y - 4), (x + 4, y + 4)], st)),
+    let filled = style.line / 4 % 2 == 0 && !style.baseline;
+    let st = if filled {
+        c.mix(0.85).filled()
+    } else {
+        c.stroke_width(1)
+    };
+    let shape = style.line % 4;
+    let Some(outline) = shape.checked_sub(1).and_then(|k| OUTLINES.get(k)) else {
+        return area.draw(&Circle::new((x, y), 5, st));
+    };
+    let pts: Vec<(i32, i32)> = outline.iter().map(|(dx, dy)| (x + dx, y + dy)).collect();
+    if filled {
+        area.draw(&Polygon::new(pts, st))
+    } else {
+        area.draw(&PathElement::new(pts, st))
     }
 }
 
