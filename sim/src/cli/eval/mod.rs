@@ -1,8 +1,8 @@
 //! `vtsm eval`: the evaluation suites of the paper (§V) on the simulated depot.
 //!
 //! Each suite is a list of groups (rows of the table). Every terrain's
-//! [`Scene`](crate::scene::Scene), every map product and every lighting are built once and shared
-//! read-only by all trials, which run in parallel through
+//! [`Scene`](crate::scene::Scene), every map product and every lighting are
+//! built once and shared read-only by all trials, which run in parallel through
 //! [`crate::eval::run_parallel`]. A trial is one capture of the paper's grid
 //! (stops spread over the 30), its live lighting, a perturbed prior with a
 //! per-trial seed and one [`crate::locate::relocalize`]. Trial `k` uses the same
@@ -47,14 +47,18 @@
 //! `--physical` renders every live pair (and the `wrongplace` frames) in the
 //! physical form of `vtsm scene export --physical`
 //! ([`crate::scene::physical::capture_physical`]: same truth and sensor-noise
-//! seeds), rectifies it with [`Rectifier::rectify_input`](crate::rectify::Rectifier::rectify_input) as `vtsm relocalize`
-//! does for an OpenCV calibration, and turns the estimate back to the physical
-//! left camera ([`Rectifier::to_physical`](crate::rectify::Rectifier::to_physical)) before measuring its error.
+//! seeds), rectifies it with
+//! [`Rectifier::rectify_input`](crate::rectify::Rectifier::rectify_input) as
+//! `vtsm relocalize` does for an OpenCV calibration, and turns the estimate
+//! back to the physical left camera
+//! ([`Rectifier::to_physical`](crate::rectify::Rectifier::to_physical)) before
+//! measuring its error.
 //!
 //! Two diagnostics change the simulated depot, not the engine: `--light-model`
 //! takes cast shadows or attached shading out of the mapping-time and the live
-//! lighting alike ([`LightModel`](crate::render::LightModel)), and `--mask all` puts every map triangle in
-//! the sampling mask M̂ (the paper keeps only rocks on Flagstone and CFA6).
+//! lighting alike ([`LightModel`](crate::render::LightModel)), and `--mask
+//! all` puts every map triangle in the sampling mask M̂ (the paper keeps only
+//! rocks on Flagstone and CFA6).
 //! `--wind S` changes the live depot after mapping (`Terrain::with_wind`: sand
 //! ripples, dust, moved pebbles), the maps staying those of the mapped one: what
 //! the rock-only masks of the paper guard against. Their defaults (`full`,
@@ -62,8 +66,8 @@
 //!
 //! "Mapping views" for the distance/angle columns of `paper`, `baseline` and
 //! `uncertainty50` are the 60 viewpoints of the wave mapping path
-//! ([`mapping_trajectory`](crate::scene::mapping_trajectory) with step 1); for `stepsize` they are the
-//! sub-sampled path the map was restricted to.
+//! ([`mapping_trajectory`](crate::scene::mapping_trajectory) with step 1);
+//! for `stepsize` they are the sub-sampled path the map was restricted to.
 
 //! The rooms: [`args`] (the command line), [`config`] (a run's settings),
 //! [`suites`] (one module per suite behind one trait, and the registry),

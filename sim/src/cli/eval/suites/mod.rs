@@ -1,8 +1,8 @@
 //! One module per suite behind [`SuiteDef`]: its groups (rows of the table),
 //! the maps and lightings they need, the columns its trials write (through
 //! each group's [`crate::eval::columns::GroupColumns`]), its figures and
-//! notes. Every figure styles a group alike ([`super::figures::styles`]). [`Suite::def`] is the registry, the one place a [`Suite`] is
-//! matched.
+//! notes. Every figure styles a group alike ([`super::figures::styles`]).
+//! [`Suite::def`] is the registry, the one place a [`Suite`] is matched.
 
 use super::config::{Suite, SuiteConfig};
 use super::depot::Depot;
