@@ -1,16 +1,19 @@
 //! Evaluation plumbing: run trials in parallel (one relocalization per thread,
 //! each single-threaded and deterministic), aggregate them by group, and write
-//! the results as a Markdown table, CSV, JSON and SVG plots.
+//! the results as a Markdown table, CSV and JSON (the figures are drawn by
+//! [`crate::cli::eval::plot`]).
 //!
 //! The suites themselves (which trials, which parameters) live in
 //! [`crate::cli::eval`]; this module knows nothing of terrains or cameras, only
-//! of [`TrialOutcome`]s.
+//! of [`TrialOutcome`]s and their typed [`columns`].
+
+pub mod columns;
 
 use crate::error::{Error, Result};
+use columns::TrialColumns;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use serde::Serialize;
-use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -43,8 +46,10 @@ pub struct TrialOutcome {
     pub iterations: u32,
     /// Wall time of the relocalization alone, seconds.
     pub time_s: f64,
-    /// Suite-specific numbers (distance to nearest mapping view, step size, ...).
-    pub extra: BTreeMap<String, f64>,
+    /// The columns beyond these (group settings, capture, nearest mapping
+    /// view, work counters, ...), typed; `extra` in `summary.json`.
+    #[serde(rename = "extra")]
+    pub columns: TrialColumns,
 }
 
 /// Aggregate of one group.
@@ -86,7 +91,7 @@ pub struct GroupSummary {
     /// inside its 95 % ellipsoid (`d² ≤ χ²₃(0.95)`, extra `cov_d2_t`), percent
     /// of those with a covariance (NaN if none).
     pub cov_t_within_pct: f64,
-    /// The same for the rotation error (extra `cov_d2_r`), percent.
+    /// The same for the rotation error (column `cov_d2_r`), percent.
     pub cov_r_within_pct: f64,
     /// Successful trials that had a covariance.
     pub cov_trials: usize,
@@ -211,13 +216,13 @@ pub fn summarize(outcomes: &[TrialOutcome]) -> Vec<GroupSummary> {
             let ok: Vec<&&TrialOutcome> = rows.iter().filter(|o| o.success).collect();
             let final_t: Vec<f64> = ok.iter().map(|o| o.final_t_mm).collect();
             let final_r: Vec<f64> = ok.iter().map(|o| o.final_r_deg).collect();
-            let d2 = |k: &str| -> Vec<f64> {
+            let d2 = |f: fn(&columns::CovarianceColumns) -> f64| -> Vec<f64> {
                 ok.iter()
-                    .map(|o| o.extra.get(k).copied().unwrap_or(f64::NAN))
+                    .map(|o| o.columns.covariance.as_ref().map_or(f64::NAN, f))
                     .collect()
             };
-            let (cov_t, cov_n) = within_95(&d2("cov_d2_t"));
-            let (cov_r, _) = within_95(&d2("cov_d2_r"));
+            let (cov_t, cov_n) = within_95(&d2(|c| c.d2_t));
+            let (cov_r, _) = within_95(&d2(|c| c.d2_r));
             GroupSummary {
                 group: g.to_string(),
                 trials: rows.len(),
@@ -331,10 +336,13 @@ fn csv_field(s: &str) -> String {
     }
 }
 
-/// Per-trial CSV, one row per trial; `extra` keys become columns (sorted).
+/// Per-trial CSV, one row per trial; the [`TrialColumns`] set in any trial
+/// become columns (sorted by name).
 pub fn csv(outcomes: &[TrialOutcome]) -> String {
-    let mut keys: Vec<&String> = outcomes.iter().flat_map(|o| o.extra.keys()).collect();
-    keys.sort();
+    let entries: Vec<Vec<(&'static str, f64)>> =
+        outcomes.iter().map(|o| o.columns.entries()).collect();
+    let mut keys: Vec<&'static str> = entries.iter().flatten().map(|e| e.0).collect();
+    keys.sort_unstable();
     keys.dedup();
     let mut s = String::from(
         "group,method,trial,seed,success,failure,init_t_mm,init_r_deg,final_t_mm,final_r_deg,inliers,iterations,time_s",
@@ -344,7 +352,7 @@ pub fn csv(outcomes: &[TrialOutcome]) -> String {
         s.push_str(&csv_field(k));
     }
     s.push('\n');
-    for o in outcomes {
+    for (o, set) in outcomes.iter().zip(&entries) {
         let _ = write!(
             s,
             "{},{},{},{},{},{},{:.3},{:.4},{:.3},{:.4},{},{},{:.4}",
@@ -366,179 +374,15 @@ pub fn csv(outcomes: &[TrialOutcome]) -> String {
             let _ = write!(
                 s,
                 ",{}",
-                o.extra
-                    .get(*k)
-                    .map(|v| format!("{v:.4}"))
+                set.iter()
+                    .find(|e| e.0 == *k)
+                    .map(|e| format!("{:.4}", e.1))
                     .unwrap_or_default()
             );
         }
         s.push('\n');
     }
     s
-}
-
-/// One series of a scatter plot.
-pub struct Series<'a> {
-    /// Legend label.
-    pub name: &'a str,
-    /// Fill colour (SVG colour string).
-    pub color: &'a str,
-    /// Points (x, y).
-    pub points: Vec<(f64, f64)>,
-}
-
-/// Empirical CDF of the final translation error of the successful trials,
-/// one series per group (groups in order of first appearance): points
-/// `(error mm, fraction of the group's successes at or below it)`.
-pub fn error_cdf_series(outcomes: &[TrialOutcome]) -> Vec<(String, Vec<(f64, f64)>)> {
-    let mut order: Vec<&str> = Vec::new();
-    for o in outcomes {
-        if !order.contains(&o.group.as_str()) {
-            order.push(&o.group);
-        }
-    }
-    order
-        .into_iter()
-        .map(|g| {
-            let mut e: Vec<f64> = outcomes
-                .iter()
-                .filter(|o| o.group == g && o.success)
-                .map(|o| o.final_t_mm)
-                .collect();
-            e.sort_by(f64::total_cmp);
-            let n = e.len() as f64;
-            let pts = e
-                .iter()
-                .enumerate()
-                .map(|(i, &x)| (x, (i + 1) as f64 / n))
-                .collect();
-            (g.to_string(), pts)
-        })
-        .collect()
-}
-
-/// A self-contained SVG scatter plot with axes, ticks and a legend.
-pub fn svg_scatter(title: &str, xlabel: &str, ylabel: &str, series: &[Series<'_>]) -> String {
-    let (w, h, ml, mr, mt, mb) = (720.0, 440.0, 70.0, 150.0, 40.0, 55.0);
-    let pts = series
-        .iter()
-        .flat_map(|s| s.points.iter())
-        .filter(|p| p.0.is_finite() && p.1.is_finite());
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, 0.0f64, f64::MIN);
-    for &(x, y) in pts {
-        x0 = x0.min(x);
-        x1 = x1.max(x);
-        y0 = y0.min(y);
-        y1 = y1.max(y);
-    }
-    if x0 > x1 {
-        (x0, x1, y0, y1) = (0.0, 1.0, 0.0, 1.0);
-    }
-    if x1 - x0 < 1e-9 {
-        x1 = x0 + 1.0;
-    }
-    if y1 - y0 < 1e-9 {
-        y1 = y0 + 1.0;
-    }
-    let (pw, ph) = (w - ml - mr, h - mt - mb);
-    let sx = |x: f64| ml + (x - x0) / (x1 - x0) * pw;
-    let sy = |y: f64| mt + ph - (y - y0) / (y1 - y0) * ph;
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" font-family="sans-serif" font-size="12">"#
-    );
-    let _ = writeln!(s, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
-    let _ = writeln!(
-        s,
-        r#"<text x="{}" y="22" font-size="15" text-anchor="middle">{}</text>"#,
-        ml + pw / 2.0,
-        xml(title)
-    );
-    let _ = writeln!(
-        s,
-        r#"<rect x="{ml}" y="{mt}" width="{pw}" height="{ph}" fill="none" stroke="black"/>"#
-    );
-    for i in 0..=5 {
-        let fx = x0 + (x1 - x0) * f64::from(i) / 5.0;
-        let fy = y0 + (y1 - y0) * f64::from(i) / 5.0;
-        let _ = writeln!(
-            s,
-            r##"<line x1="{0}" y1="{1}" x2="{0}" y2="{2}" stroke="#ddd"/><text x="{0}" y="{3}" text-anchor="middle">{4}</text>"##,
-            sx(fx),
-            mt,
-            mt + ph,
-            mt + ph + 16.0,
-            tick(fx)
-        );
-        let _ = writeln!(
-            s,
-            r##"<line x1="{0}" y1="{1}" x2="{2}" y2="{1}" stroke="#ddd"/><text x="{3}" y="{4}" text-anchor="end">{5}</text>"##,
-            ml,
-            sy(fy),
-            ml + pw,
-            ml - 6.0,
-            sy(fy) + 4.0,
-            tick(fy)
-        );
-    }
-    let _ = writeln!(
-        s,
-        r#"<text x="{}" y="{}" text-anchor="middle">{}</text>"#,
-        ml + pw / 2.0,
-        h - 12.0,
-        xml(xlabel)
-    );
-    let _ = writeln!(
-        s,
-        r#"<text x="16" y="{0}" text-anchor="middle" transform="rotate(-90 16 {0})">{1}</text>"#,
-        mt + ph / 2.0,
-        xml(ylabel)
-    );
-    for (i, se) in series.iter().enumerate() {
-        for &(x, y) in se
-            .points
-            .iter()
-            .filter(|p| p.0.is_finite() && p.1.is_finite())
-        {
-            let _ = writeln!(
-                s,
-                r#"<circle cx="{:.1}" cy="{:.1}" r="3" fill="{}" fill-opacity="0.7"/>"#,
-                sx(x),
-                sy(y),
-                se.color
-            );
-        }
-        let ly = mt + 14.0 + 18.0 * i as f64;
-        let _ = writeln!(
-            s,
-            r#"<circle cx="{}" cy="{}" r="4" fill="{}"/><text x="{}" y="{}">{}</text>"#,
-            ml + pw + 14.0,
-            ly - 4.0,
-            se.color,
-            ml + pw + 24.0,
-            ly,
-            xml(se.name)
-        );
-    }
-    s.push_str("</svg>\n");
-    s
-}
-
-fn tick(v: f64) -> String {
-    if v.abs() >= 100.0 || v == 0.0 {
-        format!("{v:.0}")
-    } else if v.abs() >= 1.0 {
-        format!("{v:.1}")
-    } else {
-        format!("{v:.3}")
-    }
-}
-
-fn xml(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
 }
 
 /// Write `table.md`, `trials.csv`, `summary.json` (meta + groups + trials) into
@@ -626,7 +470,13 @@ mod tests {
             inliers: 40,
             iterations: 5,
             time_s: 2.0,
-            extra: BTreeMap::from([("range_m".to_string(), 1.5)]),
+            columns: TrialColumns {
+                view: Some(columns::ViewColumns {
+                    dist_m: 1.5,
+                    angle_deg: 2.0,
+                }),
+                ..TrialColumns::default()
+            },
         }
     }
 
@@ -672,7 +522,11 @@ mod tests {
         );
         let c = csv(&o);
         assert_eq!(c.lines().count(), 5);
-        assert!(c.lines().next().unwrap().ends_with(",range_m"));
+        assert!(c
+            .lines()
+            .next()
+            .unwrap()
+            .ends_with(",view_angle_deg,view_dist_m"));
     }
 
     /// Verifies: VTSM-CLI-034
@@ -681,8 +535,12 @@ mod tests {
         let mut o: Vec<TrialOutcome> = (0..21).map(|i| outcome("g", i, true, i as f64)).collect();
         // d² of 0..20 against 7.81: 8 of 21 inside (0..=7).
         for (i, t) in o.iter_mut().enumerate() {
-            t.extra.insert("cov_d2_t".into(), i as f64);
-            t.extra.insert("cov_d2_r".into(), 0.5);
+            t.columns.covariance = Some(columns::CovarianceColumns {
+                d2_t: i as f64,
+                d2_r: 0.5,
+                sigma_t_mm: 1.0,
+                sigma_r_deg: 0.1,
+            });
         }
         o.push(outcome("g", 21, false, 1000.0));
         let s = summarize(&o);
@@ -695,14 +553,6 @@ mod tests {
         assert_eq!(s[0].cov_r_within_pct, 100.0);
         let t = tail_table(&s);
         assert!(t.contains("| g | 10.0 | 18.0 | 19.0 | 20.0 |"), "{t}");
-        let cdf = error_cdf_series(&o);
-        assert_eq!(cdf.len(), 1);
-        assert_eq!(cdf[0].1.len(), 21);
-        assert_eq!(cdf[0].1[20], (20.0, 1.0));
-        assert!(cdf[0]
-            .1
-            .windows(2)
-            .all(|w| w[0].0 <= w[1].0 && w[0].1 < w[1].1));
     }
 
     #[test]
@@ -723,17 +573,6 @@ mod tests {
         assert_eq!(std::fs::read_to_string(&p).unwrap(), "one");
         write_new(&p, "three", true).unwrap();
         assert_eq!(std::fs::read_to_string(&p).unwrap(), "three");
-        let svg = svg_scatter(
-            "t",
-            "x",
-            "y",
-            &[Series {
-                name: "s",
-                color: "red",
-                points: vec![(0.0, 1.0)],
-            }],
-        );
-        assert!(svg.starts_with("<svg") && svg.contains("<circle"));
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

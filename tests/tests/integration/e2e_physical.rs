@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use vtsm_core::geom::Pose;
 use vtsm_sim::cli::batch;
 use vtsm_sim::cli::eval::{
-    config_from_args, run_suite, write_run, Args as EvalArgs, Suite, SuiteConfig,
+    args::TerrainArg, config_from_args, run_suite, write_run, Args as EvalArgs, Suite, SuiteConfig,
 };
 use vtsm_sim::cli::map_build::DEFAULT_TILE_SIZE_M;
 use vtsm_sim::cli::relocalize::{load_inputs, outcome_result, run_engine, Args};
@@ -263,25 +263,9 @@ fn physical_pair_relocalizes_like_the_rectified_one() {
 #[test]
 fn eval_physical_relocalizes_like_the_rectified_run() {
     let mut args = EvalArgs {
-        suite: "paper".into(),
-        trials: 1,
-        seed: 1,
-        profile: "test".into(),
-        out: None,
-        force: false,
-        terrains: Some("flagstone".into()),
-        hours: Some("0".into()),
-        steps: None,
-        seeds_k: 16,
-        baseline: None,
-        quiet: true,
-        origin: None,
-        verify: Default::default(),
-        physical: false,
-        interp: "lanczos4".into(),
-        light_model: "full".into(),
-        mask: "paper".into(),
-        wind: 0.0,
+        terrains: Some(vec![TerrainArg::Flagstone]),
+        hours: Some(vec![0.0]),
+        ..EvalArgs::new(Suite::Paper)
     };
     let rect_cfg: SuiteConfig = config_from_args(&args).unwrap();
     assert!(!rect_cfg.physical);
@@ -293,7 +277,7 @@ fn eval_physical_relocalizes_like_the_rectified_run() {
     assert!(!rect.meta.physical && phys.meta.physical);
     let (r, p) = (&rect.outcomes[0], &phys.outcomes[0]);
     // Paired: same capture, seed and prior; the truth is the same pose.
-    assert_eq!((r.seed, r.extra["stop"]), (p.seed, p.extra["stop"]));
+    assert_eq!((r.seed, r.columns.capture), (p.seed, p.columns.capture));
     assert_eq!((r.init_t_mm, r.init_r_deg), (p.init_t_mm, p.init_r_deg));
     // The rectified left camera is turned from the physical one by R1: an
     // estimate left in the rectified camera would be off by this much.
@@ -317,8 +301,16 @@ fn eval_physical_relocalizes_like_the_rectified_run() {
     );
     // The core saw other pixels (the rectified physical pair), not the ideal pair.
     assert_ne!(
-        (p.final_t_mm, p.inliers, p.extra["reproj_px"]),
-        (r.final_t_mm, r.inliers, r.extra["reproj_px"])
+        (
+            p.final_t_mm,
+            p.inliers,
+            p.columns.engine.map(|e| e.reproj_px)
+        ),
+        (
+            r.final_t_mm,
+            r.inliers,
+            r.columns.engine.map(|e| e.reproj_px)
+        )
     );
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
         .join(format!("e2e-eval-physical-{}", std::process::id()));

@@ -1,0 +1,307 @@
+//! The command line of `vtsm eval` and the [`SuiteConfig`] it makes.
+
+use super::config::{Method, Suite, SuiteConfig};
+use crate::error::{Error, Result};
+use crate::rectify::Interp;
+use crate::render::LightModel;
+use crate::scene::Profile;
+use crate::terrain::TerrainKind;
+use std::path::PathBuf;
+
+/// `--profile`: the image profile.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum ProfileArg {
+    /// 480×320 images.
+    #[default]
+    Test,
+    /// 1368×912 images.
+    Demo,
+    /// 5472×3648 images.
+    Paper,
+}
+
+impl From<ProfileArg> for Profile {
+    fn from(p: ProfileArg) -> Self {
+        match p {
+            ProfileArg::Test => Self::Test,
+            ProfileArg::Demo => Self::Demo,
+            ProfileArg::Paper => Self::Paper,
+        }
+    }
+}
+
+/// A `--terrains` entry.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[value(rename_all = "lower")]
+pub enum TerrainArg {
+    /// Broken slabs separated by cracks.
+    Flagstone,
+    /// Rocks on sand, k = 6 %.
+    Cfa6,
+    /// Pebbles on dust and sand, k = 2 %.
+    Cfa2,
+}
+
+impl From<TerrainArg> for TerrainKind {
+    fn from(t: TerrainArg) -> Self {
+        match t {
+            TerrainArg::Flagstone => Self::Flagstone,
+            TerrainArg::Cfa6 => Self::Cfa6,
+            TerrainArg::Cfa2 => Self::Cfa2,
+        }
+    }
+}
+
+/// `--baseline`: a relocalizer run next to VTSM.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum BaselineArg {
+    /// FAST + BRIEF + stereo + RANSAC ([`crate::features`]).
+    Features,
+}
+
+impl From<BaselineArg> for Method {
+    fn from(b: BaselineArg) -> Self {
+        match b {
+            BaselineArg::Features => Self::Features,
+        }
+    }
+}
+
+/// `--interp`: the kernel of the host rectification.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+#[value(rename_all = "lower")]
+pub enum InterpArg {
+    /// `INTER_LINEAR`.
+    Linear,
+    /// `INTER_CUBIC`.
+    Cubic,
+    /// `INTER_LANCZOS4`.
+    #[default]
+    Lanczos4,
+}
+
+impl From<InterpArg> for Interp {
+    fn from(i: InterpArg) -> Self {
+        match i {
+            InterpArg::Linear => Self::Linear,
+            InterpArg::Cubic => Self::Cubic,
+            InterpArg::Lanczos4 => Self::Lanczos4,
+        }
+    }
+}
+
+/// `--light-model`: the parts of the sunlight the depot has.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum LightModelArg {
+    /// Cast shadows and attached shading.
+    #[default]
+    Full,
+    /// No cast shadows.
+    NoCastShadows,
+    /// No attached shading.
+    NoAttachedShading,
+    /// Neither.
+    Flat,
+}
+
+impl From<LightModelArg> for LightModel {
+    fn from(m: LightModelArg) -> Self {
+        match m {
+            LightModelArg::Full => Self::Full,
+            LightModelArg::NoCastShadows => Self::NoCastShadows,
+            LightModelArg::NoAttachedShading => Self::NoAttachedShading,
+            LightModelArg::Flat => Self::Flat,
+        }
+    }
+}
+
+/// `--mask`: the sampling mask M̂ of the maps.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum MaskArg {
+    /// Rocks only on flagstone and cfa6, everything on cfa2 (the paper).
+    #[default]
+    Paper,
+    /// Every triangle.
+    All,
+}
+
+/// Arguments of `vtsm eval`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Args {
+    /// Suite (not with `--replot`, which reads it).
+    #[arg(
+        long,
+        value_enum,
+        ignore_case = true,
+        required_unless_present = "replot"
+    )]
+    pub suite: Option<Suite>,
+    /// Trials per group.
+    #[arg(long, default_value_t = 2)]
+    pub trials: usize,
+    /// Base seed (scenes, captures, priors and relocalizations derive from it).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Image profile: test (480×320), demo (1368×912) or paper (5472×3648).
+    #[arg(long, value_enum, ignore_case = true, default_value_t = ProfileArg::Test)]
+    pub profile: ProfileArg,
+    /// Output directory (default: the first free `vtsm-eval/<suite>-N`).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Overwrite existing outputs in `--out`.
+    #[arg(long)]
+    pub force: bool,
+    /// Comma-separated terrains (default: flagstone,cfa6,cfa2).
+    #[arg(long, value_enum, ignore_case = true, value_delimiter = ',')]
+    pub terrains: Option<Vec<TerrainArg>>,
+    /// Comma-separated time differences in hours (default: 0,3,6; `uncertainty50`: 0).
+    #[arg(long, value_delimiter = ',')]
+    pub hours: Option<Vec<f32>>,
+    /// Comma-separated mapping step sizes for `stepsize` (default: 1,3,6,12).
+    #[arg(long, value_delimiter = ',')]
+    pub steps: Option<Vec<usize>>,
+    /// Pose seeds K of the multi-seed mode in `uncertainty50` (0: no multi-seed group).
+    #[arg(long, default_value_t = 16)]
+    pub seeds_k: u16,
+    /// Also run a baseline relocalizer on the same trials and report it next to
+    /// VTSM (`paper` and `baseline` suites).
+    #[arg(long, value_enum, ignore_case = true)]
+    pub baseline: Option<BaselineArg>,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+    /// Offset X,Y,Z (metres) of the whole scene: mesh, priors and truths, e.g.
+    /// UTM coordinates; the results are the same.
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub origin: Option<String>,
+    /// `--verify [repeat,map]`: the engine's upset checks.
+    #[command(flatten)]
+    pub verify: super::super::VerifyArg,
+    /// Live pairs in the physical form of `vtsm scene export --physical`
+    /// (distorted, slightly rotated cameras, OpenCV calibration), rectified on
+    /// the host as `vtsm relocalize` does; errors are those of the physical
+    /// left camera.
+    #[arg(long)]
+    pub physical: bool,
+    /// Kernel of the host rectification of `--physical` pairs (`cv2.remap`'s
+    /// INTER_* of those names).
+    #[arg(
+        long,
+        value_name = "KERNEL",
+        value_enum,
+        default_value_t = InterpArg::Lanczos4,
+        requires = "physical"
+    )]
+    pub interp: InterpArg,
+    /// Parts of the sunlight the simulated depot has, at mapping and live time
+    /// alike (`flat`: neither cast shadows nor attached shading; a diagnostic
+    /// of how each part moves the error after a change of the time of day).
+    #[arg(long, value_name = "MODEL", value_enum, default_value_t = LightModelArg::Full)]
+    pub light_model: LightModelArg,
+    /// Sampling mask M̂ of the maps: `paper` (rocks only on flagstone and cfa6,
+    /// everything on cfa2, as the paper) or `all` (every triangle).
+    #[arg(long, value_name = "MASK", value_enum, default_value_t = MaskArg::Paper)]
+    pub mask: MaskArg,
+    /// Wind between mapping and relocalization, strength 0..=1 (0: none): sand
+    /// ripples, dust streaks and moved pebbles in the live depot
+    /// (`Terrain::with_wind`); the maps stay those of the mapping-time depot.
+    #[arg(long, value_name = "S", default_value_t = 0.0)]
+    pub wind: f32,
+    /// Run nothing: draw the figures of the run recorded in DIR again from its
+    /// `trials.csv` (suite and terrains from its `summary.json`), into DIR
+    /// (`--force` to replace them).
+    #[arg(long, value_name = "DIR", conflicts_with = "suite")]
+    pub replot: Option<PathBuf>,
+}
+
+impl Args {
+    /// The defaults of the command line for `suite`: one trial, seed 1, test
+    /// profile, no progress bar.
+    pub fn new(suite: Suite) -> Self {
+        Self {
+            suite: Some(suite),
+            trials: 1,
+            seed: 1,
+            profile: ProfileArg::Test,
+            out: None,
+            force: false,
+            terrains: None,
+            hours: None,
+            steps: None,
+            seeds_k: 16,
+            baseline: None,
+            quiet: true,
+            origin: None,
+            verify: super::super::VerifyArg::default(),
+            physical: false,
+            interp: InterpArg::Lanczos4,
+            light_model: LightModelArg::Full,
+            mask: MaskArg::Paper,
+            wind: 0.0,
+            replot: None,
+        }
+    }
+}
+
+/// Build the config from command-line arguments.
+///
+/// # Errors
+/// No suite, out-of-range numbers, an unusable origin, or a baseline with a
+/// suite that has none.
+pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
+    let suite = args
+        .suite
+        .ok_or_else(|| Error::msg("--suite is required to run a suite"))?;
+    if args.trials == 0 {
+        return Err(Error::msg("--trials must be at least 1"));
+    }
+    let mut cfg = SuiteConfig::new(suite, args.profile.into(), args.trials, args.seed);
+    if let Some(t) = &args.terrains {
+        cfg.terrains = t.iter().map(|&t| t.into()).collect();
+    }
+    if let Some(h) = &args.hours {
+        if h.iter()
+            .any(|h| !(h.is_finite() && (0.0..=8.0).contains(h)))
+        {
+            return Err(Error::msg("--hours must be between 0 and 8"));
+        }
+        cfg.hours = h.clone();
+    }
+    if let Some(s) = &args.steps {
+        if s.iter().any(|&s| s == 0 || s > 60) {
+            return Err(Error::msg("--steps must be 1..=60"));
+        }
+        cfg.steps = s.clone();
+    }
+    if usize::from(args.seeds_k) > vtsm_core::config::MAX_SEEDS {
+        return Err(Error::msg(format!(
+            "--seeds-k must be at most {}",
+            vtsm_core::config::MAX_SEEDS
+        )));
+    }
+    cfg.seeds_k = args.seeds_k;
+    if let Some(b) = args.baseline {
+        if !suite.def().takes_baseline() {
+            return Err(Error::msg(
+                "--baseline runs with the paper and baseline suites only",
+            ));
+        }
+        cfg.baseline = Some(b.into());
+    }
+    cfg.progress = !args.quiet;
+    cfg.origin = args
+        .origin
+        .as_deref()
+        .map(crate::frame::parse_origin)
+        .transpose()?;
+    cfg.verify = args.verify.checks();
+    cfg.physical = args.physical;
+    cfg.interp = args.interp.into();
+    cfg.light_model = args.light_model.into();
+    cfg.mask_all = args.mask == MaskArg::All;
+    if !(0.0..=1.0).contains(&args.wind) {
+        return Err(Error::msg("--wind must be a strength in 0..=1"));
+    }
+    cfg.wind = args.wind;
+    Ok(cfg)
+}

@@ -1,0 +1,74 @@
+//! The map products of a suite: the mapped mesh offset by `--origin` when
+//! given, encoded with the mapping views its distances are measured to.
+
+use super::protocol::TILE_M;
+use crate::error::{Error, Result};
+use crate::io::mesh::MeshData;
+use std::borrow::Cow;
+use vtsm_core::geom::Pose;
+
+/// One map product and the mapping views its distances are measured to.
+pub struct MapEntry {
+    /// The encoded map, or why it could not be encoded.
+    pub bytes: std::result::Result<Vec<u8>, String>,
+    /// The mapping views.
+    pub views: Vec<Pose>,
+    /// The map's origin (user frame = the scene offset by `--origin`).
+    pub origin: [f64; 3],
+}
+
+impl MapEntry {
+    /// Encode `mesh` (offset by `offset` when given) with its mapping `views`.
+    pub fn encode(mesh: &MeshData, offset: Option<[f64; 3]>, views: Vec<Pose>) -> Self {
+        let (bytes, origin) = encode_entry(mesh, offset);
+        Self {
+            bytes,
+            views,
+            origin,
+        }
+    }
+}
+
+/// `mesh` (simulator frame) offset by `offset` and re-expressed as the file
+/// readers do: f64 vertices in the offset frame, f32 vertices relative to
+/// `origin` (`None`: the default origin, [`crate::frame::default_origin`]).
+///
+/// # Errors
+/// An unusable origin, or a vertex out of f32 range about it.
+pub fn offset_mesh(
+    mesh: &MeshData,
+    offset: [f64; 3],
+    origin: Option<[f64; 3]>,
+) -> Result<MeshData> {
+    let user: Vec<[f64; 3]> = mesh
+        .vertices
+        .iter()
+        .map(|v| [0, 1, 2].map(|k| f64::from(v[k]) + mesh.origin[k] + offset[k]))
+        .collect();
+    let origin = origin.unwrap_or_else(|| crate::frame::default_origin(&user));
+    let vertices = crate::frame::local_vertices(&user, origin).map_err(Error::msg)?;
+    Ok(MeshData {
+        vertices,
+        origin,
+        ..mesh.clone()
+    })
+}
+
+/// Encode a suite's map, offset by `--origin` when given; the bytes (or why
+/// not) and the map's origin.
+fn encode_entry(
+    mesh: &MeshData,
+    offset: Option<[f64; 3]>,
+) -> (std::result::Result<Vec<u8>, String>, [f64; 3]) {
+    let mesh = match offset {
+        None => Cow::Borrowed(mesh),
+        Some(o) => match offset_mesh(mesh, o, Some(o)) {
+            Ok(m) => Cow::Owned(m),
+            Err(e) => return (Err(e.to_string()), [0.0; 3]),
+        },
+    };
+    (
+        mesh.encode_map(TILE_M).map_err(|e| e.to_string()),
+        mesh.origin,
+    )
+}

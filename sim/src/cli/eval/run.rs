@@ -1,0 +1,138 @@
+//! A suite run: build the depots and maps, make the groups, run every
+//! trial, summarize, and draw the tables and figures.
+
+use super::config::{Method, SuiteConfig};
+use super::depot::Depot;
+use super::figures;
+use super::group::{with_baseline_groups, Group};
+use super::maps::MapEntry;
+use super::plot::Figure;
+use super::protocol::{MAP_VIEW_RANGE_M, PRIOR_MAX_DEG, TILE_M};
+use super::suites::SuiteDef;
+use super::tables::{integrity_table, side_by_side};
+use super::trial::{run_trial, Shared, Spec};
+use crate::cli::demo::MAP_HOURS;
+use crate::error::{Error, Result};
+use crate::eval::{self, GroupSummary, RunMeta, TrialOutcome};
+use crate::locate;
+use std::time::Instant;
+
+/// A finished suite run.
+pub struct SuiteRun {
+    /// Reproducibility record.
+    pub meta: RunMeta,
+    /// One outcome per trial, in group then trial order.
+    pub outcomes: Vec<TrialOutcome>,
+    /// One summary per group.
+    pub groups: Vec<GroupSummary>,
+    /// Extra Markdown (per-suite breakdowns) printed after the table.
+    pub notes: String,
+    /// Figures, each written as SVG and PNG.
+    pub plots: Vec<Figure>,
+    /// Wall time of building scenes, lightings and maps, seconds.
+    pub setup_s: f64,
+    /// Wall time of all trials, seconds.
+    pub trials_s: f64,
+}
+
+/// Run a suite: build the shared scenes, lightings and maps, run every trial,
+/// summarize and draw the plots.
+///
+/// # Errors
+/// Empty terrain/hour/step lists. Per-trial problems (a map that cannot be
+/// encoded, a rejected request) are recorded as failed trials, not errors.
+pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
+    let def = cfg.suite.def();
+    if cfg.terrains.is_empty() || cfg.hours.is_empty() || cfg.trials == 0 {
+        return Err(Error::msg("a suite needs terrains, hours and trials"));
+    }
+    def.check(cfg)?;
+    let t_setup = Instant::now();
+    let depot = Depot::build(cfg, def.live_hours(cfg));
+    let maps = def.maps(cfg, &depot);
+    let groups = with_baseline_groups(def.groups(cfg, &depot, &maps), cfg.baseline);
+    let setup_s = t_setup.elapsed().as_secs_f64();
+    let t_trials = Instant::now();
+    let outcomes = run_trials(cfg, &groups, &depot, &maps);
+    let trials_s = t_trials.elapsed().as_secs_f64();
+    let summary = eval::summarize(&outcomes);
+    let meta = run_meta(cfg, def, &depot, command);
+    let plots = figures::all(cfg, &outcomes);
+    let mut notes = def.notes(&outcomes);
+    notes.push_str(&integrity_table(&outcomes));
+    if let Some(m) = cfg.baseline {
+        notes = side_by_side(&summary, m) + &notes;
+    }
+    Ok(SuiteRun {
+        meta,
+        outcomes,
+        groups: summary,
+        notes,
+        plots,
+        setup_s,
+        trials_s,
+    })
+}
+
+/// Every trial of every group, in parallel, in group then trial order.
+fn run_trials(
+    cfg: &SuiteConfig,
+    groups: &[Group],
+    depot: &Depot,
+    maps: &[MapEntry],
+) -> Vec<TrialOutcome> {
+    let specs: Vec<Spec> = (0..groups.len())
+        .flat_map(|g| (0..cfg.trials).map(move |k| Spec { group: g, k }))
+        .collect();
+    let shared = Shared {
+        cfg,
+        groups,
+        depot,
+        maps,
+    };
+    eval::run_parallel(&specs, |s| run_trial(&shared, s), cfg.progress)
+}
+
+/// The reproducibility record of a run.
+fn run_meta(cfg: &SuiteConfig, def: &dyn SuiteDef, depot: &Depot, command: &str) -> RunMeta {
+    let width = depot.scenes[0].camera().width();
+    let params = locate::params_for_width(width);
+    RunMeta {
+        suite: def.name().to_string(),
+        git_revision: eval::git_revision(),
+        profile: cfg.profile.name().to_string(),
+        seed: cfg.seed,
+        trials: cfg.trials,
+        physical: cfg.physical,
+        params: serde_json::json!({
+            "relocalization": format!("{params:?}"),
+            "terrains": cfg.terrains.iter().map(|k| k.name()).collect::<Vec<_>>(),
+            "hours": depot.live_hours,
+            "map_hours": MAP_HOURS,
+            "steps": def.steps(cfg),
+            "seeds_k": cfg.seeds_k,
+            "stated_uncertainty": def.stated_uncertainty().map_or(serde_json::Value::Null, |u| {
+                serde_json::json!({ "groups": "K=0", "t_m": u.t_m, "r_deg": u.r_deg })
+            }),
+            "prior_m": def.prior_m(),
+            "prior_max_deg": PRIOR_MAX_DEG,
+            "map_view_range_m": MAP_VIEW_RANGE_M,
+            "tile_m": TILE_M,
+            "light_model": cfg.light_model.name(),
+            "mask": if cfg.mask_all { "all" } else { "paper" },
+            "wind": cfg.wind,
+            "rectify_interp": if cfg.physical { Some(cfg.interp.name()) } else { None },
+            "baseline": cfg.baseline.map(Method::name),
+            "origin": cfg.origin,
+            "verify": {
+                "repeat_solve": cfg.verify.repeat_solve,
+                "recheck_map": cfg.verify.recheck_map,
+            },
+            "features": cfg.baseline.map(|_| {
+                format!("{:?}", crate::features::FeatureParams::for_width(width))
+            }),
+            "mapping_views": def.mapping_views(),
+        }),
+        command: command.to_string(),
+    }
+}

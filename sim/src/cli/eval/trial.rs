@@ -1,0 +1,327 @@
+//! One trial: the group's frames at capture `k`, a prior drawn with the
+//! trial's seed, one relocalization, its error measured to the truth.
+
+use super::config::{Method, SuiteConfig};
+use super::covariance::covariance_check;
+use super::depot::Depot;
+use super::frames::{live_frames, LiveFrames};
+use super::group::Group;
+use super::maps::MapEntry;
+use super::protocol::{capture_for_trial, nearest_view, trial_seed};
+use crate::eval::columns::{
+    CaptureColumns, EngineColumns, FeatureColumns, TrialColumns, VerifyColumns, ViewColumns,
+};
+use crate::eval::TrialOutcome;
+use crate::io::image::Gray8;
+use crate::locate::{self, Request};
+use crate::rectify::Rectifier;
+use crate::scene::STOPS_PER_CIRCLE;
+use vtsm_core::geom::{Pose, StereoRig, Vec3};
+use vtsm_core::FailureCode;
+
+/// Trial `k` of a group.
+#[derive(Clone, Copy)]
+pub struct Spec {
+    /// Group index.
+    pub group: usize,
+    /// Trial index within the group.
+    pub k: usize,
+}
+
+/// Everything a trial reads, shared by all trials.
+pub struct Shared<'a> {
+    /// The run's settings.
+    pub cfg: &'a SuiteConfig,
+    /// The groups.
+    pub groups: &'a [Group],
+    /// The depots.
+    pub depot: &'a Depot,
+    /// The map products.
+    pub maps: &'a [MapEntry],
+}
+
+/// Where the errors are measured: the truth, in the offset (user) frame
+/// under `--origin`, estimates coming back from the map's local frame.
+struct ErrorFrame {
+    truth: Pose,
+    truth_user: Option<crate::frame::UserPose>,
+    map_origin: [f64; 3],
+}
+
+impl ErrorFrame {
+    fn new(truth: Pose, origin: Option<[f64; 3]>, map_origin: [f64; 3]) -> Self {
+        let truth_user =
+            origin.map(|o| crate::frame::offset(&crate::frame::to_user(&truth, [0.0; 3]), o));
+        Self {
+            truth,
+            truth_user,
+            map_origin,
+        }
+    }
+
+    /// Translation (m) and rotation (rad) error of `est`.
+    fn error(&self, est: &Pose) -> (f64, f64) {
+        match &self.truth_user {
+            None => {
+                let (t, r) = est.error_to(&self.truth);
+                (f64::from(t), f64::from(r))
+            }
+            Some(tu) => crate::frame::error_to(&crate::frame::to_user(est, self.map_origin), tu),
+        }
+    }
+}
+
+/// The images, rig and prior the relocalizer sees, and the rectifier that
+/// turns its estimate back to the physical camera (physical frames only).
+struct Inputs {
+    rig: StereoRig,
+    left: Vec<u8>,
+    right: Vec<u8>,
+    prior: Pose,
+    rectifier: Option<Rectifier>,
+}
+
+impl Inputs {
+    fn as_physical(&self, est: &Pose) -> Pose {
+        self.rectifier.as_ref().map_or(*est, |r| r.to_physical(est))
+    }
+}
+
+/// Run one trial.
+pub fn run_trial(sh: &Shared<'_>, s: &Spec) -> TrialOutcome {
+    let (cfg, g) = (sh.cfg, &sh.groups[s.group]);
+    let map = &sh.maps[g.map];
+    let seed = trial_seed(cfg.seed, s.k);
+    let capture = capture_for_trial(s.k, cfg.trials, g.baseline_m);
+    let live = live_frames(cfg.physical, g, sh.depot, &capture, seed);
+    let frame = ErrorFrame::new(live.truth, cfg.origin, map.origin);
+    let (prior, prior_rejected) = prior_in_map_frame(live.prior, cfg.origin, map.origin);
+    let (t0, r0) = frame.error(&prior);
+    let columns = TrialColumns {
+        group: Some(g.columns),
+        capture: Some(CaptureColumns {
+            stop: capture.circle * STOPS_PER_CIRCLE + capture.stop,
+            look_at: capture.look_at,
+        }),
+        view: nearest_view(&live.truth, &map.views)
+            .map(|(dist_m, angle_deg)| ViewColumns { dist_m, angle_deg }),
+        ..TrialColumns::default()
+    };
+    let mut o = TrialOutcome {
+        group: g.label.clone(),
+        method: g.method.name().to_string(),
+        trial: s.k,
+        seed,
+        success: false,
+        failure: None,
+        init_t_mm: t0 * 1e3,
+        init_r_deg: r0.to_degrees(),
+        final_t_mm: t0 * 1e3,
+        final_r_deg: r0.to_degrees(),
+        inliers: 0,
+        iterations: 0,
+        time_s: 0.0,
+        columns,
+    };
+    let bytes = match &map.bytes {
+        Ok(b) => b,
+        Err(e) => {
+            o.failure = Some(format!("map: {e}"));
+            return o;
+        }
+    };
+    if let Some(c) = prior_rejected {
+        o.failure = Some(format!("prior in the map's frame: {}", c.name()));
+        return o;
+    }
+    let inputs = match inputs(cfg, live, prior) {
+        Ok(i) => i,
+        Err(e) => {
+            o.failure = Some(format!("rectification: {e}"));
+            return o;
+        }
+    };
+    let req = request(cfg, g, bytes, &inputs, seed);
+    match g.method {
+        Method::Features => run_features(&mut o, &req, &inputs, &frame),
+        Method::Vtsm => run_vtsm(&mut o, cfg, &req, &inputs, &frame),
+    }
+    o
+}
+
+/// With `--origin`: the prior (drawn in the simulator's frame) turned into the
+/// map's local frame through the offset frame in f64, and why not when it
+/// does not fit in f32 there; the rotation is the same in every frame, so it
+/// is kept as is (no renormalisation).
+fn prior_in_map_frame(
+    prior: Pose,
+    origin: Option<[f64; 3]>,
+    map_origin: [f64; 3],
+) -> (Pose, Option<FailureCode>) {
+    let Some(o) = origin else {
+        return (prior, None);
+    };
+    let user = crate::frame::local_to_json(&prior, o);
+    let t = [0, 1, 2].map(|k| (user.t[k] - map_origin[k]) as f32);
+    if t.iter().all(|c| c.is_finite()) {
+        (
+            Pose::new(prior.rotation(), Vec3::new(t[0], t[1], t[2])),
+            None,
+        )
+    } else {
+        (prior, Some(FailureCode::MapOriginOutOfRange))
+    }
+}
+
+/// The relocalizer's inputs. A physical pair goes through `vtsm relocalize`'s
+/// path for an OpenCV calibration: rectified on the host, the prior turned to
+/// the rectified left camera (the estimate is turned back by
+/// [`Inputs::as_physical`]).
+fn inputs(cfg: &SuiteConfig, live: LiveFrames, prior: Pose) -> Result<Inputs, String> {
+    let rectifier = live
+        .calib
+        .as_ref()
+        .map(|c| Rectifier::new(c).map(|r| r.with_interp(cfg.interp)))
+        .transpose()
+        .map_err(|e| e.to_string())?;
+    let pair = live.pair;
+    Ok(match rectifier {
+        Some(r) => {
+            let gray = |pixels| Gray8 {
+                width: pair.width,
+                height: pair.height,
+                pixels,
+            };
+            let (l, rr, p) = r.rectify_input(&gray(pair.left), &gray(pair.right), &prior);
+            Inputs {
+                rig: r.rig,
+                left: l.pixels,
+                right: rr.pixels,
+                prior: p,
+                rectifier: Some(r),
+            }
+        }
+        None => Inputs {
+            rig: live.rig,
+            left: pair.left,
+            right: pair.right,
+            prior,
+            rectifier: None,
+        },
+    })
+}
+
+/// The relocalization request of a trial of group `g`: the profile's
+/// parameters with the group's seeds K (and small parameters).
+fn request<'a>(
+    cfg: &SuiteConfig,
+    g: &Group,
+    map: &'a [u8],
+    inputs: &'a Inputs,
+    seed: u64,
+) -> Request<'a> {
+    let mut params = locate::params_for_width(inputs.rig.cam().width());
+    params.seeds = g.seeds;
+    if g.small {
+        params.n_corr = 27;
+        params.n_iter = 1;
+        params.max_reseed = 3;
+    }
+    Request {
+        map,
+        left: &inputs.left,
+        right: &inputs.right,
+        rig: inputs.rig,
+        prior: inputs.prior,
+        uncertainty: g.uncertainty,
+        params,
+        seed,
+        verify: cfg.verify,
+    }
+}
+
+/// The local-feature baseline on the same request.
+fn run_features(o: &mut TrialOutcome, req: &Request<'_>, inputs: &Inputs, frame: &ErrorFrame) {
+    let fp = crate::features::FeatureParams::for_width(inputs.rig.cam().width());
+    match crate::features::relocalize_features(req, &fp) {
+        Ok(r) => {
+            let (t1, r1) = frame.error(&inputs.as_physical(&r.pose));
+            o.success = r.failure.is_none();
+            o.failure = r.failure;
+            o.final_t_mm = t1 * 1e3;
+            o.final_r_deg = r1.to_degrees();
+            o.inliers = r.inliers;
+            o.iterations = r.iterations;
+            o.time_s = r.elapsed.as_secs_f64();
+            o.columns.features = Some(FeatureColumns {
+                map_keypoints: r.map_keypoints,
+                live_keypoints: r.live_keypoints,
+                matches: r.matches,
+                stereo_points: r.stereo_points,
+            });
+        }
+        Err(e) => o.failure = Some(format!("error: {e}")),
+    }
+}
+
+/// The paper's method: the core's engine through the runner.
+fn run_vtsm(
+    o: &mut TrialOutcome,
+    cfg: &SuiteConfig,
+    req: &Request<'_>,
+    inputs: &Inputs,
+    frame: &ErrorFrame,
+) {
+    let r = match locate::relocalize(req) {
+        Ok(r) => r,
+        Err(e) => {
+            o.failure = Some(format!("error: {e}"));
+            return;
+        }
+    };
+    let out = &r.outcome;
+    let est = inputs.as_physical(&out.pose);
+    let (t1, r1) = frame.error(&est);
+    o.success = out.failure.is_none();
+    o.failure = out.failure.map(|c| c.name().to_string());
+    o.final_t_mm = t1 * 1e3;
+    o.final_r_deg = r1.to_degrees();
+    o.inliers = u32::from(out.quality.inliers);
+    o.iterations = u32::from(out.stats.successes);
+    o.time_s = r.elapsed.as_secs_f64();
+    o.columns.engine = Some(engine_columns(out, &inputs.prior));
+    // Its world-frame blocks hold for the physical camera too: the same
+    // centre, a rotation differing by a fixed right factor.
+    o.columns.covariance = out
+        .quality
+        .covariance
+        .as_ref()
+        .map(|c| covariance_check(&est, &frame.truth, c));
+    // Which upset checks ran, only when asked for.
+    if cfg.verify.any() {
+        let v = crate::cli::relocalize::verified(out, cfg.verify);
+        o.columns.verify = Some(VerifyColumns {
+            repeat_solve: v.repeat_solve,
+            recheck_map: v.recheck_map,
+        });
+    }
+}
+
+/// The engine's work counters, so a slow trial can be told apart from a
+/// loaded machine, and what the integrity gates saw (the core's camera), to
+/// show their margins.
+fn engine_columns(out: &vtsm_core::reloc::Outcome, prior: &Pose) -> EngineColumns {
+    let (dt, dr) = vtsm_core::reloc::integrity::distance_to(prior, &out.pose);
+    EngineColumns {
+        attempts: out.stats.attempts,
+        stalls: out.stats.stalls,
+        reseeds: out.stats.reseeds,
+        focused_rounds: out.stats.focused_rounds,
+        gradient_rounds: out.stats.gradient_rounds,
+        refine_accepted: u32::from(out.stats.refine.accepted),
+        spread_m: out.quality.spread_m,
+        reproj_px: out.quality.reproj_rms_px,
+        prior_dt_m: dt,
+        prior_dr_deg: dr.to_degrees(),
+    }
+}
