@@ -4,7 +4,7 @@
 use super::depot::Depot;
 use super::group::{Frames, Group};
 use super::protocol::prior_in_range;
-use crate::io::calib_opencv::OpenCvCalib;
+use crate::io::calib::model::OpenCvCalib;
 use crate::render::Lighting;
 use crate::scene::physical::capture_physical;
 use crate::scene::{Capture, Scene, StereoPair, STOPS_PER_CIRCLE};

@@ -161,7 +161,7 @@ fn prior_in_map_frame(
     let Some(o) = origin else {
         return (prior, None);
     };
-    let user = crate::frame::local_to_json(&prior, o);
+    let user = crate::io::json::PoseJson::from_local(&prior, o);
     let t = [0, 1, 2].map(|k| (user.t[k] - map_origin[k]) as f32);
     if t.iter().all(|c| c.is_finite()) {
         (
