@@ -22,8 +22,10 @@ int32_t dev_read_window(void *ctx, uint8_t eye, int32_t x, int32_t y, uint32_t w
     if (frame == NULL || out == NULL || x < 0 || y < 0 || w == 0 || h == 0) return VTSM_IO_OTHER;
     if ((uint64_t)(uint32_t)x + w > d->width || (uint64_t)(uint32_t)y + h > d->height) return VTSM_IO_OTHER;
     if ((uint64_t)w * h > out_len) return VTSM_IO_OTHER;
+    uint64_t t0 = platform_ticks();
     for (uint32_t r = 0; r < h; r++)
         memcpy(out + (size_t)r * w, frame + ((size_t)(uint32_t)y + r) * d->width + (uint32_t)x, w);
+    d->window_ticks += platform_ticks() - t0;
     d->windows++;
     return VTSM_IO_OK;
 }
@@ -163,6 +165,8 @@ int main(void) {
     printf("VTSM-C-INSTRUCTIONS engine %llu, whole run %llu (%llu per tick)\n",
            (unsigned long long)(out.stats.elapsed_ticks * per_tick),
            (unsigned long long)((t1 - t0) * per_tick), (unsigned long long)per_tick);
+    printf("VTSM-C-WINDOW-INSTRUCTIONS %llu in %lu reads (the C callback's copies)\n",
+           (unsigned long long)(dev.window_ticks * per_tick), (unsigned long)dev.windows);
     printf("VTSM-C-DIGEST %016llx (rust %016llx)\n", (unsigned long long)digest,
            (unsigned long long)SCENE_RUST_DIGEST);
     if (digest != SCENE_RUST_DIGEST) failed++;

@@ -14,6 +14,7 @@ typedef struct Devices {
     const uint8_t *left, *right;
     uint32_t width, height;
     uint32_t windows, telemetry_frames, telemetry_bytes, latches;
+    uint64_t window_ticks; /* platform ticks spent inside read_window */
     int fail_windows; /* a fault injected into every window read */
     const uint8_t *map; size_t map_len; /* served by read_map */
 } Devices;
