@@ -380,7 +380,7 @@ mod tests {
     fn codes_are_unique_nonzero_and_grouped() {
         for (i, a) in FailureCode::ALL.iter().enumerate() {
             assert_ne!(a.code(), 0);
-            assert!((1..=9).contains(&a.group()), "{a:?}");
+            assert!((1..=0x0A).contains(&a.group()), "{a:?}");
             assert_eq!(FailureCode::from_u16(a.code()), Some(*a));
             for b in &FailureCode::ALL[i + 1..] {
                 assert_ne!(a.code(), b.code());
