@@ -369,18 +369,17 @@ pub struct Outcome {
 /// # Errors
 /// Inputs the core rejects (map, image sizes, parameters), with their codes.
 pub fn run_engine(inputs: &Inputs) -> Result<Outcome> {
-    let req = crate::locate::Request {
-        map: &inputs.map,
-        left: &inputs.left.pixels,
-        right: &inputs.right.pixels,
-        rig: inputs.rig,
-        prior: inputs.prior,
-        uncertainty: inputs.uncertainty,
-        params: crate::locate::params_for_width(inputs.rig.cam().width()),
-        seed: inputs.seed,
-        verify: inputs.verify,
-    };
-    let report = crate::locate::relocalize(&req)?;
+    let req = crate::locate::Request::new(
+        inputs.map.as_slice(),
+        &inputs.left.pixels,
+        &inputs.right.pixels,
+        inputs.rig,
+        inputs.prior,
+    )
+    .with_uncertainty(inputs.uncertainty)
+    .with_seed(inputs.seed)
+    .with_verify(inputs.verify);
+    let report = crate::locate::relocalize(&req, crate::locate::RunOptions::default())?;
     let mut outcome = Outcome {
         origin: inputs.origin,
         prior_uncertainty: Some(report.run.prior_uncertainty),

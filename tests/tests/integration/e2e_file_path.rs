@@ -148,18 +148,8 @@ fn file_path_equals_in_memory_path_bit_for_bit() {
     let e = exported();
     let inputs = load_inputs(&args(&e.dir, "prior.json", None)).unwrap();
     let from_files = run_engine(&inputs).unwrap();
-    let req = Request {
-        map: &e.map_bytes,
-        left: &e.left,
-        right: &e.right,
-        rig: e.rig,
-        prior: e.prior,
-        uncertainty: None,
-        params: locate::params_for_width(e.rig.cam().width()),
-        seed: SEED,
-        verify: VerifyChecks::OFF,
-    };
-    let report = locate::relocalize(&req).unwrap();
+    let req = Request::new(&e.map_bytes, &e.left, &e.right, e.rig, e.prior).with_seed(SEED);
+    let report = locate::relocalize(&req, locate::RunOptions::default()).unwrap();
     let in_memory = relocalize::Outcome {
         prior_uncertainty: Some(report.run.prior_uncertainty),
         ..outcome_from_core(&report.outcome, VerifyChecks::OFF)

@@ -11,7 +11,7 @@ use vtsm_core::FailureCode;
 use vtsm_hal::runner::DriveLimits;
 use vtsm_hal::telemetry::{parse_outcome, FrameKind};
 use vtsm_sim::devices::FaultConfig;
-use vtsm_sim::locate::{run_from_store, run_on_devices, DeviceFaults, DeviceRun, Request};
+use vtsm_sim::locate::{run, DeviceFaults, DeviceRun, PairPath, Request, RunOptions};
 use vtsm_tests::scene::{scene, RELOC_SEED};
 use vtsm_tests::testkit;
 
@@ -30,12 +30,15 @@ fn from_store(window_faults: FaultConfig) -> DeviceRun {
         seed: 11,
         ..DeviceFaults::default()
     };
-    run_from_store(
+    run(
         &request(&scene().map),
-        &faults,
-        window_faults,
-        false,
-        &DriveLimits::UNLIMITED,
+        RunOptions::default()
+            .faults(faults)
+            .limits(DriveLimits::UNLIMITED)
+            .path(PairPath::Store {
+                window_faults,
+                map_in_place: false,
+            }),
     )
     .unwrap()
 }
@@ -52,10 +55,11 @@ fn bits(o: &Outcome) -> Vec<u32> {
 /// Verifies: VTSM-HAL-027
 #[test]
 fn reading_windows_from_the_store_gives_the_outcome_of_the_pair_in_ram() {
-    let ram = run_on_devices(
+    let ram = run(
         &request(&scene().map),
-        &DeviceFaults::default(),
-        &DriveLimits::UNLIMITED,
+        RunOptions::default()
+            .faults(DeviceFaults::default())
+            .limits(DriveLimits::UNLIMITED),
     )
     .unwrap();
     let store = from_store(FaultConfig::NONE);
@@ -147,12 +151,15 @@ fn occasional_window_faults_are_retried_and_counted() {
 }
 
 fn in_place(map: &[u8]) -> DeviceRun {
-    run_from_store(
+    run(
         &request(map),
-        &DeviceFaults::default(),
-        FaultConfig::NONE,
-        true,
-        &DriveLimits::UNLIMITED,
+        RunOptions::default()
+            .faults(DeviceFaults::default())
+            .limits(DriveLimits::UNLIMITED)
+            .path(PairPath::Store {
+                window_faults: FaultConfig::NONE,
+                map_in_place: true,
+            }),
     )
     .unwrap()
 }
@@ -178,6 +185,11 @@ fn a_memory_mapped_map_is_used_in_place_with_the_same_outcome() {
     assert_eq!(mrep.map_read.reads, 0);
     assert_eq!(mrep.map_read.len, crep.map_read.len);
     assert_eq!(mrep.windows, crep.windows);
+    // The flight path's counts: one check of the product (in place, or in
+    // the retry loop after the read), the pair never copied out of the
+    // camera's memory.
+    assert_eq!((mrep.map_read.checks, crep.map_read.checks), (1, 1));
+    assert_eq!((mapped.pair_copies, copied.pair_copies), (0, 0));
 }
 
 /// A damaged mapped product ends in the failure code the copied product ends
@@ -190,12 +202,15 @@ fn a_damaged_or_empty_mapped_map_ends_in_its_failure_code() {
     let mut bad = scene().map.clone();
     let mid = bad.len() / 2;
     bad[mid] ^= 0x10;
-    let copied = run_from_store(
+    let copied = run(
         &request(&bad),
-        &DeviceFaults::default(),
-        FaultConfig::NONE,
-        false,
-        &DriveLimits::UNLIMITED,
+        RunOptions::default()
+            .faults(DeviceFaults::default())
+            .limits(DriveLimits::UNLIMITED)
+            .path(PairPath::Store {
+                window_faults: FaultConfig::NONE,
+                map_in_place: false,
+            }),
     )
     .unwrap();
     let mapped = in_place(&bad);

@@ -11,7 +11,7 @@ use vtsm_core::FailureCode;
 use vtsm_hal::runner::{DriveLimits, VerifyChecks};
 use vtsm_hal::telemetry::{parse_outcome, FrameKind};
 use vtsm_sim::devices::FaultConfig;
-use vtsm_sim::locate::{run_on_devices, DeviceFaults, DeviceRun, Request};
+use vtsm_sim::locate::{self, DeviceFaults, DeviceRun, Request, RunOptions};
 use vtsm_tests::scene::{scene, RELOC_SEED};
 use vtsm_tests::testkit;
 
@@ -27,7 +27,11 @@ fn request(map: &[u8]) -> Request<'_> {
 }
 
 fn run(faults: DeviceFaults, limits: DriveLimits) -> DeviceRun {
-    run_on_devices(&request(&scene().map), &faults, &limits).unwrap()
+    locate::run(
+        &request(&scene().map),
+        RunOptions::default().faults(faults).limits(limits),
+    )
+    .unwrap()
 }
 
 fn all(timeout_pct: u8, truncate_pct: u8, corrupt_pct: u8) -> FaultConfig {
@@ -104,7 +108,13 @@ fn runner_config_turns_the_upset_checks_on() {
         verify: VerifyChecks::ALL,
         ..request(&scene().map)
     };
-    let checked = run_on_devices(&req, &DeviceFaults::default(), &DriveLimits::UNLIMITED).unwrap();
+    let checked = locate::run(
+        &req,
+        RunOptions::default()
+            .faults(DeviceFaults::default())
+            .limits(DriveLimits::UNLIMITED),
+    )
+    .unwrap();
     let (p, _) = plain.result.as_ref().unwrap();
     let (c, _) = checked.result.as_ref().unwrap();
     println!(
@@ -229,7 +239,13 @@ fn runner_builds_the_engine_with_the_priors_stated_uncertainty() {
             uncertainty,
             ..base
         };
-        let r = run_on_devices(&req, &DeviceFaults::default(), &DriveLimits::UNLIMITED).unwrap();
+        let r = locate::run(
+            &req,
+            RunOptions::default()
+                .faults(DeviceFaults::default())
+                .limits(DriveLimits::UNLIMITED),
+        )
+        .unwrap();
         let (o, rep) = r.result.as_ref().unwrap();
         assert_eq!(o.failure, None, "{uncertainty:?}");
         assert_eq!(rep.prior_uncertainty, used);
@@ -258,7 +274,13 @@ fn runner_builds_the_engine_with_the_priors_stated_uncertainty() {
         }),
         ..base
     };
-    let r = run_on_devices(&bad, &DeviceFaults::default(), &DriveLimits::UNLIMITED).unwrap();
+    let r = locate::run(
+        &bad,
+        RunOptions::default()
+            .faults(DeviceFaults::default())
+            .limits(DriveLimits::UNLIMITED),
+    )
+    .unwrap();
     assert_eq!(r.result.err(), Some(FailureCode::HalPriorInvalid));
     assert_eq!(r.log.count(FailureCode::HalPriorInvalid), 1);
 }
@@ -271,7 +293,13 @@ fn run_frames(left: &[u8], right: &[u8], prior: Pose) -> DeviceRun {
         prior,
         ..request(&s.map)
     };
-    run_on_devices(&req, &DeviceFaults::default(), &DriveLimits::UNLIMITED).unwrap()
+    locate::run(
+        &req,
+        RunOptions::default()
+            .faults(DeviceFaults::default())
+            .limits(DriveLimits::UNLIMITED),
+    )
+    .unwrap()
 }
 
 /// Hopeless frames end fast with their own codes, as failed relocalizations:
