@@ -7,7 +7,7 @@
 //!   target features, compiler; recorded by `sim/build.rs`).
 //! * **Relocalization**: for each chosen [`Profile`], the seeded scene of
 //!   [`SCENE`] is built and relocalized once, single thread, through the
-//!   desktop runner ([`locate::relocalize_by_stage`]), which steps the engine
+//!   desktop runner ([`locate::relocalize`] with a stage observer), which steps the engine
 //!   one stage at a time. [`StageClock`] reads `Instant` at every runner event
 //!   and gives the time since the previous event to the stage the engine
 //!   reports it ran; the core reads no clock. The outcome is bit-identical to

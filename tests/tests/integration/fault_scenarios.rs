@@ -591,13 +591,10 @@ fn run_with_map_upset(req: &Request<'_>) -> (DeviceRun, u32) {
 /// Verifies: VTSM-HAL-025, VTSM-RELOC-033
 #[test]
 fn map_changed_after_load() {
-    let recheck = Request {
-        verify: VerifyChecks {
-            repeat_solve: false,
-            recheck_map: true,
-        },
-        ..clean_request()
-    };
+    let recheck = clean_request().with_verify(VerifyChecks {
+        repeat_solve: false,
+        recheck_map: true,
+    });
     let (checked, calls) = run_with_map_upset(&recheck);
     let w = work(&checked);
     println!("map changed after load: {w:?}, {calls} steps");

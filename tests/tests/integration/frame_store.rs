@@ -16,13 +16,12 @@ use vtsm_tests::scene::{scene, RELOC_SEED};
 use vtsm_tests::testkit;
 
 fn request(map: &[u8]) -> Request<'_> {
-    Request {
-        params: vtsm_core::config::Params {
+    scene()
+        .request(map, RELOC_SEED)
+        .with_params(vtsm_core::config::Params {
             attempts_per_iter: 300,
             ..testkit::test_params()
-        },
-        ..scene().request(map, RELOC_SEED)
-    }
+        })
 }
 
 fn from_store(window_faults: FaultConfig) -> DeviceRun {

@@ -16,14 +16,13 @@ use vtsm_tests::scene::{scene, RELOC_SEED};
 use vtsm_tests::testkit;
 
 fn request(map: &[u8]) -> Request<'_> {
-    Request {
-        params: vtsm_core::config::Params {
+    scene()
+        .request(map, RELOC_SEED)
+        .with_params(vtsm_core::config::Params {
             // Short failing runs are not under test here: only how they end.
             attempts_per_iter: 300,
             ..testkit::test_params()
-        },
-        ..scene().request(map, RELOC_SEED)
-    }
+        })
 }
 
 fn run(faults: DeviceFaults, limits: DriveLimits) -> DeviceRun {
@@ -104,10 +103,7 @@ fn runner_relocalizes_and_step_granularity_does_not_change_the_outcome() {
 #[test]
 fn runner_config_turns_the_upset_checks_on() {
     let plain = run(DeviceFaults::default(), DriveLimits::UNLIMITED);
-    let req = Request {
-        verify: VerifyChecks::ALL,
-        ..request(&scene().map)
-    };
+    let req = request(&scene().map).with_verify(VerifyChecks::ALL);
     let checked = locate::run(
         &req,
         RunOptions::default()
@@ -235,10 +231,7 @@ fn runner_builds_the_engine_with_the_priors_stated_uncertainty() {
         r_deg: 2.0,
     };
     for (uncertainty, used) in [(None, base.params.uncertainty()), (Some(stated), stated)] {
-        let req = Request {
-            uncertainty,
-            ..base
-        };
+        let req = base.with_uncertainty(uncertainty);
         let r = locate::run(
             &req,
             RunOptions::default()
@@ -267,13 +260,10 @@ fn runner_builds_the_engine_with_the_priors_stated_uncertainty() {
         );
         assert_eq!(o.stats.seeds_tried, 0);
     }
-    let bad = Request {
-        uncertainty: Some(PriorUncertainty {
-            t_m: vtsm_core::config::MAX_T0_M * 2.0,
-            r_deg: 1.5,
-        }),
-        ..base
-    };
+    let bad = base.with_uncertainty(Some(PriorUncertainty {
+        t_m: vtsm_core::config::MAX_T0_M * 2.0,
+        r_deg: 1.5,
+    }));
     let r = locate::run(
         &bad,
         RunOptions::default()
@@ -287,12 +277,9 @@ fn runner_builds_the_engine_with_the_priors_stated_uncertainty() {
 
 fn run_frames(left: &[u8], right: &[u8], prior: Pose) -> DeviceRun {
     let s = scene();
-    let req = Request {
-        left,
-        right,
-        prior,
-        ..request(&s.map)
-    };
+    let req = Request::new(&s.map, left, right, testkit::rig(), prior)
+        .with_params(request(&s.map).params)
+        .with_seed(RELOC_SEED);
     locate::run(
         &req,
         RunOptions::default()
