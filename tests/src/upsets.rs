@@ -27,8 +27,7 @@ use vtsm_core::ncc::Run;
 use vtsm_core::reloc::{Outcome, Setup, StepResult, UpsetRegion, Workspace};
 use vtsm_core::rng::Rng;
 use vtsm_core::FailureCode;
-use vtsm_hal::runner::DriveLimits;
-use vtsm_sim::locate::{run, workspace_sizes, DeviceFaults, RunOptions};
+use vtsm_sim::locate::{run, workspace_sizes, RunOptions};
 
 /// How one upset trial ended, compared with the clean run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -176,13 +175,7 @@ pub fn params() -> vtsm_core::config::Params {
 /// The runner's failure code, if the clean scene does not relocalize.
 pub fn clean_run(scene: &Scene) -> Result<Outcome, FailureCode> {
     let req = scene.request(&scene.map, RELOC_SEED);
-    let run = run(
-        &req,
-        RunOptions::default()
-            .faults(DeviceFaults::default())
-            .limits(DriveLimits::UNLIMITED),
-    )
-    .map_err(|_| FailureCode::ConfigParamOutOfRange)?;
+    let run = run(&req, RunOptions::default()).map_err(|_| FailureCode::ConfigParamOutOfRange)?;
     run.result.map(|(o, _)| o)
 }
 
@@ -204,13 +197,7 @@ pub fn map_trial(scene: &Scene, clean: &Outcome, rng: &mut Rng, reseal: bool) ->
     }
     let region = region_of(&regions, byte);
     let req = scene.request(&bytes, RELOC_SEED);
-    let result = run(
-        &req,
-        RunOptions::default()
-            .faults(DeviceFaults::default())
-            .limits(DriveLimits::UNLIMITED),
-    )
-    .map(|r| r.result);
+    let result = run(&req, RunOptions::default()).map(|r| r.result);
     let (class, code, error_m) = match result {
         Ok(Ok((o, _))) => classify(&o, clean, &scene.truth),
         Ok(Err(code)) if code.group() == 0x03 => (Class::DetectedAtLoad, Some(code), None),

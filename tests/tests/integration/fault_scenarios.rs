@@ -60,13 +60,7 @@ fn every(timeout_pct: u8, truncate_pct: u8, corrupt_pct: u8) -> FaultConfig {
 }
 
 fn run(req: &Request<'_>, f: &DeviceFaults) -> DeviceRun {
-    locate::run(
-        req,
-        RunOptions::default()
-            .faults(*f)
-            .limits(DriveLimits::UNLIMITED),
-    )
-    .unwrap()
+    locate::run(req, RunOptions::default().faults(*f)).unwrap()
 }
 
 /// The work one run did.

@@ -8,7 +8,6 @@
 
 use vtsm_core::reloc::Outcome;
 use vtsm_core::FailureCode;
-use vtsm_hal::runner::DriveLimits;
 use vtsm_hal::telemetry::{parse_outcome, FrameKind};
 use vtsm_sim::devices::FaultConfig;
 use vtsm_sim::locate::{run, DeviceFaults, DeviceRun, PairPath, Request, RunOptions};
@@ -31,13 +30,10 @@ fn from_store(window_faults: FaultConfig) -> DeviceRun {
     };
     run(
         &request(&scene().map),
-        RunOptions::default()
-            .faults(faults)
-            .limits(DriveLimits::UNLIMITED)
-            .path(PairPath::Store {
-                window_faults,
-                map_in_place: false,
-            }),
+        RunOptions::default().faults(faults).path(PairPath::Store {
+            window_faults,
+            map_in_place: false,
+        }),
     )
     .unwrap()
 }
@@ -54,13 +50,7 @@ fn bits(o: &Outcome) -> Vec<u32> {
 /// Verifies: VTSM-HAL-027
 #[test]
 fn reading_windows_from_the_store_gives_the_outcome_of_the_pair_in_ram() {
-    let ram = run(
-        &request(&scene().map),
-        RunOptions::default()
-            .faults(DeviceFaults::default())
-            .limits(DriveLimits::UNLIMITED),
-    )
-    .unwrap();
+    let ram = run(&request(&scene().map), RunOptions::default()).unwrap();
     let store = from_store(FaultConfig::NONE);
     let (r, _) = ram.result.as_ref().unwrap();
     let (s, rep) = store.result.as_ref().unwrap();
@@ -152,13 +142,10 @@ fn occasional_window_faults_are_retried_and_counted() {
 fn in_place(map: &[u8]) -> DeviceRun {
     run(
         &request(map),
-        RunOptions::default()
-            .faults(DeviceFaults::default())
-            .limits(DriveLimits::UNLIMITED)
-            .path(PairPath::Store {
-                window_faults: FaultConfig::NONE,
-                map_in_place: true,
-            }),
+        RunOptions::default().path(PairPath::Store {
+            window_faults: FaultConfig::NONE,
+            map_in_place: true,
+        }),
     )
     .unwrap()
 }
@@ -203,13 +190,10 @@ fn a_damaged_or_empty_mapped_map_ends_in_its_failure_code() {
     bad[mid] ^= 0x10;
     let copied = run(
         &request(&bad),
-        RunOptions::default()
-            .faults(DeviceFaults::default())
-            .limits(DriveLimits::UNLIMITED)
-            .path(PairPath::Store {
-                window_faults: FaultConfig::NONE,
-                map_in_place: false,
-            }),
+        RunOptions::default().path(PairPath::Store {
+            window_faults: FaultConfig::NONE,
+            map_in_place: false,
+        }),
     )
     .unwrap();
     let mapped = in_place(&bad);

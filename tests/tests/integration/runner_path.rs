@@ -104,13 +104,7 @@ fn runner_relocalizes_and_step_granularity_does_not_change_the_outcome() {
 fn runner_config_turns_the_upset_checks_on() {
     let plain = run(DeviceFaults::default(), DriveLimits::UNLIMITED);
     let req = request(&scene().map).with_verify(VerifyChecks::ALL);
-    let checked = locate::run(
-        &req,
-        RunOptions::default()
-            .faults(DeviceFaults::default())
-            .limits(DriveLimits::UNLIMITED),
-    )
-    .unwrap();
+    let checked = locate::run(&req, RunOptions::default()).unwrap();
     let (p, _) = plain.result.as_ref().unwrap();
     let (c, _) = checked.result.as_ref().unwrap();
     println!(
@@ -232,13 +226,7 @@ fn runner_builds_the_engine_with_the_priors_stated_uncertainty() {
     };
     for (uncertainty, used) in [(None, base.params.uncertainty()), (Some(stated), stated)] {
         let req = base.with_uncertainty(uncertainty);
-        let r = locate::run(
-            &req,
-            RunOptions::default()
-                .faults(DeviceFaults::default())
-                .limits(DriveLimits::UNLIMITED),
-        )
-        .unwrap();
+        let r = locate::run(&req, RunOptions::default()).unwrap();
         let (o, rep) = r.result.as_ref().unwrap();
         assert_eq!(o.failure, None, "{uncertainty:?}");
         assert_eq!(rep.prior_uncertainty, used);
@@ -264,13 +252,7 @@ fn runner_builds_the_engine_with_the_priors_stated_uncertainty() {
         t_m: vtsm_core::config::MAX_T0_M * 2.0,
         r_deg: 1.5,
     }));
-    let r = locate::run(
-        &bad,
-        RunOptions::default()
-            .faults(DeviceFaults::default())
-            .limits(DriveLimits::UNLIMITED),
-    )
-    .unwrap();
+    let r = locate::run(&bad, RunOptions::default()).unwrap();
     assert_eq!(r.result.err(), Some(FailureCode::HalPriorInvalid));
     assert_eq!(r.log.count(FailureCode::HalPriorInvalid), 1);
 }
@@ -280,13 +262,7 @@ fn run_frames(left: &[u8], right: &[u8], prior: Pose) -> DeviceRun {
     let req = Request::new(&s.map, left, right, testkit::rig(), prior)
         .with_params(request(&s.map).params)
         .with_seed(RELOC_SEED);
-    locate::run(
-        &req,
-        RunOptions::default()
-            .faults(DeviceFaults::default())
-            .limits(DriveLimits::UNLIMITED),
-    )
-    .unwrap()
+    locate::run(&req, RunOptions::default()).unwrap()
 }
 
 /// Hopeless frames end fast with their own codes, as failed relocalizations:
