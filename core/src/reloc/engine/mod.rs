@@ -27,6 +27,7 @@ mod collect;
 mod conclude;
 mod rounds;
 mod solve;
+use solve::Pass;
 #[cfg(test)]
 mod tests;
 #[cfg(feature = "upset-injection")]
@@ -258,19 +259,19 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         match self.phase {
             Phase::Collect | Phase::Attempt => self.begin_attempt(now),
             Phase::Solve => {
-                self.solve(now);
+                self.solve_start(Pass::Round, now);
                 Stage::Pose
             }
             Phase::Chunks => {
-                self.solve_chunk(now);
+                self.solve_chunk(Pass::Round, now);
                 Stage::Pose
             }
             Phase::Verify => {
-                self.verify_start(now);
+                self.solve_start(Pass::Verify, now);
                 Stage::Verify
             }
             Phase::VerifyChunks => {
-                self.verify_chunk(now);
+                self.solve_chunk(Pass::Verify, now);
                 Stage::Verify
             }
         }

@@ -5,41 +5,92 @@ use super::{pose_is_valid, Phase, Relocalizer, STREAM_SOLVE, STREAM_VERIFY};
 use crate::failure::FailureCode;
 use crate::reloc::{Attempt, Solution, Solver};
 
+/// Which GetTransform a solve unit belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Pass {
+    /// The round's, on the pairs collected for it.
+    Round,
+    /// The repeated final solve of `Verify::repeat_solve`, on the pairs of
+    /// the final solve, from a second random stream.
+    Verify,
+}
+
 impl<A: Attempt, S: Solver> Relocalizer<A, S> {
-    pub(super) fn solve(&mut self, now: u64) {
+    /// The first unit of a GetTransform of the current pairs (of `pass`):
+    /// the whole solve, or its start when the solver works in chunks.
+    pub(super) fn solve_start(&mut self, pass: Pass, now: u64) {
         self.stats.work_units = self.stats.work_units.saturating_add(1);
-        self.stats.solves = self.stats.solves.saturating_add(1);
-        let mut rng = self.root.fork(STREAM_SOLVE).fork(u64::from(self.round));
+        let stream = match pass {
+            Pass::Round => {
+                self.stats.solves = self.stats.solves.saturating_add(1);
+                STREAM_SOLVE
+            }
+            Pass::Verify => {
+                self.stats.verify_units = self.stats.verify_units.saturating_add(1);
+                STREAM_VERIFY
+            }
+        };
+        let mut rng = self.root.fork(stream).fork(u64::from(self.round));
         let n = self.pairs.len();
-        self.inlier_mask.iter_mut().for_each(|m| *m = false);
+        let mask = match pass {
+            Pass::Round => &mut self.inlier_mask,
+            Pass::Verify => &mut self.verify_mask,
+        };
+        mask.iter_mut().for_each(|m| *m = false);
         self.round_chunks = 0;
         match self.solver.start(&self.pairs, rng) {
             Ok(true) => {
-                let mask = crate::fmt::present_mut(self.inlier_mask.get_mut(..n));
+                let mask = crate::fmt::present_mut(mask.get_mut(..n));
                 let result = self.solver.solve(&self.pairs, &mut rng, mask);
-                self.conclude(result, now);
+                self.solve_end(pass, result, now);
             }
-            Ok(false) => self.phase = Phase::Chunks,
-            Err(code) => self.conclude(Err(code), now),
+            Ok(false) => {
+                self.phase = match pass {
+                    Pass::Round => Phase::Chunks,
+                    Pass::Verify => Phase::VerifyChunks,
+                }
+            }
+            Err(code) => self.solve_end(pass, Err(code), now),
         }
     }
 
-    pub(super) fn solve_chunk(&mut self, now: u64) {
+    /// One chunk of [`crate::reloc::RANSAC_CHUNK`] hypotheses of a chunked
+    /// GetTransform (of `pass`), and its end after the last chunk.
+    pub(super) fn solve_chunk(&mut self, pass: Pass, now: u64) {
         self.stats.work_units = self.stats.work_units.saturating_add(1);
-        self.stats.ransac_chunks = self.stats.ransac_chunks.saturating_add(1);
+        match pass {
+            Pass::Round => {
+                self.stats.ransac_chunks = self.stats.ransac_chunks.saturating_add(1);
+            }
+            Pass::Verify => {
+                self.stats.verify_units = self.stats.verify_units.saturating_add(1);
+            }
+        }
         self.round_chunks = self.round_chunks.saturating_add(1);
         let done = match self
             .solver
             .run_chunk(&self.pairs, crate::reloc::RANSAC_CHUNK)
         {
             Ok(done) => done || self.round_chunks >= Self::max_chunks(&self.params),
-            Err(code) => return self.conclude(Err(code), now),
+            Err(code) => return self.solve_end(pass, Err(code), now),
         };
         if done {
             let n = self.pairs.len();
-            let mask = crate::fmt::present_mut(self.inlier_mask.get_mut(..n));
+            let mask = match pass {
+                Pass::Round => &mut self.inlier_mask,
+                Pass::Verify => &mut self.verify_mask,
+            };
+            let mask = crate::fmt::present_mut(mask.get_mut(..n));
             let result = self.solver.finish(&self.pairs, mask);
-            self.conclude(result, now);
+            self.solve_end(pass, result, now);
+        }
+    }
+
+    /// The result of a GetTransform of `pass`, to the end that judges it.
+    fn solve_end(&mut self, pass: Pass, result: Result<Solution, FailureCode>, now: u64) {
+        match pass {
+            Pass::Round => self.conclude(result, now),
+            Pass::Verify => self.verify_conclude(result, now),
         }
     }
 
@@ -85,45 +136,6 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         self.solver.set_sigma_scale(scale);
         self.phase = Phase::Solve;
         true
-    }
-
-    /// Verify::repeat_solve, first unit: GetTransform again on the pairs of
-    /// the final solve, from a second random stream.
-    pub(super) fn verify_start(&mut self, now: u64) {
-        self.stats.work_units = self.stats.work_units.saturating_add(1);
-        self.stats.verify_units = self.stats.verify_units.saturating_add(1);
-        let mut rng = self.root.fork(STREAM_VERIFY).fork(u64::from(self.round));
-        let n = self.pairs.len();
-        self.verify_mask.iter_mut().for_each(|m| *m = false);
-        self.round_chunks = 0;
-        match self.solver.start(&self.pairs, rng) {
-            Ok(true) => {
-                let mask = self.verify_mask.get_mut(..n).unwrap_or(&mut []);
-                let result = self.solver.solve(&self.pairs, &mut rng, mask);
-                self.verify_conclude(result, now);
-            }
-            Ok(false) => self.phase = Phase::VerifyChunks,
-            Err(code) => self.verify_conclude(Err(code), now),
-        }
-    }
-
-    pub(super) fn verify_chunk(&mut self, now: u64) {
-        self.stats.work_units = self.stats.work_units.saturating_add(1);
-        self.stats.verify_units = self.stats.verify_units.saturating_add(1);
-        self.round_chunks = self.round_chunks.saturating_add(1);
-        let done = match self
-            .solver
-            .run_chunk(&self.pairs, crate::reloc::RANSAC_CHUNK)
-        {
-            Ok(done) => done || self.round_chunks >= Self::max_chunks(&self.params),
-            Err(code) => return self.verify_conclude(Err(code), now),
-        };
-        if done {
-            let n = self.pairs.len();
-            let mask = self.verify_mask.get_mut(..n).unwrap_or(&mut []);
-            let result = self.solver.finish(&self.pairs, mask);
-            self.verify_conclude(result, now);
-        }
     }
 
     /// Compare the repeated solve, refined the same way as the final

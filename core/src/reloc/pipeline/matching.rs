@@ -55,6 +55,18 @@ fn accept(m: &ncc::Match, policy: &MatchPolicy) -> Result<(), FailureCode> {
     }
 }
 
+/// The value of `r`, or `None` with its code kept in `last` (a variant that
+/// is rejected leaves its code for the attempt, unless a later one is accepted).
+fn kept_or_last<T>(r: Result<T, FailureCode>, last: &mut FailureCode) -> Option<T> {
+    match r {
+        Ok(v) => Some(v),
+        Err(e) => {
+            *last = e;
+            None
+        }
+    }
+}
+
 /// One search of variant `v`: counted in `stats.matches` whether or not
 /// there is a window, scored over `search` by `mode`, accepted under `policy`.
 fn search_accepted(
@@ -199,27 +211,23 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
         let mut last = FailureCode::NccLowScore;
         let policy = &self.policy;
         for &v in policy.variants.iter().flatten() {
-            if self.gradient_only && !super::super::policy::is_gradient_variant(v.index() as u8) {
+            if self.gradient_only && !crate::reloc::policy::is_gradient_variant(v.index() as u8) {
                 continue;
             }
             let Some(tl) = crop(left, v.half) else {
                 continue;
             };
-            let left_search = (win.left, policy.search);
-            let ml = match search_accepted(
+            let found_left = search_accepted(
                 v,
                 policy,
                 tl,
                 left_win.as_ref(),
-                left_search,
+                (win.left, policy.search),
                 &mut ws.scratch,
                 stats,
-            ) {
-                Ok(m) => m,
-                Err(e) => {
-                    last = e;
-                    continue;
-                }
+            );
+            let Some(ml) = kept_or_last(found_left, &mut last) else {
+                continue;
             };
             let (ol, or) = vertex_in_templates(s, &t, l, v.half);
             let pl = [ml.sub_x + ol[0], ml.sub_y + ol[1]];
@@ -230,17 +238,14 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
                 continue;
             };
             let size = (tr.image.width(), tr.image.height());
-            let band = match right_search(policy, v, (pl, or), size, &win, self.epsilon_px) {
-                Ok(b) => b,
-                Err(e) => {
-                    last = e;
-                    continue;
-                }
+            let band = right_search(policy, v, (pl, or), size, &win, self.epsilon_px);
+            let Some(band) = kept_or_last(band, &mut last) else {
+                continue;
             };
             if let Some(buf) = right_buf.take() {
                 right_win = read_window(&mut self.frames, Eye::Right, win.right, buf)?;
             }
-            let mr = match search_accepted(
+            let found_right = search_accepted(
                 v,
                 policy,
                 tr,
@@ -248,12 +253,9 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
                 band,
                 &mut ws.scratch,
                 stats,
-            ) {
-                Ok(m) => m,
-                Err(e) => {
-                    last = e;
-                    continue;
-                }
+            );
+            let Some(mr) = kept_or_last(found_right, &mut last) else {
+                continue;
             };
             let idx = v.index();
             if let Some(c) = stats.accepted.get_mut(idx) {
