@@ -55,7 +55,7 @@ pub const fn search_levels(
     wh: usize,
     cfg: &SearchConfig,
 ) -> usize {
-    let c = cfg.clamped();
+    let c = *cfg;
     let t = if tw < th { tw } else { th };
     let w = if ww < wh { ww } else { wh };
     let min = if w > WIDE_WINDOW_RATIO * t {
@@ -86,7 +86,7 @@ pub(super) const fn max_usize(a: usize, b: usize) -> usize {
 }
 
 /// Refinement radius and number of candidates refined at level `k` below the
-/// coarsest level `lc` (`k < lc`) with the clamped configuration `c`.
+/// coarsest level `lc` (`k < lc`) with the configuration `c`.
 pub(super) const fn refine_plan(
     tw: usize,
     th: usize,
@@ -261,7 +261,7 @@ impl ScratchSizes {
         let pad = 2 * MAX_REFINE_RADIUS_PX;
         let refine = table_len(tw.saturating_add(pad), th.saturating_add(pad));
         let mut tables = max_usize(coarse, refine);
-        let c = cfg.clamped();
+        let c = *cfg;
         let mut k = 0;
         while k < lc {
             if whole_levels && whole_level_tables(tw, th, ww, wh, k, lc, &c) {

@@ -186,16 +186,11 @@ fn coarse_to_fine_agrees_with_exhaustive_in_every_domain_and_masked() {
 fn every_search_config_agrees_on_textured_cases() {
     for min_coarse_px in [MIN_COARSE_PX, 64] {
         for (cand, radius) in [(1usize, 0usize), (MAX_CANDIDATES, MAX_REFINE_RADIUS_PX)] {
-            let cfg = SearchConfig {
-                candidates: cand,
-                final_candidates: cand,
-                refine_radius_px: radius,
-                final_refine_radius_px: radius,
-                first_refine_radius_px: radius,
-                min_coarse_px,
-                wide_min_coarse_px: min_coarse_px,
-                ..SearchConfig::for_filter(Filter::Sobel)
-            };
+            let cfg = SearchConfig::for_filter(Filter::Sobel)
+                .with_candidates(cand, cand)
+                .and_then(|c| c.with_refine_radii_px(radius, radius, radius))
+                .and_then(|c| c.with_coarse_px(min_coarse_px, min_coarse_px))
+                .unwrap();
             let cases = 30;
             let (agree, _, _) = agreement_with(29, cases, Filter::Sobel, true, &cfg);
             std::println!("{cfg:?}: {agree}/{cases}");

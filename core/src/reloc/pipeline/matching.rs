@@ -161,10 +161,10 @@ fn right_search(
         .ok_or(FailureCode::StereoEpipolarViolation)?;
     let cfg = ncc::SearchConfig::for_filter(v.filter);
     let side = cfg
-        .final_refine_radius_px
+        .final_refine_radius_px()
         .saturating_mul(2)
         .saturating_add(1);
-    let c2f_full_res = cfg.candidates.saturating_mul(side).saturating_mul(side);
+    let c2f_full_res = cfg.candidates().saturating_mul(side).saturating_mul(side);
     let positions = (band.w as usize)
         .saturating_sub(tw)
         .saturating_add(1)
