@@ -24,51 +24,27 @@ impl Budget {
 }
 
 /// Engine options that are not part of [`Params`].
+///
+/// Start from [`Options::for_params`] and change values with the `with_*`
+/// methods, each of which refuses a value out of its range with
+/// [`FailureCode::ConfigParamOutOfRange`]; the checks that need the
+/// parameters (`min_inliers` ≤ N_corr, Focus votes ≤ N_corr) are made again,
+/// with every other one, where the options meet them
+/// ([`Setup::with_options`](super::Setup::with_options), [`Setup::build`](super::Setup::build)).
+/// Values are read through accessors of the fields' names.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Options {
-    /// A solution with fewer inliers is treated as a failed GetTransform
-    /// (3..=n_corr); this is what keeps a wrong prior from yielding a confident pose.
-    pub min_inliers: u16,
-    /// Translation spread of the multi-seed mode (prior uncertainty), metres, (0, 5].
-    pub seed_t_m: f32,
-    /// Rotation spread of the multi-seed mode, degrees, (0, 45].
-    pub seed_r_deg: f32,
-    /// Work / tick budget.
-    pub budget: Budget,
-    /// Stop with [`FailureCode::RelocNoEvidence`] when this many attempts
-    /// since the start have produced no correspondence at all (0 = never): the
-    /// fast "no fix" for a frame that does not show the map from the prior.
-    pub no_evidence_attempts: u32,
-    /// Stop with [`FailureCode::RelocNoConsensus`] when this many rounds
-    /// have ended without a consensus before the first pose update (0 =
-    /// only the Reseed cap ends such a run): the fast "no fix" for a frame
-    /// whose matches trickle in but never agree on a pose. Rounds of the
-    /// multi-seed mode are not counted (each seed is its own guess).
-    pub first_fix_rounds: u8,
-    /// Before the first pose update, a round whose pairs reach no consensus
-    /// of `min_inliers` is solved once more, on the same pairs, with the
-    /// depth-uncertainty term of the RANSAC inlier gate scaled by this factor
-    /// ([`Solver::set_sigma_scale`](super::Solver::set_sigma_scale)); only if that also fails is the round a
-    /// failed one. 1 = no second solve, else (1, [`MAX_FIRST_FIX_SIGMA_SCALE`]]. Rounds after the first
-    /// fix, and first rounds that reach the consensus, keep the solver's gate.
-    pub first_fix_sigma_scale: f32,
-    /// Integrity gates applied to the final estimate before it is reported
-    /// as a success.
-    pub gates: Gates,
-    /// Upset tolerance: repeat the final solve, re-check the map product.
-    pub verify: Verify,
-    /// Before the first pose update from a wide prior, re-centre a round's
-    /// viewpoints on the translation its pairs agree on.
-    pub focus: Focus,
-    /// The final round (the one after `n_iter − 1` pose updates) accepts only
-    /// gradient-domain matches, and Reuse carries only such pairs into it; a
-    /// final round so restricted that fails is run again with every variant
-    /// (VTSM-RELOC-041). A gray-domain match follows the
-    /// shading baked into the map's texture, which a change of the time of
-    /// day moves alike across the image, so a final solve on such pairs
-    /// inherits that shift; the earlier rounds keep them, where the
-    /// consensus needs their yield (`fsw-docs/eval/lighting.md`).
-    pub final_gradient_only: bool,
+    pub(super) min_inliers: u16,
+    pub(super) seed_t_m: f32,
+    pub(super) seed_r_deg: f32,
+    pub(super) budget: Budget,
+    pub(super) no_evidence_attempts: u32,
+    pub(super) first_fix_rounds: u8,
+    pub(super) first_fix_sigma_scale: f32,
+    pub(super) gates: Gates,
+    pub(super) verify: Verify,
+    pub(super) focus: Focus,
+    pub(super) final_gradient_only: bool,
 }
 
 /// Focus: before the first pose update, from a prior more uncertain than
@@ -135,8 +111,13 @@ impl Focus {
 
     pub(super) fn validate(&self, params: &Params) -> bool {
         let votes_ok = self.votes == 0 || (2..=params.n_corr).contains(&u16::from(self.votes));
-        votes_ok
-            && self.radius_m.is_finite()
+        votes_ok && self.validate_widths()
+    }
+
+    /// The checks that do not need the parameters: radius in (0, 1] m,
+    /// width in (0, [`crate::config::MAX_T0_M`]].
+    fn validate_widths(&self) -> bool {
+        self.radius_m.is_finite()
             && self.radius_m > 0.0
             && self.radius_m <= 1.0
             && self.t_m.is_finite()
@@ -280,16 +261,205 @@ impl Options {
         }
     }
 
+    /// A solution with fewer inliers is treated as a failed GetTransform
+    /// (3..=n_corr); this is what keeps a wrong prior from yielding a confident pose.
+    pub const fn min_inliers(&self) -> u16 {
+        self.min_inliers
+    }
+
+    /// Translation spread of the multi-seed mode (prior uncertainty), metres, (0, 5].
+    pub const fn seed_t_m(&self) -> f32 {
+        self.seed_t_m
+    }
+
+    /// Rotation spread of the multi-seed mode, degrees, (0, 45].
+    pub const fn seed_r_deg(&self) -> f32 {
+        self.seed_r_deg
+    }
+
+    /// Work / tick budget.
+    pub const fn budget(&self) -> Budget {
+        self.budget
+    }
+
+    /// Stop with [`FailureCode::RelocNoEvidence`] when this many attempts
+    /// since the start have produced no correspondence at all (0 = never): the
+    /// fast "no fix" for a frame that does not show the map from the prior.
+    pub const fn no_evidence_attempts(&self) -> u32 {
+        self.no_evidence_attempts
+    }
+
+    /// Stop with [`FailureCode::RelocNoConsensus`] when this many rounds
+    /// have ended without a consensus before the first pose update (0 =
+    /// only the Reseed cap ends such a run): the fast "no fix" for a frame
+    /// whose matches trickle in but never agree on a pose. Rounds of the
+    /// multi-seed mode are not counted (each seed is its own guess).
+    pub const fn first_fix_rounds(&self) -> u8 {
+        self.first_fix_rounds
+    }
+
+    /// Before the first pose update, a round whose pairs reach no consensus
+    /// of `min_inliers` is solved once more, on the same pairs, with the
+    /// depth-uncertainty term of the RANSAC inlier gate scaled by this factor
+    /// ([`Solver::set_sigma_scale`](super::Solver::set_sigma_scale)); only if that also fails is the round a
+    /// failed one. 1 = no second solve, else (1, [`MAX_FIRST_FIX_SIGMA_SCALE`]]. Rounds after the first
+    /// fix, and first rounds that reach the consensus, keep the solver's gate.
+    pub const fn first_fix_sigma_scale(&self) -> f32 {
+        self.first_fix_sigma_scale
+    }
+
+    /// Integrity gates applied to the final estimate before it is reported
+    /// as a success.
+    pub const fn gates(&self) -> Gates {
+        self.gates
+    }
+
+    /// Upset tolerance: repeat the final solve, re-check the map product.
+    pub const fn verify(&self) -> Verify {
+        self.verify
+    }
+
+    /// Before the first pose update from a wide prior, re-centre a round's
+    /// viewpoints on the translation its pairs agree on.
+    pub const fn focus(&self) -> Focus {
+        self.focus
+    }
+
+    /// The final round (the one after `n_iter − 1` pose updates) accepts only
+    /// gradient-domain matches, and Reuse carries only such pairs into it; a
+    /// final round so restricted that fails is run again with every variant
+    /// (VTSM-RELOC-041). A gray-domain match follows the
+    /// shading baked into the map's texture, which a change of the time of
+    /// day moves alike across the image, so a final solve on such pairs
+    /// inherits that shift; the earlier rounds keep them, where the
+    /// consensus needs their yield (`fsw-docs/eval/lighting.md`).
+    pub const fn final_gradient_only(&self) -> bool {
+        self.final_gradient_only
+    }
+
+    /// With at least `min_inliers` inliers for an accepted GetTransform.
+    ///
+    /// # Errors
+    /// [`FailureCode::ConfigParamOutOfRange`] below 3 (above N_corr is refused
+    /// where the options meet the parameters).
+    pub const fn with_min_inliers(self, min_inliers: u16) -> Result<Self, FailureCode> {
+        if min_inliers < 3 {
+            return Err(FailureCode::ConfigParamOutOfRange);
+        }
+        Ok(Self {
+            min_inliers,
+            ..self
+        })
+    }
+
+    /// With the multi-seed spread `t_m` metres, `r_deg` degrees.
+    ///
+    /// # Errors
+    /// [`FailureCode::ConfigParamOutOfRange`] unless `t_m` is in (0, 5] and
+    /// `r_deg` in (0, 45].
+    pub fn with_seed_spread(self, t_m: f32, r_deg: f32) -> Result<Self, FailureCode> {
+        if !(seed_t_ok(t_m) && seed_r_ok(r_deg)) {
+            return Err(FailureCode::ConfigParamOutOfRange);
+        }
+        Ok(Self {
+            seed_t_m: t_m,
+            seed_r_deg: r_deg,
+            ..self
+        })
+    }
+
+    /// With the work and tick budget `budget` (any values).
+    pub const fn with_budget(self, budget: Budget) -> Self {
+        Self { budget, ..self }
+    }
+
+    /// With the no-evidence cap `attempts` (0 = never).
+    pub const fn with_no_evidence_attempts(self, attempts: u32) -> Self {
+        Self {
+            no_evidence_attempts: attempts,
+            ..self
+        }
+    }
+
+    /// With the first-fix cap `rounds` (0 = the Reseed cap only) and the
+    /// first-fix gate scale `sigma_scale`.
+    ///
+    /// # Errors
+    /// [`FailureCode::ConfigParamOutOfRange`] unless `sigma_scale` is in
+    /// [1, [`MAX_FIRST_FIX_SIGMA_SCALE`]].
+    pub fn with_first_fix(self, rounds: u8, sigma_scale: f32) -> Result<Self, FailureCode> {
+        if !sigma_scale_ok(sigma_scale) {
+            return Err(FailureCode::ConfigParamOutOfRange);
+        }
+        Ok(Self {
+            first_fix_rounds: rounds,
+            first_fix_sigma_scale: sigma_scale,
+            ..self
+        })
+    }
+
+    /// With the integrity gates `gates`.
+    ///
+    /// # Errors
+    /// [`FailureCode::ConfigParamOutOfRange`] for a gate out of its range.
+    pub fn with_gates(self, gates: Gates) -> Result<Self, FailureCode> {
+        if !gates.validate() {
+            return Err(FailureCode::ConfigParamOutOfRange);
+        }
+        Ok(Self { gates, ..self })
+    }
+
+    /// With the upset checks `verify`.
+    ///
+    /// # Errors
+    /// [`FailureCode::ConfigParamOutOfRange`] unless both tolerances are
+    /// finite and positive.
+    pub fn with_verify(self, verify: Verify) -> Result<Self, FailureCode> {
+        if !verify.validate() {
+            return Err(FailureCode::ConfigParamOutOfRange);
+        }
+        Ok(Self { verify, ..self })
+    }
+
+    /// With the two upset checks switched on or off, the tolerances kept.
+    pub const fn with_upset_checks(self, repeat_solve: bool, recheck_map: bool) -> Self {
+        Self {
+            verify: Verify {
+                repeat_solve,
+                recheck_map,
+                ..self.verify
+            },
+            ..self
+        }
+    }
+
+    /// With Focus `focus`.
+    ///
+    /// # Errors
+    /// [`FailureCode::ConfigParamOutOfRange`] for a radius or width out of
+    /// range or a single vote (votes above N_corr are refused where the
+    /// options meet the parameters).
+    pub fn with_focus(self, focus: Focus) -> Result<Self, FailureCode> {
+        if focus.votes == 1 || !focus.validate_widths() {
+            return Err(FailureCode::ConfigParamOutOfRange);
+        }
+        Ok(Self { focus, ..self })
+    }
+
+    /// With the final round restricted to gradient-domain matches or not.
+    pub const fn with_final_gradient_only(self, on: bool) -> Self {
+        Self {
+            final_gradient_only: on,
+            ..self
+        }
+    }
+
+    /// Every check, those against `params` included.
     pub(super) fn validate(&self, params: &Params) -> Result<(), FailureCode> {
         let ok = (3..=params.n_corr).contains(&self.min_inliers)
-            && self.seed_t_m.is_finite()
-            && self.seed_t_m > 0.0
-            && self.seed_t_m <= 5.0
-            && self.seed_r_deg.is_finite()
-            && self.seed_r_deg > 0.0
-            && self.seed_r_deg <= 45.0
-            && self.first_fix_sigma_scale.is_finite()
-            && (1.0..=MAX_FIRST_FIX_SIGMA_SCALE).contains(&self.first_fix_sigma_scale)
+            && seed_t_ok(self.seed_t_m)
+            && seed_r_ok(self.seed_r_deg)
+            && sigma_scale_ok(self.first_fix_sigma_scale)
             && self.gates.validate()
             && self.verify.validate()
             && self.focus.validate(params);
@@ -299,6 +469,21 @@ impl Options {
             Err(FailureCode::ConfigParamOutOfRange)
         }
     }
+}
+
+/// A multi-seed translation spread in (0, 5] metres.
+fn seed_t_ok(t_m: f32) -> bool {
+    t_m.is_finite() && t_m > 0.0 && t_m <= 5.0
+}
+
+/// A multi-seed rotation spread in (0, 45] degrees.
+fn seed_r_ok(r_deg: f32) -> bool {
+    r_deg.is_finite() && r_deg > 0.0 && r_deg <= 45.0
+}
+
+/// A first-fix gate scale in [1, [`MAX_FIRST_FIX_SIGMA_SCALE`]].
+fn sigma_scale_ok(scale: f32) -> bool {
+    scale.is_finite() && (1.0..=MAX_FIRST_FIX_SIGMA_SCALE).contains(&scale)
 }
 
 /// Default [`Gates::prior_factor`]: the truth lies within the prior's
@@ -346,4 +531,72 @@ pub const MAX_FIRST_FIX_SIGMA_SCALE: f32 = 16.0;
 /// correct ones to converge (`fsw-docs/eval/first-fix.md`).
 pub fn first_fix_sigma_scale(template_px: u16) -> f32 {
     footprint_scale(template_px).min(MAX_FIRST_FIX_SIGMA_SCALE)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::MAX_T0_M;
+
+    /// Every builder refuses a value out of its range with its code and keeps
+    /// one in range.
+    #[test]
+    fn builders_refuse_out_of_range_values() {
+        let p = Params::default();
+        let o = Options::for_params(&p);
+        let bad = Err(FailureCode::ConfigParamOutOfRange);
+        assert_eq!(o.with_min_inliers(2), bad);
+        assert_eq!(o.with_min_inliers(3).map(|o| o.min_inliers()), Ok(3));
+        for (t, r) in [
+            (0.0, 1.0),
+            (5.5, 1.0),
+            (f32::NAN, 1.0),
+            (0.5, 0.0),
+            (0.5, 46.0),
+        ] {
+            assert_eq!(o.with_seed_spread(t, r), bad, "({t}, {r})");
+        }
+        let spread = o.with_seed_spread(0.6, 2.0).unwrap();
+        assert_eq!((spread.seed_t_m(), spread.seed_r_deg()), (0.6, 2.0));
+        for s in [0.5, MAX_FIRST_FIX_SIGMA_SCALE + 1.0, f32::INFINITY] {
+            assert_eq!(o.with_first_fix(1, s), bad, "{s}");
+        }
+        let ff = o.with_first_fix(2, 1.0).unwrap();
+        assert_eq!(
+            (ff.first_fix_rounds(), ff.first_fix_sigma_scale()),
+            (2, 1.0)
+        );
+        let gates = Gates {
+            prior_factor: 0.5,
+            ..Gates::OFF
+        };
+        assert_eq!(o.with_gates(gates), bad);
+        assert_eq!(o.with_gates(Gates::OFF).map(|o| o.gates()), Ok(Gates::OFF));
+        let verify = Verify {
+            tolerance_m: -1.0,
+            ..o.verify()
+        };
+        assert_eq!(o.with_verify(verify), bad);
+        let focus = Focus {
+            votes: 1,
+            ..o.focus()
+        };
+        assert_eq!(o.with_focus(focus), bad);
+        let focus = Focus {
+            t_m: MAX_T0_M * 2.0,
+            ..o.focus()
+        };
+        assert_eq!(o.with_focus(focus), bad);
+        assert_eq!(o.with_focus(Focus::OFF).map(|o| o.focus()), Ok(Focus::OFF));
+        let budget = Budget {
+            max_work_units: 9,
+            deadline_tick: 10,
+        };
+        assert_eq!(o.with_budget(budget).budget(), budget);
+        assert_eq!(o.with_no_evidence_attempts(0).no_evidence_attempts(), 0);
+        assert!(!o.with_final_gradient_only(false).final_gradient_only());
+        let on = o.with_upset_checks(true, true).verify();
+        assert!(on.repeat_solve && on.recheck_map);
+        assert_eq!(on.tolerance_m, o.verify().tolerance_m);
+    }
 }

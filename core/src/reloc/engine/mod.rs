@@ -112,12 +112,15 @@ pub(super) fn pose_is_valid(p: &Pose) -> bool {
 }
 
 impl<A: Attempt, S: Solver> Relocalizer<A, S> {
-    /// A relocalizer ready to run from `prior` (`world_from_left`).
+    /// A relocalizer ready to run from `prior` (`world_from_left`), over any
+    /// pipeline and solver: the tests' fakes. Every other caller builds the
+    /// engine with [`super::Setup::build`].
     ///
     /// # Errors
     /// [`FailureCode::ConfigParamOutOfRange`] for invalid `params` or `opts`;
     /// [`FailureCode::RelocPriorInvalid`] for a non-finite or non-unit prior.
-    pub fn new(
+    #[cfg(test)]
+    pub(crate) fn new(
         attempt: A,
         solver: S,
         params: &Params,
@@ -135,7 +138,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         ))
     }
 
-    /// [`Relocalizer::new`] for inputs the caller has already validated
+    /// A relocalizer for inputs the caller has already validated
     /// ([`super::Setup::build`]).
     pub(super) fn from_checked(
         attempt: A,

@@ -352,6 +352,22 @@ fn setup_refuses_mismatched_images_small_workspaces_and_bad_inputs() {
         bad_options.validate(),
         Err(FailureCode::ConfigParamOutOfRange)
     );
+    // The builders refuse the same values before a build.
+    let bad = Err(FailureCode::ConfigParamOutOfRange);
+    let policy = MatchPolicy {
+        min_score: 2.0,
+        ..good.policy
+    };
+    assert_eq!(good.with_policy(policy).map(|_| ()), bad);
+    let too_many = good.options.with_min_inliers(p.n_corr + 1).unwrap();
+    assert_eq!(good.with_options(too_many).map(|_| ()), bad);
+    let ok = good.options.with_min_inliers(p.n_corr).unwrap();
+    assert_eq!(
+        good.with_options(ok).unwrap().options().min_inliers(),
+        p.n_corr
+    );
+    let checked = good.with_upset_checks(true, true).options().verify();
+    assert!(checked.repeat_solve && checked.recheck_map);
     let nan_prior = Setup {
         prior: Pose::new(truth.rotation(), Vec3::new(f32::NAN, 0.0, 0.0)),
         ..good
