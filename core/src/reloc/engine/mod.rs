@@ -259,24 +259,21 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             self.finish_budget(now);
             return Stage::Stop;
         }
-        match self.phase {
-            Phase::Collect | Phase::Attempt => self.begin_attempt(now),
-            Phase::Solve => {
-                self.solve_start(Pass::Round, now);
-                Stage::Pose
-            }
-            Phase::Chunks => {
-                self.solve_chunk(Pass::Round, now);
-                Stage::Pose
-            }
-            Phase::Verify => {
-                self.solve_start(Pass::Verify, now);
-                Stage::Verify
-            }
-            Phase::VerifyChunks => {
-                self.solve_chunk(Pass::Verify, now);
-                Stage::Verify
-            }
+        let (pass, chunk) = match self.phase {
+            Phase::Collect | Phase::Attempt => return self.begin_attempt(now),
+            Phase::Solve => (Pass::Round, false),
+            Phase::Chunks => (Pass::Round, true),
+            Phase::Verify => (Pass::Verify, false),
+            Phase::VerifyChunks => (Pass::Verify, true),
+        };
+        if chunk {
+            self.solve_chunk(pass, now);
+        } else {
+            self.solve_start(pass, now);
+        }
+        match pass {
+            Pass::Round => Stage::Pose,
+            Pass::Verify => Stage::Verify,
         }
     }
 
