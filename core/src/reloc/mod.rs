@@ -31,6 +31,15 @@
 //! other kind — and says which stage it ran, so a caller that reads a clock
 //! around each call can attribute time to stages; the core itself reads none.
 //! The outcome is the same as with whole units.
+//!
+//! Layout, one concept per file: `setup` (the one constructor, [`Setup`]),
+//! `engine/` (the state machine: `mod` stepping and accessors, `collect`
+//! attempts and Focus, `solve` GetTransform, `rounds` the §III-E mechanisms,
+//! `conclude` the final estimate and the outcome), `pipeline/` (the real
+//! [`Attempt`]: `sample` SamplePoint and Synthesize, `window` search windows,
+//! `matching` Match, Valid + Stereo in `mod`), `work` (the [`Attempt`] and
+//! [`Solver`] traits), `options`, `outcome`, and beside them `policy`,
+//! `solver`, `viewpoint`, `integrity`, `preflight`, `workspace`.
 
 mod engine;
 pub mod integrity;

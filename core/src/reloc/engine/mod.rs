@@ -1,6 +1,13 @@
 //! The [`Relocalizer`] state machine: rounds of correspondence collection and
 //! GetTransform, with the §III-E mechanisms, one work unit per [`Relocalizer::step`]
 //! (one [`Stage`] per [`Relocalizer::step_stage`]).
+//!
+//! This file holds the state, the constructors and the stepping entry points;
+//! each kind of work unit has its own file: `collect` (an attempt, Focus, the
+//! start of a round), `solve` (GetTransform, whole or in chunks, and its
+//! repetition for `Verify::repeat_solve`), `rounds` (what a round's success
+//! or failure does: Anneal, Distribute, Reuse, Stall, Reseed, multi-seed) and
+//! `conclude` (the refined final estimate, the integrity gates, the outcome).
 
 use super::viewpoint::randomize;
 use super::{
