@@ -163,30 +163,12 @@ impl ScratchSizes {
     /// derivative domains refine more candidates, so they may share whole-level
     /// integral tables where gray does not).
     pub const fn new(tw: usize, th: usize, ww: usize, wh: usize, mode: Search) -> Self {
-        let g = Self::with_config(
-            tw,
-            th,
-            ww,
-            wh,
-            mode,
-            &SearchConfig::for_filter(Filter::Gray),
-        );
-        let s = Self::with_config(
-            tw,
-            th,
-            ww,
-            wh,
-            mode,
-            &SearchConfig::for_filter(Filter::Sobel),
-        );
-        let l = Self::with_config(
-            tw,
-            th,
-            ww,
-            wh,
-            mode,
-            &SearchConfig::for_filter(Filter::Laplacian),
-        );
+        const GRAY: SearchConfig = SearchConfig::for_filter(Filter::Gray);
+        const SOBEL: SearchConfig = SearchConfig::for_filter(Filter::Sobel);
+        const LAPLACIAN: SearchConfig = SearchConfig::for_filter(Filter::Laplacian);
+        let g = Self::with_config(tw, th, ww, wh, mode, &GRAY);
+        let s = Self::with_config(tw, th, ww, wh, mode, &SOBEL);
+        let l = Self::with_config(tw, th, ww, wh, mode, &LAPLACIAN);
         Self {
             window: max_usize(g.window, max_usize(s.window, l.window)),
             template: max_usize(g.template, max_usize(s.template, l.template)),
