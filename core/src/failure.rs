@@ -3,7 +3,8 @@
 //! Every way an input or a stage can fail has its own [`FailureCode`]:
 //! `#[repr(u16)]`, grouped by subsystem in the high byte (0x01xx config,
 //! 0x02xx image, 0x03xx map, 0x04xx raster, 0x05xx ncc, 0x06xx stereo,
-//! 0x07xx pose, 0x08xx reloc, 0x09xx hardware/HAL). Zero is never an error.
+//! 0x07xx pose, 0x08xx reloc, 0x09xx hardware/HAL, 0x0Axx C interface). Zero is
+//! never an error.
 //! Each code carries a [`Severity`] and a [`Retry`] hint; the table in
 //! `fsw-docs/failure-codes.md` is checked against [`FailureCode::ALL`] by a test.
 //!
@@ -237,6 +238,13 @@ failure_codes! {
         "The pose prior has a non-finite pose, a covariance that is not symmetric non-negative, or stated half-widths (t̃₀, r̃₀) outside the engine's ranges; it is rejected.";
     HalFrameStoreRead = 0x090E, Degraded, Same, "HAL_FRAME_STORE_READ",
         "The frame store failed to read a window of the stereo pair (timeout, short read, detected corruption or device fault); the runner reads it again within its retry cap.";
+    // 0x0Axx C interface (vtsm-ffi)
+    FfiNullPointer = 0x0A01, Fatal, Never, "FFI_NULL_POINTER",
+        "A pointer given to the C interface is null where an object or a callback is required; nothing is done.";
+    FfiMisaligned = 0x0A02, Fatal, Never, "FFI_MISALIGNED",
+        "A buffer given to the C interface is not aligned as its contents require (engine storage: VTSM_STORAGE_ALIGN); nothing is done.";
+    FfiBadHandle = 0x0A03, Fatal, Never, "FFI_BAD_HANDLE",
+        "The engine handle does not point at storage set up by vtsm_engine_create (never created, released, or overwritten since); nothing is done.";
 }
 
 impl FailureCode {
@@ -372,7 +380,7 @@ mod tests {
     fn codes_are_unique_nonzero_and_grouped() {
         for (i, a) in FailureCode::ALL.iter().enumerate() {
             assert_ne!(a.code(), 0);
-            assert!((1..=9).contains(&a.group()), "{a:?}");
+            assert!((1..=0x0A).contains(&a.group()), "{a:?}");
             assert_eq!(FailureCode::from_u16(a.code()), Some(*a));
             for b in &FailureCode::ALL[i + 1..] {
                 assert_ne!(a.code(), b.code());

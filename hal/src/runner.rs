@@ -226,9 +226,11 @@ fn capture_retried<E: Error>(
                 let code = failure_code(Device::Camera, kind);
                 log.record(code, now_ticks, u32::from(attempt));
                 match kind {
-                    ErrorKind::Timeout => rep.timeouts += 1,
-                    ErrorKind::Truncated => rep.truncated += 1,
-                    _ => rep.faults += 1,
+                    // Saturating: with a run-time attempt count (the C
+                    // interface) the compiler cannot bound these by it.
+                    ErrorKind::Timeout => rep.timeouts = rep.timeouts.saturating_add(1),
+                    ErrorKind::Truncated => rep.truncated = rep.truncated.saturating_add(1),
+                    _ => rep.faults = rep.faults.saturating_add(1),
                 }
                 if !kind.is_transient() {
                     return Err(code);

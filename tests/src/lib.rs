@@ -63,7 +63,7 @@ pub fn failure_table_markdown() -> String {
          do not edit by hand. `tests/tests/integration/failure_codes.rs` checks this table\n\
          against the enum in both directions.\n\n\
          Groups (high byte): 0x01 config, 0x02 image, 0x03 map, 0x04 raster, 0x05 ncc,\n\
-         0x06 stereo, 0x07 pose, 0x08 reloc, 0x09 hardware (HAL). Zero is never an error.\n\n\
+         0x06 stereo, 0x07 pose, 0x08 reloc, 0x09 hardware (HAL), 0x0A C interface. Zero is never an error.\n\n\
          Severity: Info = expected, counted only; Degraded = one attempt or iteration lost;\n\
          Fatal = no pose from these inputs. Retry: Same = retry with the same inputs;\n\
          NewInput = only with new inputs; Never = fix configuration or data.\n\n",

@@ -58,7 +58,8 @@ pub const fn search_levels(
     let c = *cfg;
     let t = if tw < th { tw } else { th };
     let w = if ww < wh { ww } else { wh };
-    let min = if w > WIDE_WINDOW_RATIO * t {
+    // Saturating: no panic path for sizes only known at run time.
+    let min = if w > WIDE_WINDOW_RATIO.saturating_mul(t) {
         c.wide_min_coarse_px
     } else {
         c.min_coarse_px

@@ -253,7 +253,8 @@ impl<'w> Workspace<'w> {
         mut words: &'w mut [u32],
         runs: &'w mut [Run],
     ) -> Result<Self, FailureCode> {
-        let t2 = sizes.template_px * sizes.template_px;
+        // Saturating: an impossible size is refused by `take`, not a panic.
+        let t2 = sizes.template_px.saturating_mul(sizes.template_px);
         let inten_l = take(&mut bytes, t2)?;
         let inten_r = take(&mut bytes, t2)?;
         let mask_l = take(&mut bytes, t2)?;
