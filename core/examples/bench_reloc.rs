@@ -54,8 +54,9 @@ fn main() {
             truth.rotation() * UnitQuaternion::from_scaled_axis(axis * rdeg.to_radians()),
             truth.translation() + d,
         );
-        let mut setup = Setup::new(&map, lv, rv, &rig, &p, &prior, k);
-        setup.options.min_inliers = 15;
+        let setup = Setup::new(&map, lv, rv, &rig, &p, &prior, k);
+        let options = setup.options().with_min_inliers(15).unwrap();
+        let setup = setup.with_options(options).unwrap();
         let ws = Workspace::new(TEST_WORKSPACE, &mut b, &mut w, &mut r).unwrap();
         let mut reloc = setup.build(ws).unwrap();
         let t0 = Instant::now();

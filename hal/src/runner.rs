@@ -991,15 +991,16 @@ impl<'w, C: FrameStore> PairSource<'w, C> for InStore {
 /// Build the engine of `setup` with the upset checks `verify` over `ws`; a
 /// rejected setup is logged at `start`.
 fn build<'a, 'w, F: FrameSource>(
-    mut setup: Setup<'a, F>,
+    setup: Setup<'a, F>,
     verify: VerifyChecks,
     ws: Workspace<'w>,
     log: &mut FailureLog,
     start: u64,
 ) -> Result<Engine<'a, 'w, F>, FailureCode> {
-    setup.options.verify.repeat_solve = verify.repeat_solve;
-    setup.options.verify.recheck_map = verify.recheck_map;
-    setup.build(ws).inspect_err(|&c| log.record(c, start, 0))
+    setup
+        .with_upset_checks(verify.repeat_solve, verify.recheck_map)
+        .build(ws)
+        .inspect_err(|&c| log.record(c, start, 0))
 }
 
 /// Drive a built engine with the clock under `limits`, calling `between`

@@ -75,38 +75,28 @@ fn named_config(name: &str, filter: Filter) -> SearchConfig {
     if name == "default" {
         return SearchConfig::for_filter(filter);
     }
-    let mut c = SearchConfig {
-        candidates: 8,
-        final_candidates: 4,
-        verify_all_below_px: 0,
-        refine_radius_px: 2,
-        final_refine_radius_px: 1,
-        first_refine_radius_px: 0,
-        nms_radius_px: 2,
-        min_coarse_px: 16,
-        wide_min_coarse_px: 16,
-    };
+    let base = SearchConfig::for_filter(filter)
+        .with_candidates(8, 4)
+        .and_then(|c| c.with_refine_radii_px(2, 1, 0))
+        .and_then(|c| c.with_coarse_px(16, 16))
+        .map(|c| c.with_nms_and_verify_px(2, 0))
+        .expect("previous defaults are in range");
+    let mut c = base;
     for part in name.split('+') {
         let num = |p: &str| p[1..].parse::<usize>().expect("config number");
-        match part.chars().next() {
-            Some('c') => {
-                c.candidates = num(part);
-                c.final_candidates = num(part);
+        let changed = match part.chars().next() {
+            Some('c') => c.with_candidates(num(part), num(part)),
+            Some('r') => c.with_refine_radii_px(num(part), num(part), c.first_refine_radius_px()),
+            Some('a') => {
+                c.with_refine_radii_px(c.refine_radius_px(), c.final_refine_radius_px(), num(part))
             }
-            Some('r') => {
-                c.refine_radius_px = num(part);
-                c.final_refine_radius_px = num(part);
-            }
-            Some('a') => c.first_refine_radius_px = num(part),
-            Some('f') => c.final_candidates = num(part),
-            Some('m') => {
-                c.min_coarse_px = num(part);
-                c.wide_min_coarse_px = num(part);
-            }
-            Some('n') => c.nms_radius_px = num(part),
-            Some('o') => {}
+            Some('f') => c.with_candidates(c.candidates(), num(part)),
+            Some('m') => c.with_coarse_px(num(part), num(part)),
+            Some('n') => Ok(c.with_nms_and_verify_px(num(part), c.verify_all_below_px())),
+            Some('o') => Ok(c),
             _ => panic!("unknown config part {part}"),
-        }
+        };
+        c = changed.unwrap_or_else(|code| panic!("config part {part} out of range: {code:?}"));
     }
     c
 }

@@ -96,41 +96,44 @@ pub enum Search {
 
 /// Tuning of the coarse-to-fine search (ignored by [`Search::Exhaustive`]).
 ///
-/// Out-of-range fields are clamped: `candidates` and `final_candidates` to
-/// `1..=MAX_CANDIDATES`, the radii to `0..=MAX_REFINE_RADIUS_PX`, `min_coarse_px`
-/// to at least [`MIN_COARSE_PX`].
+/// A checked type: [`SearchConfig::for_filter`] gives a default, and each
+/// `with_*` method changes fields only to values in range, returning
+/// [`FailureCode::ConfigParamOutOfRange`] otherwise (`candidates` and
+/// `final_candidates` in `1..=MAX_CANDIDATES`, the radii in
+/// `0..=MAX_REFINE_RADIUS_PX`, the coarsest sides at least [`MIN_COARSE_PX`]).
+/// Fields are read through accessors of the same names.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct SearchConfig {
     /// Separated peaks kept at the coarsest level and refined at each finer level.
-    pub candidates: usize,
+    candidates: usize,
     /// Candidates carried into the full-resolution verification (best first)
     /// for templates whose shorter side is at least `verify_all_below_px`.
-    pub final_candidates: usize,
+    final_candidates: usize,
     /// Templates whose shorter side is below this verify every candidate at full
     /// resolution (the verification costs `(2r + 1)²·ℓ²` MACs per candidate).
-    pub verify_all_below_px: usize,
+    verify_all_below_px: usize,
     /// Refinement radius (pixels of the finer level) around each up-scaled
     /// candidate at the intermediate levels.
-    pub refine_radius_px: usize,
+    refine_radius_px: usize,
     /// Refinement radius at full resolution.
-    pub final_refine_radius_px: usize,
+    final_refine_radius_px: usize,
     /// Smallest refinement radius at the level just below the coarsest (the full
     /// resolution itself in a two-level search; the larger of this and the
     /// level's own radius above is used there). A coarse position suppressed by the non-maximum suppression lies
     /// within `nms_radius_px` coarse pixels of a kept candidate, i.e. up to
     /// `2·nms_radius_px + 1` pixels of the finer level from its up-scaled
     /// position; this radius at `2·nms_radius_px + 1` reaches those positions.
-    pub first_refine_radius_px: usize,
+    first_refine_radius_px: usize,
     /// Non-maximum-suppression radius between coarse candidates (coarse pixels, Chebyshev).
-    pub nms_radius_px: usize,
+    nms_radius_px: usize,
     /// Coarsest template side (see [`pyramid_levels_min`]) when the window's
     /// shorter side is at most [`WIDE_WINDOW_RATIO`] template sides (every search
     /// of the relocalization pipeline, whose windows are capped near 3.2 ℓ).
-    pub min_coarse_px: usize,
+    min_coarse_px: usize,
     /// Coarsest template side for wider windows, where the coarsest level's
     /// exhaustive scan would otherwise dominate the cost.
-    pub wide_min_coarse_px: usize,
+    wide_min_coarse_px: usize,
 }
 
 impl SearchConfig {
@@ -162,28 +165,141 @@ impl SearchConfig {
         }
     }
 
-    /// The configuration with every field clamped to its allowed range.
-    pub const fn clamped(self) -> Self {
-        const fn clamp(v: usize, lo: usize, hi: usize) -> usize {
-            if v < lo {
-                lo
-            } else if v > hi {
-                hi
-            } else {
-                v
-            }
+    /// The configuration with `candidates` coarse peaks and `final_candidates`
+    /// verified at full resolution.
+    ///
+    /// # Errors
+    /// [`FailureCode::ConfigParamOutOfRange`] unless both are in `1..=MAX_CANDIDATES`.
+    pub const fn with_candidates(
+        self,
+        candidates: usize,
+        final_candidates: usize,
+    ) -> Result<Self, FailureCode> {
+        if candidates == 0
+            || candidates > MAX_CANDIDATES
+            || final_candidates == 0
+            || final_candidates > MAX_CANDIDATES
+        {
+            return Err(FailureCode::ConfigParamOutOfRange);
         }
+        Ok(Self {
+            candidates,
+            final_candidates,
+            ..self
+        })
+    }
+
+    /// The configuration with the refinement radii: `refine` at the
+    /// intermediate levels, `last` at full resolution, `first` at least at the
+    /// level just below the coarsest.
+    ///
+    /// # Errors
+    /// [`FailureCode::ConfigParamOutOfRange`] unless each is at most
+    /// [`MAX_REFINE_RADIUS_PX`].
+    pub const fn with_refine_radii_px(
+        self,
+        refine: usize,
+        last: usize,
+        first: usize,
+    ) -> Result<Self, FailureCode> {
+        if refine > MAX_REFINE_RADIUS_PX
+            || last > MAX_REFINE_RADIUS_PX
+            || first > MAX_REFINE_RADIUS_PX
+        {
+            return Err(FailureCode::ConfigParamOutOfRange);
+        }
+        Ok(Self {
+            refine_radius_px: refine,
+            final_refine_radius_px: last,
+            first_refine_radius_px: first,
+            ..self
+        })
+    }
+
+    /// The configuration with coarsest template sides `min_coarse_px` (windows
+    /// up to [`WIDE_WINDOW_RATIO`] template sides) and `wide_min_coarse_px`
+    /// (wider windows).
+    ///
+    /// # Errors
+    /// [`FailureCode::ConfigParamOutOfRange`] unless both are at least [`MIN_COARSE_PX`].
+    pub const fn with_coarse_px(
+        self,
+        min_coarse_px: usize,
+        wide_min_coarse_px: usize,
+    ) -> Result<Self, FailureCode> {
+        if min_coarse_px < MIN_COARSE_PX || wide_min_coarse_px < MIN_COARSE_PX {
+            return Err(FailureCode::ConfigParamOutOfRange);
+        }
+        Ok(Self {
+            min_coarse_px,
+            wide_min_coarse_px,
+            ..self
+        })
+    }
+
+    /// The configuration with non-maximum-suppression radius `nms_radius_px`
+    /// and full verification below templates of side `verify_all_below_px`
+    /// (any values).
+    pub const fn with_nms_and_verify_px(
+        self,
+        nms_radius_px: usize,
+        verify_all_below_px: usize,
+    ) -> Self {
         Self {
-            candidates: clamp(self.candidates, 1, MAX_CANDIDATES),
-            final_candidates: clamp(self.final_candidates, 1, MAX_CANDIDATES),
-            verify_all_below_px: self.verify_all_below_px,
-            refine_radius_px: clamp(self.refine_radius_px, 0, MAX_REFINE_RADIUS_PX),
-            final_refine_radius_px: clamp(self.final_refine_radius_px, 0, MAX_REFINE_RADIUS_PX),
-            first_refine_radius_px: clamp(self.first_refine_radius_px, 0, MAX_REFINE_RADIUS_PX),
-            nms_radius_px: self.nms_radius_px,
-            min_coarse_px: clamp(self.min_coarse_px, MIN_COARSE_PX, usize::MAX),
-            wide_min_coarse_px: clamp(self.wide_min_coarse_px, MIN_COARSE_PX, usize::MAX),
+            nms_radius_px,
+            verify_all_below_px,
+            ..self
         }
+    }
+
+    /// Separated peaks kept at the coarsest level and refined at each finer level.
+    pub const fn candidates(&self) -> usize {
+        self.candidates
+    }
+
+    /// Candidates carried into the full-resolution verification (best first) for
+    /// templates whose shorter side is at least [`Self::verify_all_below_px`].
+    pub const fn final_candidates(&self) -> usize {
+        self.final_candidates
+    }
+
+    /// Templates whose shorter side is below this verify every candidate at full
+    /// resolution.
+    pub const fn verify_all_below_px(&self) -> usize {
+        self.verify_all_below_px
+    }
+
+    /// Refinement radius (pixels of the finer level) around each up-scaled candidate at
+    /// the intermediate levels.
+    pub const fn refine_radius_px(&self) -> usize {
+        self.refine_radius_px
+    }
+
+    /// Refinement radius at full resolution.
+    pub const fn final_refine_radius_px(&self) -> usize {
+        self.final_refine_radius_px
+    }
+
+    /// Smallest refinement radius at the level just below the coarsest.
+    pub const fn first_refine_radius_px(&self) -> usize {
+        self.first_refine_radius_px
+    }
+
+    /// Non-maximum-suppression radius between coarse candidates (coarse pixels,
+    /// Chebyshev).
+    pub const fn nms_radius_px(&self) -> usize {
+        self.nms_radius_px
+    }
+
+    /// Coarsest template side for windows at most [`WIDE_WINDOW_RATIO`] template sides
+    /// wide.
+    pub const fn min_coarse_px(&self) -> usize {
+        self.min_coarse_px
+    }
+
+    /// Coarsest template side for wider windows.
+    pub const fn wide_min_coarse_px(&self) -> usize {
+        self.wide_min_coarse_px
     }
 }
 
@@ -194,15 +310,27 @@ impl SearchConfig {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Score {
-    /// Numerator, |num| < 2⁴⁸.
-    pub num: i64,
-    /// Window variance term, 0 ≤ var_f < 2⁴⁸.
-    pub var_f: i64,
-    /// Template variance term, 0 ≤ var_t < 2⁴⁸.
-    pub var_t: i64,
+    num: i64,
+    var_f: i64,
+    var_t: i64,
 }
 
 impl Score {
+    /// Numerator, |num| < 2⁴⁸.
+    pub const fn num(&self) -> i64 {
+        self.num
+    }
+
+    /// Window variance term, 0 ≤ var_f < 2⁴⁸.
+    pub const fn var_f(&self) -> i64 {
+        self.var_f
+    }
+
+    /// Template variance term, 0 ≤ var_t < 2⁴⁸.
+    pub const fn var_t(&self) -> i64 {
+        self.var_t
+    }
+
     /// The score as f64: exact integers, one correctly rounded product conversion,
     /// square root and division, so the value is the same on every IEEE target.
     /// Exactly ±1 when `num² = var_f·var_t`; 0 when either variance is zero.
@@ -516,8 +644,8 @@ pub fn match_template(
     )
 }
 
-/// [`match_template`] with an explicit coarse-to-fine configuration (clamped
-/// with [`SearchConfig::clamped`]; ignored by [`Search::Exhaustive`]).
+/// [`match_template`] with an explicit coarse-to-fine configuration (ignored
+/// by [`Search::Exhaustive`]).
 ///
 /// # Errors
 /// As [`match_template`].
@@ -540,7 +668,7 @@ pub fn match_template_with(
         search,
         filter,
         mode,
-        &cfg.clamped(),
+        cfg,
         scratch,
     )
 }
@@ -571,7 +699,7 @@ pub fn match_in_window(
         window.local(search),
         filter,
         mode,
-        &SearchConfig::for_filter(filter).clamped(),
+        &SearchConfig::for_filter(filter),
         scratch,
     )
 }
@@ -1270,35 +1398,54 @@ mod tests {
 
     /// Verifies: VTSM-NCC-012
     #[test]
-    fn search_config_is_clamped() {
-        let wild = SearchConfig {
-            candidates: 0,
-            final_candidates: 999,
-            verify_all_below_px: 0,
-            refine_radius_px: 99,
-            final_refine_radius_px: 99,
-            first_refine_radius_px: 99,
-            nms_radius_px: 0,
-            min_coarse_px: 0,
-            wide_min_coarse_px: 0,
-        }
-        .clamped();
-        assert_eq!(
-            (wild.candidates, wild.final_candidates),
-            (1, MAX_CANDIDATES)
-        );
-        assert_eq!(wild.refine_radius_px, MAX_REFINE_RADIUS_PX);
-        assert_eq!(wild.final_refine_radius_px, MAX_REFINE_RADIUS_PX);
-        assert_eq!(wild.first_refine_radius_px, MAX_REFINE_RADIUS_PX);
-        assert_eq!(wild.min_coarse_px, MIN_COARSE_PX);
-        assert_eq!(wild.wide_min_coarse_px, MIN_COARSE_PX);
+    fn search_config_refuses_out_of_range_values() {
         let d = SearchConfig::for_filter(Filter::Gray);
+        let bad = FailureCode::ConfigParamOutOfRange;
+        assert_eq!(d.with_candidates(0, 8), Err(bad));
+        assert_eq!(d.with_candidates(8, 0), Err(bad));
+        assert_eq!(d.with_candidates(MAX_CANDIDATES + 1, 8), Err(bad));
+        assert_eq!(d.with_candidates(8, 999), Err(bad));
+        let c = d.with_candidates(1, MAX_CANDIDATES).unwrap();
+        assert_eq!((c.candidates(), c.final_candidates()), (1, MAX_CANDIDATES));
+        let over = MAX_REFINE_RADIUS_PX + 1;
+        assert_eq!(d.with_refine_radii_px(over, 0, 0), Err(bad));
+        assert_eq!(d.with_refine_radii_px(0, over, 0), Err(bad));
+        assert_eq!(d.with_refine_radii_px(0, 0, over), Err(bad));
+        let r = MAX_REFINE_RADIUS_PX;
+        let c = d.with_refine_radii_px(r, r, r).unwrap();
+        assert_eq!(
+            (
+                c.refine_radius_px(),
+                c.final_refine_radius_px(),
+                c.first_refine_radius_px()
+            ),
+            (r, r, r)
+        );
+        assert_eq!(d.with_coarse_px(MIN_COARSE_PX - 1, 32), Err(bad));
+        assert_eq!(d.with_coarse_px(32, 0), Err(bad));
+        let c = d.with_coarse_px(MIN_COARSE_PX, 64).unwrap();
+        assert_eq!(
+            (c.min_coarse_px(), c.wide_min_coarse_px()),
+            (MIN_COARSE_PX, 64)
+        );
+        let c = d.with_nms_and_verify_px(0, 0);
+        assert_eq!((c.nms_radius_px(), c.verify_all_below_px()), (0, 0));
         assert_eq!(search_levels(64, 64, 204, 204, &d), 2);
         assert_eq!(search_levels(128, 128, 800, 800, &d), 4);
         assert_eq!(search_levels(256, 256, 800, 800, &d), 4);
         for f in [Filter::Gray, Filter::Sobel, Filter::Laplacian] {
             let c = SearchConfig::for_filter(f);
-            assert_eq!(c, c.clamped(), "{f:?} default is in range");
+            let checked = c
+                .with_candidates(c.candidates(), c.final_candidates())
+                .and_then(|c| {
+                    c.with_refine_radii_px(
+                        c.refine_radius_px(),
+                        c.final_refine_radius_px(),
+                        c.first_refine_radius_px(),
+                    )
+                })
+                .and_then(|c| c.with_coarse_px(c.min_coarse_px(), c.wide_min_coarse_px()));
+            assert_eq!(checked, Ok(c), "{f:?} default is in range");
         }
         assert_eq!(pyramid_levels_min(64, 64, 32), 2);
         assert_eq!(pyramid_levels_min(32, 32, 32), 2);
@@ -1317,7 +1464,7 @@ mod tests {
             sx in -20i32..100, sy in -20i32..100, sw in 0u32..120, sh in 0u32..120,
             seed in any::<u64>(), levels in 0u32..256, flat in any::<bool>(),
             masked in any::<bool>(), filt in 0u8..3, exhaustive in any::<bool>(), short in any::<bool>(),
-            min_coarse in 0usize..80,
+            min_coarse in MIN_COARSE_PX..80,
         ) {
             let mut rng = Rng::new(seed);
             let img: Vec<u8> = if flat { vec![levels as u8; iw * ih] } else { random_px(iw * ih, &mut rng) };
@@ -1325,10 +1472,9 @@ mod tests {
             let mask: Vec<u8> = (0..tw * th).map(|_| if rng.below(4) == 0 { 0 } else { 255 }).collect();
             let mode = if exhaustive { Search::Exhaustive } else { Search::CoarseToFine };
             let filter = [Filter::Gray, Filter::Sobel, Filter::Laplacian][usize::from(filt)];
-            let cfg = SearchConfig {
-                min_coarse_px: min_coarse, wide_min_coarse_px: min_coarse / 2,
-                ..SearchConfig::for_filter(filter)
-            };
+            let cfg = SearchConfig::for_filter(filter)
+                .with_coarse_px(min_coarse, (min_coarse / 2).max(MIN_COARSE_PX))
+                .unwrap();
             let mut b = Bufs::with_config(tw, th, sw as usize, sh as usize, mode, &cfg);
             if short { b.i.truncate(b.i.len() / 2); }
             let r = match_template_with(

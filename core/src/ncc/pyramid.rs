@@ -55,7 +55,7 @@ pub const fn search_levels(
     wh: usize,
     cfg: &SearchConfig,
 ) -> usize {
-    let c = cfg.clamped();
+    let c = *cfg;
     let t = if tw < th { tw } else { th };
     let w = if ww < wh { ww } else { wh };
     // Saturating: no panic path for sizes only known at run time.
@@ -87,7 +87,7 @@ pub(super) const fn max_usize(a: usize, b: usize) -> usize {
 }
 
 /// Refinement radius and number of candidates refined at level `k` below the
-/// coarsest level `lc` (`k < lc`) with the clamped configuration `c`.
+/// coarsest level `lc` (`k < lc`) with the configuration `c`.
 pub(super) const fn refine_plan(
     tw: usize,
     th: usize,
@@ -164,30 +164,12 @@ impl ScratchSizes {
     /// derivative domains refine more candidates, so they may share whole-level
     /// integral tables where gray does not).
     pub const fn new(tw: usize, th: usize, ww: usize, wh: usize, mode: Search) -> Self {
-        let g = Self::with_config(
-            tw,
-            th,
-            ww,
-            wh,
-            mode,
-            &SearchConfig::for_filter(Filter::Gray),
-        );
-        let s = Self::with_config(
-            tw,
-            th,
-            ww,
-            wh,
-            mode,
-            &SearchConfig::for_filter(Filter::Sobel),
-        );
-        let l = Self::with_config(
-            tw,
-            th,
-            ww,
-            wh,
-            mode,
-            &SearchConfig::for_filter(Filter::Laplacian),
-        );
+        const GRAY: SearchConfig = SearchConfig::for_filter(Filter::Gray);
+        const SOBEL: SearchConfig = SearchConfig::for_filter(Filter::Sobel);
+        const LAPLACIAN: SearchConfig = SearchConfig::for_filter(Filter::Laplacian);
+        let g = Self::with_config(tw, th, ww, wh, mode, &GRAY);
+        let s = Self::with_config(tw, th, ww, wh, mode, &SOBEL);
+        let l = Self::with_config(tw, th, ww, wh, mode, &LAPLACIAN);
         Self {
             window: max_usize(g.window, max_usize(s.window, l.window)),
             template: max_usize(g.template, max_usize(s.template, l.template)),
@@ -262,7 +244,7 @@ impl ScratchSizes {
         let pad = 2 * MAX_REFINE_RADIUS_PX;
         let refine = table_len(tw.saturating_add(pad), th.saturating_add(pad));
         let mut tables = max_usize(coarse, refine);
-        let c = cfg.clamped();
+        let c = *cfg;
         let mut k = 0;
         while k < lc {
             if whole_levels && whole_level_tables(tw, th, ww, wh, k, lc, &c) {
@@ -383,10 +365,8 @@ struct LevelTerms<'s> {
 /// vector targets rewrite each level's two halves as i16 pixels
 /// ([`TPL_BYTES_PER_PX`]), the kernel's operand.
 #[allow(
-    clippy::arithmetic_side_effects,
     clippy::cast_possible_truncation,
-    clippy::too_many_lines,
-    reason = "template sides ≤ MAX_TEMPLATE_PX < 2^16 fit the u16 run fields; 255² fits u64"
+    reason = "Σt ≤ MAX_TEMPLATE_PX²·255 and Σt² fit i64 (numeric.md)"
 )]
 pub(super) fn build_template_levels<'s>(
     template: &GrayView,
@@ -419,53 +399,10 @@ pub(super) fn build_template_levels<'s>(
             .split_at_mut_checked(n_px)
             .ok_or(FailureCode::NccScratchTooSmall)?;
         match prev {
-            None => {
-                filter_region(template, template.rect(), filter, px)?;
-                match mask {
-                    Some(m) => {
-                        for (y, mrow) in (0..h).zip(mk.chunks_exact_mut(w.max(1))) {
-                            let src = present(m.row(y));
-                            for (d, &s) in mrow.iter_mut().zip(src) {
-                                *d = u8::from(s != 0);
-                            }
-                        }
-                    }
-                    None => mk.fill(1),
-                }
-            }
-            Some((ppx, pmk)) => {
-                // Level k is half of level k − 1 (≤ MAX_TEMPLATE_PX), so the
-                // doubled sizes fit; saturating keeps the arithmetic total.
-                let w2 = w.saturating_mul(2);
-                downsample(&GrayView::new(ppx, w2, h.saturating_mul(2), w2)?, px);
-                // A coarse pixel is kept only when all four children are kept.
-                for (y, mrow) in (0..h).zip(mk.chunks_exact_mut(w.max(1))) {
-                    let row0 = y.saturating_mul(2).saturating_mul(w2);
-                    let r0 = present(pmk.get(row0..).and_then(|r| r.get(..w2)));
-                    let r1 = present(pmk.get(row0.saturating_add(w2)..).and_then(|r| r.get(..w2)));
-                    for ((d, a), b) in mrow
-                        .iter_mut()
-                        .zip(r0.chunks_exact(2))
-                        .zip(r1.chunks_exact(2))
-                    {
-                        *d = u8::from(a.iter().chain(b.iter()).all(|&v| v != 0));
-                    }
-                }
-            }
+            None => first_level(template, mask, filter, (w, h), px, mk)?,
+            Some((ppx, pmk)) => halve_level((ppx, pmk), (w, h), px, mk)?,
         }
-        // Zero dropped pixels so the plain dot product is the masked Σ t·f.
-        let (mut n, mut st, mut stt) = (0u32, 0u64, 0u64);
-        for (p, &m) in px.iter_mut().zip(mk.iter()) {
-            if m == 0 {
-                *p = 0;
-            } else {
-                // At most MAX_TEMPLATE_PX² pixels of ≤ 255: far below the u32
-                // and u64 limits (numeric.md), so wrapping never happens.
-                n = n.wrapping_add(1);
-                st = st.wrapping_add(u64::from(*p));
-                stt = stt.wrapping_add(u64::from(*p) * u64::from(*p));
-            }
-        }
+        let (n, st, stt) = zero_dropped(px, mk);
         if n < MIN_MASK_PX {
             if k == 0 {
                 return Err(FailureCode::NccMaskEmpty);
@@ -482,57 +419,7 @@ pub(super) fn build_template_levels<'s>(
             break;
         }
         let runs = if mask.is_some() {
-            let mut count = 0usize;
-            // The row whose only run ends the list (it may grow downwards).
-            let mut prev_single_row: Option<usize> = None;
-            for (y, mrow) in (0..h).zip(mk.chunks_exact(w.max(1))) {
-                let mut first_of_row = true;
-                if prev_single_row != Some(y.wrapping_sub(1)) {
-                    prev_single_row = None;
-                }
-                let mut x = 0usize;
-                // `x < w` bounds both loops, so the increments cannot wrap.
-                while x < w {
-                    if mrow.get(x).copied().unwrap_or(0) == 0 {
-                        x = x.wrapping_add(1);
-                        continue;
-                    }
-                    let x0 = x;
-                    while x < w && mrow.get(x).copied().unwrap_or(0) != 0 {
-                        x = x.wrapping_add(1);
-                    }
-                    let (row, x0, x1) = (y as u16, x0 as u16, x as u16);
-                    // A row whose only run repeats the previous row's only run
-                    // extends that rectangle (rows < h ≤ MAX_TEMPLATE_PX).
-                    let single = x >= w || !mrow.iter().skip(x).any(|&v| v != 0);
-                    let extend = single
-                        && first_of_row
-                        && count > 0
-                        && prev_single_row == Some(y.wrapping_sub(1))
-                        && rbuf
-                            .get(count.wrapping_sub(1))
-                            .is_some_and(|p| (p.x0, p.x1) == (x0, x1));
-                    if extend {
-                        if let Some(p) = rbuf.get_mut(count.wrapping_sub(1)) {
-                            p.rows = p.rows.wrapping_add(1);
-                        }
-                    } else {
-                        let r = rbuf.get_mut(count).ok_or(FailureCode::NccScratchTooSmall)?;
-                        *r = Run {
-                            row,
-                            x0,
-                            x1,
-                            rows: 1,
-                        };
-                        // `rbuf.get_mut(count)` succeeded, so count < rbuf.len().
-                        count = count.wrapping_add(1);
-                    }
-                    // Only a run that was the first of its row and is the row's
-                    // only run may be extended by the next row.
-                    prev_single_row = (single && first_of_row).then_some(y);
-                    first_of_row = false;
-                }
-            }
+            let count = mask_runs(mk, (w, h), rbuf)?;
             let (mine, rest) = core::mem::take(&mut rbuf)
                 .split_at_mut_checked(count)
                 .ok_or(FailureCode::NccScratchTooSmall)?;
@@ -575,6 +462,143 @@ pub(super) fn build_template_levels<'s>(
         });
     }
     Ok(used)
+}
+
+/// Level 0 of the template pyramid: `template` after `filter` into `px`, and
+/// its mask (1 kept, 0 dropped; all kept without `mask`) into `mk`.
+fn first_level(
+    template: &GrayView,
+    mask: Option<&GrayView>,
+    filter: Filter,
+    (w, h): (usize, usize),
+    px: &mut [u8],
+    mk: &mut [u8],
+) -> Result<(), FailureCode> {
+    filter_region(template, template.rect(), filter, px)?;
+    match mask {
+        Some(m) => {
+            for (y, mrow) in (0..h).zip(mk.chunks_exact_mut(w.max(1))) {
+                let src = present(m.row(y));
+                for (d, &s) in mrow.iter_mut().zip(src) {
+                    *d = u8::from(s != 0);
+                }
+            }
+        }
+        None => mk.fill(1),
+    }
+    Ok(())
+}
+
+/// Level k ≥ 1 of the template pyramid, `w × h`, from the pixels and mask of
+/// level k − 1: the 2× box downsample into `px`, and into `mk` a coarse pixel
+/// kept only when all four children are kept.
+fn halve_level(
+    (ppx, pmk): (&[u8], &[u8]),
+    (w, h): (usize, usize),
+    px: &mut [u8],
+    mk: &mut [u8],
+) -> Result<(), FailureCode> {
+    // Level k is half of level k − 1 (≤ MAX_TEMPLATE_PX), so the
+    // doubled sizes fit; saturating keeps the arithmetic total.
+    let w2 = w.saturating_mul(2);
+    downsample(&GrayView::new(ppx, w2, h.saturating_mul(2), w2)?, px);
+    for (y, mrow) in (0..h).zip(mk.chunks_exact_mut(w.max(1))) {
+        let row0 = y.saturating_mul(2).saturating_mul(w2);
+        let r0 = present(pmk.get(row0..).and_then(|r| r.get(..w2)));
+        let r1 = present(pmk.get(row0.saturating_add(w2)..).and_then(|r| r.get(..w2)));
+        for ((d, a), b) in mrow
+            .iter_mut()
+            .zip(r0.chunks_exact(2))
+            .zip(r1.chunks_exact(2))
+        {
+            *d = u8::from(a.iter().chain(b.iter()).all(|&v| v != 0));
+        }
+    }
+    Ok(())
+}
+
+/// Zero the pixels of `px` that `mk` drops, so the plain dot product is the
+/// masked Σ t·f; returns the kept pixels' count, Σt and Σt².
+#[allow(clippy::arithmetic_side_effects, reason = "255² fits u64")]
+fn zero_dropped(px: &mut [u8], mk: &[u8]) -> (u32, u64, u64) {
+    let (mut n, mut st, mut stt) = (0u32, 0u64, 0u64);
+    for (p, &m) in px.iter_mut().zip(mk.iter()) {
+        if m == 0 {
+            *p = 0;
+        } else {
+            // At most MAX_TEMPLATE_PX² pixels of ≤ 255: far below the u32
+            // and u64 limits (numeric.md), so wrapping never happens.
+            n = n.wrapping_add(1);
+            st = st.wrapping_add(u64::from(*p));
+            stt = stt.wrapping_add(u64::from(*p) * u64::from(*p));
+        }
+    }
+    (n, st, stt)
+}
+
+/// Encode the kept pixels of the `w × h` mask `mk` as [`Run`]s into the front
+/// of `rbuf`, a row's only run merged into the rectangle of the previous
+/// row's only run when it repeats it; returns how many runs it wrote.
+///
+/// # Errors
+/// [`FailureCode::NccScratchTooSmall`] when `rbuf` is too short.
+#[allow(
+    clippy::cast_possible_truncation,
+    reason = "template sides ≤ MAX_TEMPLATE_PX < 2^16 fit the u16 run fields"
+)]
+fn mask_runs(mk: &[u8], (w, h): (usize, usize), rbuf: &mut [Run]) -> Result<usize, FailureCode> {
+    let mut count = 0usize;
+    // The row whose only run ends the list (it may grow downwards).
+    let mut prev_single_row: Option<usize> = None;
+    for (y, mrow) in (0..h).zip(mk.chunks_exact(w.max(1))) {
+        let mut first_of_row = true;
+        if prev_single_row != Some(y.wrapping_sub(1)) {
+            prev_single_row = None;
+        }
+        let mut x = 0usize;
+        // `x < w` bounds both loops, so the increments cannot wrap.
+        while x < w {
+            if mrow.get(x).copied().unwrap_or(0) == 0 {
+                x = x.wrapping_add(1);
+                continue;
+            }
+            let x0 = x;
+            while x < w && mrow.get(x).copied().unwrap_or(0) != 0 {
+                x = x.wrapping_add(1);
+            }
+            let (row, x0, x1) = (y as u16, x0 as u16, x as u16);
+            // A row whose only run repeats the previous row's only run
+            // extends that rectangle (rows < h ≤ MAX_TEMPLATE_PX).
+            let single = x >= w || !mrow.iter().skip(x).any(|&v| v != 0);
+            let extend = single
+                && first_of_row
+                && count > 0
+                && prev_single_row == Some(y.wrapping_sub(1))
+                && rbuf
+                    .get(count.wrapping_sub(1))
+                    .is_some_and(|p| (p.x0, p.x1) == (x0, x1));
+            if extend {
+                if let Some(p) = rbuf.get_mut(count.wrapping_sub(1)) {
+                    p.rows = p.rows.wrapping_add(1);
+                }
+            } else {
+                let r = rbuf.get_mut(count).ok_or(FailureCode::NccScratchTooSmall)?;
+                *r = Run {
+                    row,
+                    x0,
+                    x1,
+                    rows: 1,
+                };
+                // `rbuf.get_mut(count)` succeeded, so count < rbuf.len().
+                count = count.wrapping_add(1);
+            }
+            // Only a run that was the first of its row and is the row's
+            // only run may be extended by the next row.
+            prev_single_row = (single && first_of_row).then_some(y);
+            first_of_row = false;
+        }
+    }
+    Ok(count)
 }
 
 /// Build the window pyramid of `levels` levels: level 0 is `wr` of `image` after

@@ -414,6 +414,81 @@ fn covariance(e: &Eval, n: u16) -> Option<(Covariance, [f32; 2])> {
         .then_some((Covariance { m }, [kt as f32, kr as f32]))
 }
 
+/// (a) The depth-weighted fit of the inliers, as the start of the descent
+/// when its cost is lower than that of `(cur, e)`; `(cur, e)` otherwise.
+fn weighted_start(
+    pairs: &[Correspondence],
+    mask: &[bool],
+    cam: &Cam,
+    (cur, e): (State, Eval),
+    stats: &mut RefineStats,
+) -> (State, Eval) {
+    let weighted = fit(pairs, |i, p| match mask.get(i) {
+        Some(true) => inverse_variance(p),
+        _ => 0.0,
+    });
+    if let Ok((wp, _)) = weighted {
+        let ws = State::from_pose(&wp);
+        if let Some(we) = evaluate(pairs, mask, cam, &ws, true, stats) {
+            if we.cost < e.cost {
+                stats.weighted_start = true;
+                return (ws, we);
+            }
+        }
+    }
+    (cur, e)
+}
+
+/// (b) Levenberg–Marquardt with Marquardt's diagonal scaling from `(cur, e)`,
+/// at most `max_iterations` iterations; returns the last accepted state.
+fn descend(
+    pairs: &[Correspondence],
+    mask: &[bool],
+    cam: &Cam,
+    (mut cur, mut e): (State, Eval),
+    max_iterations: u8,
+    stats: &mut RefineStats,
+) -> (State, Eval) {
+    let mut lambda = LAMBDA_START;
+    for _ in 0..max_iterations {
+        stats.iterations = stats.iterations.saturating_add(1);
+        let damp = e.jtj.diagonal().map(|d| lambda * d.max(f64::MIN_POSITIVE));
+        let a = e.jtj + M6::from_diagonal(&damp);
+        let Some(ch) = a.cholesky() else {
+            lambda *= 10.0;
+            if lambda > LAMBDA_MAX {
+                break;
+            }
+            continue;
+        };
+        let x = -ch.solve(&e.jtr);
+        if !x.iter().all(|v| v.is_finite()) {
+            break;
+        }
+        let next = cur.step(&x);
+        match evaluate(pairs, mask, cam, &next, true, stats) {
+            Some(ne) if ne.cost < e.cost => {
+                stats.steps_taken = stats.steps_taken.saturating_add(1);
+                let gain = e.cost - ne.cost;
+                cur = next;
+                e = ne;
+                lambda = (lambda * 0.1).max(LAMBDA_MIN);
+                // Converged: the cost no longer changes at f64 precision.
+                if gain <= 1.0e-12 * e.cost {
+                    break;
+                }
+            }
+            _ => {
+                lambda *= 10.0;
+                if lambda > LAMBDA_MAX {
+                    break;
+                }
+            }
+        }
+    }
+    (cur, e)
+}
+
 /// Refine `pose` (`world_from_left`, from RANSAC) on the pairs flagged in
 /// `inlier_mask` and report its covariance. The result is the refined pose
 /// only if it passes the safeguard (lower cost, bounded change); otherwise
@@ -458,59 +533,8 @@ pub fn refine(
     let mut cur = start;
     let mut e = e0;
     if cfg.max_iterations > 0 {
-        // (a) The depth-weighted fit, as a start if it is already better.
-        let weighted = fit(pairs, |i, p| match mask.get(i) {
-            Some(true) => inverse_variance(p),
-            _ => 0.0,
-        });
-        if let Ok((wp, _)) = weighted {
-            let ws = State::from_pose(&wp);
-            if let Some(we) = evaluate(pairs, mask, &cam, &ws, true, &mut stats) {
-                if we.cost < e.cost {
-                    stats.weighted_start = true;
-                    cur = ws;
-                    e = we;
-                }
-            }
-        }
-        // (b) Levenberg–Marquardt with Marquardt's diagonal scaling.
-        let mut lambda = LAMBDA_START;
-        for _ in 0..cfg.max_iterations {
-            stats.iterations = stats.iterations.saturating_add(1);
-            let damp = e.jtj.diagonal().map(|d| lambda * d.max(f64::MIN_POSITIVE));
-            let a = e.jtj + M6::from_diagonal(&damp);
-            let Some(ch) = a.cholesky() else {
-                lambda *= 10.0;
-                if lambda > LAMBDA_MAX {
-                    break;
-                }
-                continue;
-            };
-            let x = -ch.solve(&e.jtr);
-            if !x.iter().all(|v| v.is_finite()) {
-                break;
-            }
-            let next = cur.step(&x);
-            match evaluate(pairs, mask, &cam, &next, true, &mut stats) {
-                Some(ne) if ne.cost < e.cost => {
-                    stats.steps_taken = stats.steps_taken.saturating_add(1);
-                    let gain = e.cost - ne.cost;
-                    cur = next;
-                    e = ne;
-                    lambda = (lambda * 0.1).max(LAMBDA_MIN);
-                    // Converged: the cost no longer changes at f64 precision.
-                    if gain <= 1.0e-12 * e.cost {
-                        break;
-                    }
-                }
-                _ => {
-                    lambda *= 10.0;
-                    if lambda > LAMBDA_MAX {
-                        break;
-                    }
-                }
-            }
-        }
+        (cur, e) = weighted_start(pairs, mask, &cam, (cur, e), &mut stats);
+        (cur, e) = descend(pairs, mask, &cam, (cur, e), cfg.max_iterations, &mut stats);
         // Safeguard: lower cost and a bounded change against the RANSAC pose.
         let dt = (cur.t - start.t).norm();
         let dr = cur.q.angle_to(&start.q);

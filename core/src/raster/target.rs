@@ -67,15 +67,27 @@ pub(crate) trait PixelSink {
     /// on each pixel in order.
     #[inline]
     fn put_run(&mut self, idx: usize, n: usize, acc: [i64; 3], step: [i64; 3], mask: bool) {
-        let mut acc = acc;
-        for k in 0..n {
-            self.put(run_frag(idx.wrapping_add(k), acc, mask));
-            acc = [
-                acc[0].wrapping_add(step[0]),
-                acc[1].wrapping_add(step[1]),
-                acc[2].wrapping_add(step[2]),
-            ];
-        }
+        put_each(self, idx, n, (acc, step), mask);
+    }
+}
+
+/// [`PixelSink::put_run`] as one [`PixelSink::put`] per pixel, in order.
+#[inline]
+fn put_each<S: PixelSink + ?Sized>(
+    sink: &mut S,
+    idx: usize,
+    n: usize,
+    (acc, step): ([i64; 3], [i64; 3]),
+    mask: bool,
+) {
+    let mut acc = acc;
+    for k in 0..n {
+        sink.put(run_frag(idx.wrapping_add(k), acc, mask));
+        acc = [
+            acc[0].wrapping_add(step[0]),
+            acc[1].wrapping_add(step[1]),
+            acc[2].wrapping_add(step[2]),
+        ];
     }
 }
 
@@ -147,15 +159,7 @@ impl PixelSink for ZBuffer<'_, '_> {
         ) else {
             // Not reached for runs inside the window; the per-pixel path skips
             // out-of-range pixels the same way.
-            let mut acc = acc;
-            for k in 0..n {
-                self.put(run_frag(idx.wrapping_add(k), acc, mask));
-                acc = [
-                    acc[0].wrapping_add(step[0]),
-                    acc[1].wrapping_add(step[1]),
-                    acc[2].wrapping_add(step[2]),
-                ];
-            }
+            put_each(self, idx, n, (acc, step), mask);
             return;
         };
         let (tex, tw, th) = (self.tex, self.tw, self.th);

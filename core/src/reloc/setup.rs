@@ -10,8 +10,9 @@
 //! [`Setup::sizes`], a `const fn` of the parameters.
 //!
 //! The desktop tools, the tests, the benches and the firmware image all build
-//! the engine here, so there is one wiring to audit. Custom [`super::Attempt`]
-//! or [`super::Solver`] implementations (test fakes) use [`Relocalizer::new`].
+//! the engine here, so there is one wiring to audit (custom [`super::Attempt`]
+//! or [`super::Solver`] implementations, the core's own test fakes, are
+//! wired inside the crate).
 
 use super::pipeline::Pipeline;
 use super::policy::MatchPolicy;
@@ -30,27 +31,21 @@ use crate::map::MapView;
 pub type Engine<'a, 'w, F = StereoPair<'a>> = Relocalizer<Pipeline<'a, 'w, F>, RansacSolver>;
 
 /// The inputs of one relocalization. Fill it with [`Setup::new`] (defaults for
-/// the policy and options from the params), adjust the public fields if
-/// needed, size the workspace with [`Setup::sizes`] and call [`Setup::build`].
+/// the policy and options from the params), change the policy or options with
+/// [`Setup::with_policy`], [`Setup::with_options`] or
+/// [`Setup::with_upset_checks`] if needed, size the workspace with
+/// [`Setup::sizes`] and call [`Setup::build`]. Values are read through
+/// accessors of the fields' names.
 #[derive(Clone, Copy, Debug)]
 pub struct Setup<'a, F = StereoPair<'a>> {
-    /// The checked map product.
-    pub map: &'a MapView<'a>,
-    /// The rectified pair, `rig.cam` sized: where the engine reads its
-    /// search windows and preflight rows from.
-    pub frames: F,
-    /// Calibrated rectified rig.
-    pub rig: StereoRig,
-    /// Relocalization parameters.
-    pub params: Params,
-    /// Match policy (variants, acceptance).
-    pub policy: MatchPolicy,
-    /// Engine options (acceptance, budget, multi-seed spread).
-    pub options: Options,
-    /// Prior `world_from_left`.
-    pub prior: Pose,
-    /// Seed of the relocalization's random streams.
-    pub seed: u64,
+    pub(super) map: &'a MapView<'a>,
+    pub(super) frames: F,
+    pub(super) rig: StereoRig,
+    pub(super) params: Params,
+    pub(super) policy: MatchPolicy,
+    pub(super) options: Options,
+    pub(super) prior: Pose,
+    pub(super) seed: u64,
 }
 
 impl<'a> Setup<'a> {
@@ -90,6 +85,75 @@ impl<'a, F: FrameSource> Setup<'a, F> {
             options: Options::for_params(params),
             prior: *prior,
             seed,
+        }
+    }
+
+    /// The checked map product.
+    pub fn map(&self) -> &'a MapView<'a> {
+        self.map
+    }
+
+    /// The rectified pair, `rig.cam` sized: where the engine reads its
+    /// search windows and preflight rows from.
+    pub fn frames(&self) -> &F {
+        &self.frames
+    }
+
+    /// Calibrated rectified rig.
+    pub fn rig(&self) -> &StereoRig {
+        &self.rig
+    }
+
+    /// Relocalization parameters.
+    pub fn params(&self) -> &Params {
+        &self.params
+    }
+
+    /// Match policy (variants, acceptance).
+    pub fn policy(&self) -> &MatchPolicy {
+        &self.policy
+    }
+
+    /// Engine options (acceptance, budget, multi-seed spread).
+    pub fn options(&self) -> &Options {
+        &self.options
+    }
+
+    /// Prior `world_from_left`.
+    pub fn prior(&self) -> &Pose {
+        &self.prior
+    }
+
+    /// Seed of the relocalization's random streams.
+    pub fn seed(&self) -> u64 {
+        self.seed
+    }
+
+    /// With the Match policy `policy`.
+    ///
+    /// # Errors
+    /// [`FailureCode::ConfigParamOutOfRange`] for a policy out of range.
+    pub fn with_policy(self, policy: MatchPolicy) -> Result<Self, FailureCode> {
+        policy.validate()?;
+        Ok(Self { policy, ..self })
+    }
+
+    /// With the engine options `options`, checked against the parameters.
+    ///
+    /// # Errors
+    /// [`FailureCode::ConfigParamOutOfRange`] for options out of range, for
+    /// these parameters.
+    pub fn with_options(self, options: Options) -> Result<Self, FailureCode> {
+        options.validate(&self.params)?;
+        Ok(Self { options, ..self })
+    }
+
+    /// With the two upset checks ([`Options::with_upset_checks`]) switched on
+    /// or off.
+    pub fn with_upset_checks(self, repeat_solve: bool, recheck_map: bool) -> Self {
+        Self {
+            options: self.options.with_upset_checks(repeat_solve, recheck_map),
+            ..self
         }
     }
 

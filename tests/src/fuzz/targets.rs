@@ -724,17 +724,25 @@ pub fn ncc(_env: &Env, d: &[u8]) -> Verdict {
                 _ => usize::from(t.u8() % 40),
             }
         };
-        cfg = SearchConfig {
-            candidates: f(&mut t),
-            final_candidates: f(&mut t),
-            verify_all_below_px: f(&mut t),
-            refine_radius_px: f(&mut t),
-            final_refine_radius_px: f(&mut t),
-            first_refine_radius_px: f(&mut t),
-            nms_radius_px: f(&mut t),
-            min_coarse_px: f(&mut t),
-            wide_min_coarse_px: f(&mut t),
-        };
+        let (c, fc) = (f(&mut t), f(&mut t));
+        let verify_all = f(&mut t);
+        let radii = (f(&mut t), f(&mut t), f(&mut t));
+        let nms = f(&mut t);
+        let coarse = (f(&mut t), f(&mut t));
+        // A value out of range is refused with its code, never clamped.
+        let checked = cfg
+            .with_candidates(c, fc)
+            .and_then(|cfg| cfg.with_refine_radii_px(radii.0, radii.1, radii.2))
+            .and_then(|cfg| cfg.with_coarse_px(coarse.0, coarse.1))
+            .map(|cfg| cfg.with_nms_and_verify_px(nms, verify_all));
+        match checked {
+            Ok(c) => cfg = c,
+            Err(code) => assert_eq!(
+                code,
+                FailureCode::ConfigParamOutOfRange,
+                "SearchConfig refused with another code"
+            ),
+        }
     }
     // Scratch: the minimum for the clipped window (capped), sometimes short.
     let wr = image.rect().intersect(&search);
@@ -745,7 +753,7 @@ pub fn ncc(_env: &Env, d: &[u8]) -> Verdict {
         ww.min(1100),
         wh.min(1100),
         smode,
-        &cfg.clamped(),
+        &cfg,
     );
     let cut = if t.u8() % 8 == 0 {
         usize::from(t.u8()) + 1

@@ -157,7 +157,7 @@ const PREFLIGHT_TICKS: u64 = 16;
 /// Attempts after which a frame without any correspondence stops
 /// (`Options::no_evidence_attempts` of the test profile: max(4·N_corr, 200)).
 fn no_evidence_attempts() -> u32 {
-    Options::for_params(&testkit::test_params()).no_evidence_attempts
+    Options::for_params(&testkit::test_params()).no_evidence_attempts()
 }
 
 /// Renders of one attempt at most: the left template, and the right one once
@@ -388,7 +388,7 @@ fn frame_from_a_different_place() {
     );
     assert_eq!(o.stats.successes, 0, "no pose update from another place");
     let p = req.params;
-    let rounds = u32::from(vtsm_core::reloc::Options::for_params(&p).first_fix_rounds);
+    let rounds = u32::from(vtsm_core::reloc::Options::for_params(&p).first_fix_rounds());
     assert_eq!(o.stats.rounds, rounds);
     let max_attempts = rounds * p.attempts_per_iter;
     let max_units = max_attempts + rounds * (1 + u32::from(p.ransac_iter.div_ceil(64)));

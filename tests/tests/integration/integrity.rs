@@ -226,15 +226,15 @@ fn run_setup(
     left: &[u8],
     right: &[u8],
     prior: &Pose,
-    options: impl FnOnce(&mut vtsm_core::reloc::Options),
+    options: impl FnOnce(vtsm_core::reloc::Options) -> vtsm_core::reloc::Options,
 ) -> (Outcome, std::time::Duration) {
     use vtsm_core::image::GrayView;
     use vtsm_core::reloc::{Setup, Workspace};
     let (w, h) = (testkit::WIDTH, testkit::HEIGHT);
     let lv = GrayView::new(left, w, h, w).unwrap();
     let rv = GrayView::new(right, w, h, w).unwrap();
-    let mut setup = Setup::new(map, lv, rv, &testkit::rig(), &small_params(), prior, 7);
-    options(&mut setup.options);
+    let setup = Setup::new(map, lv, rv, &testkit::rig(), &small_params(), prior, 7);
+    let setup = setup.with_options(options(*setup.options())).unwrap();
     let sizes = setup.sizes();
     let (mut bytes, mut words, mut runs) = (
         vec![0u8; sizes.bytes],
@@ -258,10 +258,9 @@ fn upset_checks_pass_a_clean_run_unchanged() {
         truth.rotation(),
         truth.translation() + vtsm_core::geom::Vec3::new(0.09, -0.08, 0.05),
     );
-    let (plain, t_plain) = run_setup(&view, &left, &right, &prior, |_| {});
+    let (plain, t_plain) = run_setup(&view, &left, &right, &prior, |o| o);
     let (checked, t_checked) = run_setup(&view, &left, &right, &prior, |o| {
-        o.verify.repeat_solve = true;
-        o.verify.recheck_map = true;
+        o.with_upset_checks(true, true)
     });
     println!(
         "plain {:?} in {t_plain:?}; checked {:?} in {t_checked:?}, {} of {} work units, repeat differs by {:?}",

@@ -304,7 +304,7 @@ fn hopeless_frames_end_fast_with_their_own_codes() {
     let (nl, nr) = (noise(), noise());
     let r = run_frames(&nl, &nr, prior);
     let (o, _) = r.result.unwrap();
-    let cap = vtsm_core::reloc::Options::for_params(&request(&s.map).params).no_evidence_attempts;
+    let cap = vtsm_core::reloc::Options::for_params(&request(&s.map).params).no_evidence_attempts();
     println!(
         "noise: {:?} after {} attempts (cap {cap})",
         o.failure, o.stats.attempts

@@ -1,0 +1,137 @@
+//! SamplePoint and Synthesize (§III-C): a random mask vertex in view of both
+//! images, and its ℓ×ℓ virtual template rendered with depth and masked.
+
+use super::{
+    round_i32, Pipeline, Sample, Templates, MAX_SAMPLE_TRIES, OCCLUSION_ABS_M, OCCLUSION_REL,
+};
+use crate::failure::FailureCode;
+use crate::frame::FrameSource;
+use crate::geom::{Camera, Pose};
+use crate::image::Rect;
+use crate::map::MapView;
+use crate::raster::{self, Target};
+use crate::reloc::PipelineStats;
+
+impl<F: FrameSource> Pipeline<'_, '_, F> {
+    /// SamplePoint: a random mask vertex whose left and right projections lie
+    /// ℓ/2 inside both images.
+    pub(super) fn sample(
+        &self,
+        cam_from_world: &Pose,
+        rng: &mut crate::rng::Rng,
+        stats: &mut PipelineStats,
+    ) -> Result<Sample, FailureCode> {
+        let n = self.map.mask_vertex_count();
+        let margin = (self.template_px / 2) as f32;
+        for _ in 0..MAX_SAMPLE_TRIES {
+            let k = rng.below(n);
+            let Some(world) = self.map.mask_vertex(k).and_then(|i| self.map.vertex(i)) else {
+                continue;
+            };
+            let cam = cam_from_world.transform_point(&world);
+            match self.rig.project_stereo(&cam) {
+                Some((l, r))
+                    if self.rig.cam.contains(l[0], l[1], margin)
+                        && self.rig.cam.contains(r[0], r[1], margin) =>
+                {
+                    return Ok(Sample {
+                        world,
+                        cam,
+                        left: l,
+                        right: r,
+                    });
+                }
+                _ => stats.out_of_view = stats.out_of_view.saturating_add(1),
+            }
+        }
+        Err(FailureCode::RelocSampleOutOfView)
+    }
+
+    /// Synthesize (§III-C): render the ℓ×ℓ left template centred on the
+    /// vertex's left projection, reject a vertex hidden in the virtual view,
+    /// and form the left template mask. The right template is rendered by
+    /// [`Pipeline::match_pair`] when a left match is accepted: an attempt
+    /// rejected on the left (or hidden) never needs it.
+    pub(super) fn synthesize(
+        &mut self,
+        vp_left: &Pose,
+        s: &Sample,
+        stats: &mut PipelineStats,
+    ) -> Result<Templates, FailureCode> {
+        let l = self.template_px;
+        let t = Templates {
+            left: template_rect(s.left, l),
+            right: template_rect(s.right, l),
+            vp_right: self.rig.world_from_right(vp_left),
+        };
+        let ws = &mut self.ws;
+        render_template(
+            self.map,
+            &self.rig.cam,
+            vp_left,
+            t.left,
+            (&mut *ws.inten_l, &mut *ws.depth_l, &mut *ws.mdepth_l),
+            (&mut stats.renders, &mut stats.render_pixels),
+        )?;
+        // Occlusion: the surface drawn at the vertex's pixel must be the vertex's own.
+        // ℓ ≤ MAX_TEMPLATE_PX (validated params): the centre index fits.
+        let centre = (l / 2).wrapping_mul(l).wrapping_add(l / 2);
+        let drawn = ws.depth_l.get(centre).copied().and_then(raster::depth_to_m);
+        let tol = OCCLUSION_ABS_M + OCCLUSION_REL * s.cam.z;
+        if drawn.is_none_or(|z| z < s.cam.z - tol) {
+            stats.occluded = stats.occluded.saturating_add(1);
+            return Err(FailureCode::RelocSampleOccluded);
+        }
+        template_mask(ws.depth_l, ws.mdepth_l, ws.mask_l, l)?;
+        Ok(t)
+    }
+}
+
+/// Window of side ℓ whose centre pixel holds `px`.
+fn template_rect(px: [f32; 2], l: usize) -> Rect {
+    let h = i32::try_from(l / 2).unwrap_or(i32::MAX);
+    Rect::new(
+        round_i32(px[0]).saturating_sub(h),
+        round_i32(px[1]).saturating_sub(h),
+        l as u32,
+        l as u32,
+    )
+}
+
+/// Render the ℓ×ℓ template `rect` of the virtual camera at `pose` into the
+/// intensity, depth and mask-depth buffers, counting the render and its
+/// pixels (`PipelineStats::renders`, `render_pixels`).
+pub(super) fn render_template(
+    map: &MapView<'_>,
+    cam: &Camera,
+    pose: &Pose,
+    rect: Rect,
+    (intensity, depth, mask_depth): (&mut [u8], &mut [u32], &mut [u32]),
+    (renders, pixels): (&mut u32, &mut u64),
+) -> Result<(), FailureCode> {
+    let mut target = Target {
+        intensity,
+        depth,
+        mask_depth,
+    };
+    let rs = raster::render_window(map, cam, pose, rect, &mut target)?;
+    *renders = renders.saturating_add(1);
+    *pixels = pixels.saturating_add(u64::from(rs.pixels_written));
+    Ok(())
+}
+
+/// Form the §III-C mask of a rendered ℓ×ℓ template from its depth and
+/// mask-depth buffers.
+pub(super) fn template_mask(
+    depth: &[u32],
+    mask_depth: &[u32],
+    mask: &mut [u8],
+    l: usize,
+) -> Result<(), FailureCode> {
+    let n = l.saturating_mul(l);
+    let (Some(d), Some(m)) = (depth.get(..n), mask_depth.get(..n)) else {
+        return Err(FailureCode::ConfigCapacityTooSmall);
+    };
+    raster::template_mask(d, m, l, l, mask);
+    Ok(())
+}
