@@ -4,6 +4,7 @@
 //! success, 1 on a clean relocalization failure, 2 on bad input.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+use super::scenes;
 use std::path::{Path, PathBuf};
 use vtsm_core::geom::{Pose, Vec3};
 use vtsm_hal::runner::VerifyChecks;
@@ -12,13 +13,10 @@ use vtsm_sim::cli::relocalize::{self, outcome_from_core, Args};
 use vtsm_sim::error::{EXIT_BAD_INPUT, EXIT_RELOC_FAILED};
 use vtsm_sim::io::mesh;
 use vtsm_sim::locate::{self, Request};
-use vtsm_sim::scene::export::{calib_json, obj_text, pose_json, write_scene, SceneFiles};
-use vtsm_sim::scene::{perturbed_prior, Capture, Profile, Scene};
-use vtsm_sim::terrain::TerrainKind;
+use vtsm_sim::scene::export::{calib_json, obj_text, pose_json, write_scene};
 
 const SEED: u64 = 3;
 const STOP: u32 = 3;
-const MAP_HOURS: f32 = 9.5;
 
 /// One exported test-profile scene plus what the in-memory path needs.
 struct Exported {
@@ -35,36 +33,19 @@ struct Exported {
 fn exported() -> &'static Exported {
     static E: std::sync::OnceLock<Exported> = std::sync::OnceLock::new();
     E.get_or_init(|| {
-        let scene = Scene::new(TerrainKind::Flagstone, SEED, Profile::Test);
-        let light = scene.lighting(MAP_HOURS);
-        let map = scene.map(&light);
-        let (rig, truth, pair) = scene.capture(&light, &Capture::from_index(STOP, 0, 0.40));
-        let prior = perturbed_prior(&truth, SEED);
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!(
-            "e2e-file-path-{}-{}",
-            std::process::id(),
-            SEED
-        ));
-        let _ = std::fs::remove_dir_all(&dir);
-        let files = SceneFiles {
-            map: &map,
-            rig: &rig,
-            left: &pair.left,
-            right: &pair.right,
-            prior: &prior,
-            truth: &truth,
-            meta: serde_json::json!({"test": "e2e_file_path"}),
-        };
+        let (map, shot) = scenes::flagstone_shot(SEED, STOP);
+        let dir = scenes::scratch_dir("e2e-file-path", SEED);
+        let files = shot.files(&map, serde_json::json!({"test": "e2e_file_path"}));
         write_scene(&dir, &files, false).unwrap();
         let map_bytes = map.encode_map(DEFAULT_TILE_SIZE_M).unwrap();
         Exported {
             dir,
             map_bytes,
-            rig,
-            left: pair.left,
-            right: pair.right,
-            prior,
-            truth,
+            rig: shot.rig,
+            left: shot.pair.left,
+            right: shot.pair.right,
+            prior: shot.prior,
+            truth: shot.truth,
             map,
         }
     })

@@ -4,6 +4,7 @@
 //! of pairs runs against one map load.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+use super::scenes;
 use std::path::{Path, PathBuf};
 use vtsm_core::geom::Pose;
 use vtsm_sim::cli::batch;
@@ -14,12 +15,9 @@ use vtsm_sim::frame::{self, UserPose};
 use vtsm_sim::io::json;
 use vtsm_sim::job;
 use vtsm_sim::scene::export::{pose_json, write_scene, SceneFiles};
-use vtsm_sim::scene::{perturbed_prior, Capture, Profile, Scene};
-use vtsm_sim::terrain::TerrainKind;
 
 const SEED: u64 = 3;
 const STOP: u32 = 3;
-const MAP_HOURS: f32 = 9.5;
 /// The shift of the georeferenced copy (a UTM easting, northing and height).
 const SHIFT: [f64; 3] = [391_234.567_8, 3_784_321.987_6, 312.25];
 const SHIFT_ARG: &str = "391234.5678,3784321.9876,312.25";
@@ -39,27 +37,10 @@ fn user_pose_json(p: &UserPose) -> String {
 fn dirs() -> &'static Dirs {
     static D: std::sync::OnceLock<Dirs> = std::sync::OnceLock::new();
     D.get_or_init(|| {
-        let scene = Scene::new(TerrainKind::Flagstone, SEED, Profile::Test);
-        let light = scene.lighting(MAP_HOURS);
-        let map = scene.map(&light);
-        let (rig, truth, pair) = scene.capture(&light, &Capture::from_index(STOP, 0, 0.40));
-        let prior = perturbed_prior(&truth, SEED);
-        let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!(
-            "e2e-georef-{}-{}",
-            std::process::id(),
-            SEED
-        ));
-        let _ = std::fs::remove_dir_all(&root);
+        let (map, shot) = scenes::flagstone_shot(SEED, STOP);
+        let root = scenes::scratch_dir("e2e-georef", SEED);
         let (plain, shifted) = (root.join("plain"), root.join("shifted"));
-        let files = SceneFiles {
-            map: &map,
-            rig: &rig,
-            left: &pair.left,
-            right: &pair.right,
-            prior: &prior,
-            truth: &truth,
-            meta: serde_json::json!({"test": "e2e_georef"}),
-        };
+        let files = shot.files(&map, serde_json::json!({"test": "e2e_georef"}));
         write_scene(&plain, &files, false).unwrap();
         // The same local vertices about origin SHIFT: the exporter writes
         // f64(v) + SHIFT, which is exact for all but tiny coordinates.
@@ -76,7 +57,7 @@ fn dirs() -> &'static Dirs {
             false,
         )
         .unwrap();
-        for (name, p) in [("prior.json", &prior), ("truth.json", &truth)] {
+        for (name, p) in [("prior.json", &shot.prior), ("truth.json", &shot.truth)] {
             let user = frame::offset(&frame::to_user(p, [0.0; 3]), SHIFT);
             std::fs::write(shifted.join(name), user_pose_json(&user)).unwrap();
         }

@@ -7,6 +7,7 @@
 //! --physical` does the same on its suites' trials.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+use super::scenes::{self, Shot};
 use std::path::{Path, PathBuf};
 use vtsm_core::geom::Pose;
 use vtsm_sim::cli::eval::{
@@ -20,11 +21,11 @@ use vtsm_sim::io::calib::ros::{self as calib_ros, camera_info_text};
 use vtsm_sim::rectify::Rectifier;
 use vtsm_sim::scene::export::{write_scene, write_scene_with_calib, SceneFiles};
 use vtsm_sim::scene::physical::{capture_physical, physical_calib};
-use vtsm_sim::scene::{perturbed_prior, Capture, Profile, Scene};
+use vtsm_sim::scene::{Capture, Profile};
 use vtsm_sim::terrain::TerrainKind;
 
 const SEED: u64 = 3;
-const HOURS: f32 = 9.5;
+const HOURS: f32 = scenes::MAP_HOURS;
 
 fn args(dir: &Path) -> Args {
     Args {
@@ -131,27 +132,18 @@ fn relocalize_calib(dir: &Path, calib: &Path, truth: &Pose) -> (f32, f32, Pose) 
 /// Verifies: VTSM-CLI-033, VTSM-CLI-038, VTSM-CLI-043, VTSM-CLI-044, VTSM-CLI-045, VTSM-SIM-014
 #[test]
 fn physical_pair_relocalizes_like_the_rectified_one() {
-    let scene = Scene::new(TerrainKind::Flagstone, SEED, Profile::Test);
+    let (scene, map) = scenes::flagstone(SEED);
     let light = scene.lighting(HOURS);
-    let map = scene.map(&light);
     let root = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
         .join(format!("e2e-physical-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&root);
     let mut rows = Vec::new();
     for stop in [3u32, 20] {
         let cap = Capture::from_index(stop, 0, 0.40);
-        let (rig, truth, pair) = scene.capture(&light, &cap);
-        let prior = perturbed_prior(&truth, SEED + u64::from(stop));
+        let shot = Shot::take(&scene, stop, SEED + u64::from(stop));
+        let (truth, pair) = (shot.truth, &shot.pair);
         let rect_dir = root.join(format!("rect-{stop}"));
-        let files = SceneFiles {
-            map: &map,
-            rig: &rig,
-            left: &pair.left,
-            right: &pair.right,
-            prior: &prior,
-            truth: &truth,
-            meta: serde_json::json!({}),
-        };
+        let files = shot.files(&map, serde_json::json!({}));
         write_scene(&rect_dir, &files, false).unwrap();
         let (calib, ptruth, ppair) = capture_physical(&scene, &light, &cap);
         assert_eq!(

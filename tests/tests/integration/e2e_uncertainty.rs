@@ -6,19 +6,17 @@
 //! uncertainty the engine ran with.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+use super::scenes;
 use std::path::{Path, PathBuf};
 use vtsm_core::config::PriorUncertainty;
 use vtsm_core::geom::{Pose, Vec3};
 use vtsm_sim::cli::map_build::DEFAULT_TILE_SIZE_M;
 use vtsm_sim::cli::relocalize::{self, Args};
 use vtsm_sim::io::json::{self, UncertaintyJson};
-use vtsm_sim::scene::export::{write_scene, SceneFiles};
-use vtsm_sim::scene::{perturbed_prior, Capture, Profile, Scene};
-use vtsm_sim::terrain::TerrainKind;
+use vtsm_sim::scene::export::write_scene;
 
 const SEED: u64 = 3;
 const STOP: u32 = 3;
-const MAP_HOURS: f32 = 9.5;
 /// What the far prior states: the half-widths its error lies within.
 const STATED: UncertaintyJson = UncertaintyJson {
     t_m: 0.5,
@@ -36,26 +34,10 @@ struct Scenario {
 fn scenario() -> &'static Scenario {
     static S: std::sync::OnceLock<Scenario> = std::sync::OnceLock::new();
     S.get_or_init(|| {
-        let scene = Scene::new(TerrainKind::Flagstone, SEED, Profile::Test);
-        let light = scene.lighting(MAP_HOURS);
-        let map = scene.map(&light);
-        let (rig, truth, pair) = scene.capture(&light, &Capture::from_index(STOP, 0, 0.40));
-        let near = perturbed_prior(&truth, SEED);
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!(
-            "e2e-uncertainty-{}-{}",
-            std::process::id(),
-            SEED
-        ));
-        let _ = std::fs::remove_dir_all(&dir);
-        let files = SceneFiles {
-            map: &map,
-            rig: &rig,
-            left: &pair.left,
-            right: &pair.right,
-            prior: &near,
-            truth: &truth,
-            meta: serde_json::json!({"test": "e2e_uncertainty"}),
-        };
+        let (map, shot) = scenes::flagstone_shot(SEED, STOP);
+        let truth = shot.truth;
+        let dir = scenes::scratch_dir("e2e-uncertainty", SEED);
+        let files = shot.files(&map, serde_json::json!({"test": "e2e_uncertainty"}));
         write_scene(&dir, &files, false).unwrap();
         let shift = Vec3::new(0.4 * 0.6, -0.4 * 0.8, 0.05);
         let turn = nalgebra::UnitQuaternion::from_scaled_axis(

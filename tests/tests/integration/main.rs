@@ -19,5 +19,6 @@ mod frame_store;
 mod fuzz_smoke;
 mod integrity;
 mod runner_path;
+mod scenes;
 mod traceability;
 mod upsets;
