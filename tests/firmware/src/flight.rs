@@ -2,7 +2,7 @@
 // (a bundle written by `cargo run -p vtsm-tests --bin flight_bundle`). The
 // map product and the stereo pair are linked into the image as read-only data
 // (the map store's flash and the camera's frame memory). Neither is copied
-// whole: `Runner::relocalize_from_store` checks the map product in place in
+// whole: `Runner::run` with `InStore` checks the map product in place in
 // the memory-mapped flash (`MapStore::mapped`) and has the engine read each
 // search window from the camera's memory (`FrameStore`) into its workspace.
 // The engine's storage is a static, so the static RAM figure of the image

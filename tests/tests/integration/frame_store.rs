@@ -1,6 +1,6 @@
 //! The frame-store path: the camera keeps the pair in its own memory and the
 //! engine reads each search window (and the preflight's rows) from it through
-//! `Runner::relocalize_from_store`. Same pixels ⇒ the same outcome as the
+//! `Runner::run` with `InStore`. Same pixels ⇒ the same outcome as the
 //! path that captures the whole pair into RAM; a window read that fails
 //! after its retries ends the relocalization in its failure code.
 
