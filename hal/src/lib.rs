@@ -123,7 +123,7 @@
 //! assert!(outcome.failure.is_none(), "{:?}", outcome.failure);
 //! let (err_m, _) = outcome.pose.error_to(&truth);
 //! assert!(err_m < 0.02, "{err_m} m");
-//! assert!(report.map_read.in_place && runner.telemetry.0 > 0);
+//! assert!(report.map_read.in_place && report.map_read.checks == 1 && runner.telemetry.0 > 0);
 //! # Ok::<(), vtsm_core::FailureCode>(())
 //! ```
 //!

@@ -17,7 +17,8 @@
 //! checks) and a source of the stereo pair ([`RamPair`]: captured into RAM;
 //! [`InStore`]: left in the camera's frame memory, read window by window).
 //! It acquires the map product (checked once with `MapView::new_checked`, in
-//! place when the store is memory-mapped), the prior and the pair through
+//! place when the store is memory-mapped, not at all when the store hands
+//! over a view its owner checked), the prior and the pair through
 //! the devices, builds the engine with the core's one constructor
 //! ([`Setup`]) over the caller's workspace, and drives it with `now` from the
 //! clock under a step, work and tick budget ([`DriveLimits`]), ending with
@@ -139,9 +140,17 @@ pub struct ReadReport {
     pub reads: u32,
     /// Of those, failed.
     pub failed_reads: u32,
-    /// The product was checked and used in place in memory-mapped storage
-    /// ([`MapStore::mapped`]): no `read_range` call, nothing copied.
+    /// The product was used in place, without a `read_range` call or a
+    /// copy: checked once in memory-mapped storage ([`MapStore::mapped`]),
+    /// or already checked by the store's owner ([`MapStore::checked`]).
     pub in_place: bool,
+    /// Full checks of the product ([`MapView::new_checked`]: parse and every
+    /// CRC) this run made: one per whole-product pass that reached its
+    /// check, so 1 for a product accepted on the first pass, 0 for a view
+    /// the store handed over already checked. The view that passed is the
+    /// one the engine uses; it is never checked again (the engine's own
+    /// [`VerifyChecks::recheck_map`] is an upset check, not counted here).
+    pub checks: u8,
 }
 
 fn time_or_zero<K: Clock>(clock: &mut K, log: &mut FailureLog) -> u64 {
@@ -323,15 +332,62 @@ pub fn read_map_verified<S: MapStore, V: FnMut(&[u8]) -> Result<(), FailureCode>
     log: &mut FailureLog,
     mut verify: V,
 ) -> Result<(usize, ReadReport), FailureCode> {
-    cfg.validate()?;
     let mut rep = ReadReport::default();
+    let len = read_passes(store, buf, cfg, now_ticks, log, &mut rep, |b, _, _| {
+        verify(b).map(|()| b.len())
+    })?;
+    Ok((len, rep))
+}
+
+/// [`read_map_verified`] with the product's own check
+/// ([`MapView::new_checked`]) as the check, and the view that passed it
+/// handed to `then` with the log and the read report: the retry loop's check
+/// is the one check of the product, and its view is what is used afterwards
+/// (`then` runs inside the loop's pass, so the view's borrow of `buf` ends
+/// before a retry could write to it). Returns what `then` returns.
+///
+/// # Errors
+/// As [`read_map_verified`].
+pub fn read_map_checked<S: MapStore, R>(
+    store: &mut S,
+    buf: &mut [u8],
+    cfg: &RunnerConfig,
+    now_ticks: u64,
+    log: &mut FailureLog,
+    then: impl FnOnce(MapView<'_>, &mut FailureLog, ReadReport) -> R,
+) -> Result<R, FailureCode> {
+    let mut rep = ReadReport::default();
+    let mut then = Some(then);
+    let r = read_passes(store, buf, cfg, now_ticks, log, &mut rep, |b, log, rep| {
+        let view = MapView::new_checked(b)?;
+        Ok(then.take().map(|f| f(view, log, *rep)))
+    })?;
+    // `then` is taken by the first passing check, after which the loop
+    // returns: a second pass cannot reach it.
+    r.ok_or(FailureCode::HalStorageRetriesExhausted)
+}
+
+/// The whole-product passes of [`read_map_verified`] and
+/// [`read_map_checked`]: read the product into `buf`, count and run `check`
+/// on it, and re-read while the check fails with a retryable code.
+fn read_passes<S: MapStore, R>(
+    store: &mut S,
+    buf: &mut [u8],
+    cfg: &RunnerConfig,
+    now_ticks: u64,
+    log: &mut FailureLog,
+    rep: &mut ReadReport,
+    mut check: impl FnMut(&[u8], &mut FailureLog, &ReadReport) -> Result<R, FailureCode>,
+) -> Result<R, FailureCode> {
+    cfg.validate()?;
     let mut last = FailureCode::HalStorageRetriesExhausted;
     for pass in 0..cfg.product_attempts {
         rep.product_attempts = pass + 1;
-        let len = read_map_once(store, buf, cfg, now_ticks, log, &mut rep)?;
+        let len = read_map_once(store, buf, cfg, now_ticks, log, rep)?;
         let product = buf.get(..len).ok_or(FailureCode::HalMapTooLarge)?;
-        match verify(product) {
-            Ok(()) => return Ok((len, rep)),
+        rep.checks = rep.checks.saturating_add(1);
+        match check(product, log, rep) {
+            Ok(r) => return Ok(r),
             Err(code) => {
                 log.record(code, now_ticks, u32::from(pass));
                 last = code;
@@ -567,6 +623,7 @@ fn map_in_place<'m>(
         log.record(FailureCode::HalMapTooLarge, now, 0);
         return Err(FailureCode::HalMapTooLarge);
     }
+    rep.checks = 1;
     MapView::new_checked(bytes).inspect_err(|&c| log.record(c, now, 0))
 }
 
@@ -994,9 +1051,14 @@ where
     T: Telemetry,
 {
     /// One relocalization, the one entry of every path (flight, host,
-    /// tests): check the map product once — in place when the store is
-    /// memory-mapped ([`MapStore::mapped`]; `map` is then unused and may be
-    /// empty), else read into `map` with bounded retries and checked —, get
+    /// tests): check the map product at most once — not at all when the
+    /// store hands over a view its owner already checked
+    /// ([`MapStore::checked`], the host path), in place when the store is
+    /// memory-mapped ([`MapStore::mapped`], the flight path; `map` is unused
+    /// in both and may be empty), else read into `map` with bounded retries
+    /// and checked by the retry loop ([`read_map_checked`]) —, the view that
+    /// passed being the one the engine uses ([`ReadReport::checks`] counts
+    /// the checks); get
     /// the checked prior, then let `pair` ([`RamPair`] or [`InStore`])
     /// capture the stereo pair, build the engine with [`Setup`] (the job's
     /// rig, seed and upset checks; its parameters with t̃₀, r̃₀ replaced by
@@ -1043,58 +1105,72 @@ where
     ) -> Result<(Outcome, RelocReport), FailureCode> {
         self.cfg.validate()?;
         let start = self.now();
-        let mut map_read = ReadReport::default();
-        // The product is used in place when the store is memory-mapped, else
-        // read into `map` (the `is_some` test first: the copy needs the store
-        // mutably, the in-place view borrows it for the whole run).
-        let view = if self.store.mapped().is_some() {
-            let bytes = self.store.mapped().unwrap_or_default();
-            map_in_place(bytes, &mut self.log, start, &mut map_read)?
+        let Self {
+            camera,
+            clock,
+            store,
+            prior,
+            cfg,
+            log,
+            ..
+        } = self;
+        let cfg: &RunnerConfig = cfg;
+        // Everything after the map's one check, with the view that passed it.
+        let then = |view: MapView<'_>, log: &mut FailureLog, map_read: ReadReport| {
+            let prior = read_prior(prior, log, start)?;
+            let now = time_or_zero(clock, log);
+            // The prior's stated half-widths size the search (one start, as
+            // the caller's `seeds` says); `Setup::build` validates them again
+            // with the rest of the parameters.
+            let params = match prior.uncertainty {
+                Some(u) => job.params.with_uncertainty(u),
+                None => job.params,
+            };
+            let ctx = PairContext {
+                camera,
+                clock,
+                log,
+                cfg,
+                start,
+                now,
+            };
+            let run = pair.run(
+                ctx,
+                &view,
+                job,
+                &params,
+                &prior.world_from_left,
+                ws,
+                observe,
+            )?;
+            Ok((
+                run.outcome,
+                RelocReport {
+                    frame: run.frame,
+                    capture: run.capture,
+                    map_read,
+                    drive: run.drive,
+                    prior_uncertainty: params.uncertainty(),
+                    windows: run.windows,
+                },
+            ))
+        };
+        // A view the store's owner checked is used as is; memory-mapped
+        // bytes are checked in place; anything else is read into `map` and
+        // checked by the retry loop. One check at most, on every path.
+        if let Some(view) = store.checked() {
+            let map_read = ReadReport {
+                len: u32::try_from(view.bytes().len()).unwrap_or(u32::MAX),
+                in_place: true,
+                ..ReadReport::default()
+            };
+            then(view, log, map_read)
+        } else if let Some(bytes) = store.mapped() {
+            let mut map_read = ReadReport::default();
+            let view = map_in_place(bytes, log, start, &mut map_read)?;
+            then(view, log, map_read)
         } else {
-            let (len, rep) =
-                read_map_verified(&mut self.store, map, &self.cfg, start, &mut self.log, |b| {
-                    MapView::new_checked(b).map(|_| ())
-                })?;
-            map_read = rep;
-            let product = map.get(..len).ok_or(FailureCode::HalMapTooLarge)?;
-            MapView::new_checked(product).inspect_err(|&c| self.log.record(c, start, 0))?
-        };
-        let prior = read_prior(&mut self.prior, &mut self.log, start)?;
-        let now = time_or_zero(&mut self.clock, &mut self.log);
-        // The prior's stated half-widths size the search (one start, as the
-        // caller's `seeds` says); `Setup::build` validates them again with the
-        // rest of the parameters.
-        let params = match prior.uncertainty {
-            Some(u) => job.params.with_uncertainty(u),
-            None => job.params,
-        };
-        let ctx = PairContext {
-            camera: &mut self.camera,
-            clock: &mut self.clock,
-            log: &mut self.log,
-            cfg: &self.cfg,
-            start,
-            now,
-        };
-        let run = pair.run(
-            ctx,
-            &view,
-            job,
-            &params,
-            &prior.world_from_left,
-            ws,
-            observe,
-        )?;
-        Ok((
-            run.outcome,
-            RelocReport {
-                frame: run.frame,
-                capture: run.capture,
-                map_read,
-                drive: run.drive,
-                prior_uncertainty: params.uncertainty(),
-                windows: run.windows,
-            },
-        ))
+            read_map_checked(store, map, cfg, start, log, then).and_then(|r| r)
+        }
     }
 }

@@ -2,6 +2,7 @@
 //! non-volatile memory, into caller buffers.
 
 use crate::error::ErrorType;
+use vtsm_core::map::MapView;
 
 /// Read-only storage holding one map product.
 pub trait MapStore: ErrorType {
@@ -49,6 +50,22 @@ pub trait MapStore: ErrorType {
     fn mapped(&self) -> Option<&[u8]> {
         None
     }
+
+    /// The product as a view its owner has already checked
+    /// ([`MapView::new_checked`]), when there is one: a host that loaded the
+    /// product from a file and checked it there hands the runner that view,
+    /// and the runner uses it as is, without reading, copying or checking
+    /// the bytes again. `None` (the default, and every flight store): the
+    /// runner checks the product itself.
+    ///
+    /// # Contract
+    /// * `Some(view)`: `view.bytes()` are the product (the bytes
+    ///   [`MapStore::mapped`] and `read_range` give, when they give any) and
+    ///   stay unchanged while the store is borrowed.
+    /// * The answer (`Some` or `None`) is constant while the store is open.
+    fn checked(&self) -> Option<MapView<'_>> {
+        None
+    }
 }
 
 impl<T: MapStore + ?Sized> MapStore for &mut T {
@@ -60,5 +77,8 @@ impl<T: MapStore + ?Sized> MapStore for &mut T {
     }
     fn mapped(&self) -> Option<&[u8]> {
         T::mapped(self)
+    }
+    fn checked(&self) -> Option<MapView<'_>> {
+        T::checked(self)
     }
 }

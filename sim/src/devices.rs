@@ -15,10 +15,12 @@
 //! or delivers silently corrupted bytes. Same seed and same call sequence ⇒ same
 //! faults, on every machine.
 
+use std::borrow::Cow;
 use std::cell::Cell;
 use std::rc::Rc;
 use vtsm_core::frame::Eye;
 use vtsm_core::image::Rect;
+use vtsm_core::map::MapView;
 use vtsm_core::rng::Rng;
 use vtsm_hal::camera::{FrameInfo, StereoCamera};
 use vtsm_hal::telemetry::{decode_prefix, FrameError, SYNC};
@@ -164,21 +166,38 @@ impl FaultInjector {
 
 // ---- map store ------------------------------------------------------------
 
-/// A map product held in memory.
+/// A map product held in memory: owned bytes, bytes borrowed from the
+/// caller (nothing copied), or a view the caller already checked
+/// ([`MemMapStore::from_checked`], handed to the runner as is).
 #[derive(Clone, Debug)]
-pub struct MemMapStore {
-    data: Vec<u8>,
+pub struct MemMapStore<'a> {
+    data: Cow<'a, [u8]>,
     mapped: bool,
+    checked: Option<MapView<'a>>,
     /// Fault source for `read_range`.
     pub faults: FaultInjector,
 }
 
-impl MemMapStore {
-    /// A store holding `data`, without faults, read only through `read_range`.
-    pub fn new(data: Vec<u8>) -> Self {
+impl<'a> MemMapStore<'a> {
+    /// A store holding `data` (owned or borrowed), without faults, read
+    /// only through `read_range`.
+    pub fn new(data: impl Into<Cow<'a, [u8]>>) -> Self {
         Self {
-            data,
+            data: data.into(),
             mapped: false,
+            checked: None,
+            faults: FaultInjector::none(),
+        }
+    }
+
+    /// A memory-mapped store of a product the caller checked once
+    /// ([`MapView::new_checked`]): [`MapStore::checked`] gives `view`, so
+    /// the runner neither reads, copies nor checks it again.
+    pub fn from_checked(view: MapView<'a>) -> Self {
+        Self {
+            data: Cow::Borrowed(view.bytes()),
+            mapped: true,
+            checked: Some(view),
             faults: FaultInjector::none(),
         }
     }
@@ -203,17 +222,21 @@ impl MemMapStore {
     }
 }
 
-impl ErrorType for MemMapStore {
+impl ErrorType for MemMapStore<'_> {
     type Error = ErrorKind;
 }
 
-impl MapStore for MemMapStore {
+impl MapStore for MemMapStore<'_> {
     fn len(&mut self) -> Result<u32, ErrorKind> {
         u32::try_from(self.data.len()).map_err(|_| ErrorKind::Other)
     }
 
     fn mapped(&self) -> Option<&[u8]> {
-        self.mapped.then_some(self.data.as_slice())
+        self.mapped.then_some(&*self.data)
+    }
+
+    fn checked(&self) -> Option<MapView<'_>> {
+        self.checked
     }
 
     fn read_range(&mut self, offset: u32, buf: &mut [u8]) -> Result<(), ErrorKind> {
@@ -456,11 +479,13 @@ impl embedded_io::Write for RecordingSink {
 
 // ---- camera -----------------------------------------------------------------
 
-/// A stereo camera serving one fixed pair on every capture.
+/// A stereo camera serving one fixed pair on every capture: owned images,
+/// or images borrowed from the caller (the decoded files: nothing is copied
+/// to set the camera up).
 #[derive(Clone, Debug)]
-pub struct FixedCamera {
-    left: Vec<u8>,
-    right: Vec<u8>,
+pub struct FixedCamera<'a> {
+    left: Cow<'a, [u8]>,
+    right: Cow<'a, [u8]>,
     width: u32,
     height: u32,
     stride: u32,
@@ -476,11 +501,21 @@ pub struct FixedCamera {
     /// Whether a pair is held for [`FrameStore::read_window`] (the last
     /// [`FrameStore::capture_in_place`] succeeded).
     latched: bool,
+    /// Whole pairs copied out of the camera into a caller's buffers
+    /// ([`StereoCamera::capture`]); a capture in place copies none.
+    pub pair_copies: u32,
 }
 
-impl FixedCamera {
-    /// A camera serving `left`/`right` (`width × height`, rows packed: stride = width).
-    pub fn new(left: Vec<u8>, right: Vec<u8>, width: u32, height: u32) -> crate::Result<Self> {
+impl<'a> FixedCamera<'a> {
+    /// A camera serving `left`/`right` (`width × height`, rows packed:
+    /// stride = width), owned or borrowed.
+    pub fn new(
+        left: impl Into<Cow<'a, [u8]>>,
+        right: impl Into<Cow<'a, [u8]>>,
+        width: u32,
+        height: u32,
+    ) -> crate::Result<Self> {
+        let (left, right) = (left.into(), right.into());
         let need = (width as usize)
             .checked_mul(height as usize)
             .filter(|n| *n > 0)
@@ -504,6 +539,7 @@ impl FixedCamera {
             faults: FaultInjector::none(),
             window_faults: FaultInjector::none(),
             latched: false,
+            pair_copies: 0,
         })
     }
 
@@ -529,13 +565,19 @@ impl FixedCamera {
     pub fn image_len(&self) -> usize {
         self.left.len()
     }
+
+    /// The pair the camera serves (the caller's own memory when it was
+    /// given borrowed images).
+    pub fn pixels(&self) -> (&[u8], &[u8]) {
+        (&self.left, &self.right)
+    }
 }
 
-impl ErrorType for FixedCamera {
+impl ErrorType for FixedCamera<'_> {
     type Error = ErrorKind;
 }
 
-impl StereoCamera for FixedCamera {
+impl StereoCamera for FixedCamera<'_> {
     fn capture(
         &mut self,
         left: &mut [u8],
@@ -574,6 +616,7 @@ impl StereoCamera for FixedCamera {
                 r.copy_from_slice(&self.right);
             }
         }
+        self.pair_copies = self.pair_copies.saturating_add(1);
         self.sequence = self.sequence.wrapping_add(1);
         Ok(FrameInfo {
             width: self.width,
@@ -592,7 +635,7 @@ impl StereoCamera for FixedCamera {
 /// `read_window` copies a rectangle out of it with one draw of
 /// `window_faults` per read: a timeout, a truncated copy (part of the
 /// rectangle, then kind `Truncated`) or a silently damaged copy.
-impl FrameStore for FixedCamera {
+impl FrameStore for FixedCamera<'_> {
     fn capture_in_place(&mut self, timeout_ticks: u64) -> Result<FrameInfo, ErrorKind> {
         self.latched = false;
         match self.faults.draw() {
@@ -1069,7 +1112,13 @@ mod tests {
         cam_faults: FaultInjector,
         prior_est: Option<PriorEstimate>,
     ) -> (
-        Runner<FixedCamera, ManualClock, MemMapStore, FixedPrior, FramedTelemetry<RecordingSink>>,
+        Runner<
+            FixedCamera<'static>,
+            ManualClock,
+            MemMapStore<'static>,
+            FixedPrior,
+            FramedTelemetry<RecordingSink>,
+        >,
         ManualClock,
     ) {
         let clock = ManualClock::new(1000).with_cycles();

@@ -469,7 +469,10 @@ fn step(
 /// # Errors
 /// A bad map product or images whose size disagrees with the rig.
 pub fn relocalize_features(req: &Request<'_>, p: &FeatureParams) -> Result<FeatureReport> {
-    let map = MapView::new_checked(req.map)?;
+    let map = match req.map {
+        crate::locate::MapIn::Checked(v) => v,
+        crate::locate::MapIn::Bytes(b) => MapView::new_checked(b)?,
+    };
     let cam = req.rig.cam();
     let (w, h) = (cam.width(), cam.height());
     let n = w as usize * h as usize;

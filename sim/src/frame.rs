@@ -135,6 +135,14 @@ pub fn local_vertices(
         .collect()
 }
 
+/// [`parse_origin`] as a command-line value parser (`--origin X,Y,Z`).
+///
+/// # Errors
+/// As [`parse_origin`], as text.
+pub fn origin_arg(s: &str) -> std::result::Result<[f64; 3], String> {
+    parse_origin(s).map_err(|e| e.to_string())
+}
+
 /// Parse `X,Y,Z` (metres) for an `--origin` option.
 ///
 /// # Errors

@@ -4,7 +4,7 @@
 //! renderer of its own ([`render`]), photogrammetry-like map products
 //! ([`mapping`]), capture grids and scenes ([`scene`]), HAL implementations with
 //! seeded fault injection ([`devices`]), file formats ([`io`]), the user and
-//! map-local frames ([`frame`]), evaluation suites
+//! map-local frames ([`frame`]), the host relocalization job ([`job`]), evaluation suites
 //! ([`eval`]), the local-feature baseline ([`features`]) and the `vtsm`
 //! command line ([`cli`]).
 #![forbid(unsafe_code)]
@@ -16,6 +16,7 @@ pub mod eval;
 pub mod features;
 pub mod frame;
 pub mod io;
+pub mod job;
 pub mod locate;
 pub mod mapping;
 pub mod panel;

@@ -1,10 +1,20 @@
 //! One relocalization on the desktop, on the flight path: simulated devices
 //! (camera, clock, map store, prior, telemetry) serve the request to the HAL
 //! runner, which acquires the inputs, builds the engine with the core's one
-//! constructor ([`vtsm_core::reloc::Setup`]) over a heap workspace, and drives it. Used by `vtsm demo`,
-//! `vtsm relocalize`, `vtsm eval` and the end-to-end tests, so every path runs
-//! exactly the same code. [`relocalize_by_stage`] is the same run with the
-//! engine stepped one stage at a time and each stage reported (`vtsm bench`).
+//! constructor ([`vtsm_core::reloc::Setup`]) over a heap workspace, and
+//! drives it. Used by `vtsm demo`, `vtsm relocalize`, `vtsm eval`, `vtsm
+//! bench`, `vtsm budget` and the end-to-end tests, so every path runs exactly
+//! the same code: a [`Request`] built by [`Request::new`], run by [`run`] (or
+//! [`relocalize`], which also turns a runner failure into an error) with one
+//! [`RunOptions`] (device faults, drive limits, pair path, step hook, stage
+//! observer).
+//!
+//! Copies and checks: the devices borrow the request's images and map (no
+//! copy to set them up). A map given as a [`MapIn::Checked`] view is handed
+//! to the runner as is (no read, copy or check there); raw bytes are checked
+//! by the runner once. On [`PairPath::Ram`] the camera copies the pair once
+//! into the runner's buffers; on [`PairPath::Store`] it is never copied
+//! ([`DeviceRun::pair_copies`] counts them).
 
 use crate::devices::{
     DecodedFrame, FaultConfig, FaultInjector, FixedCamera, FixedPrior, ManualClock, MemMapStore,
@@ -20,7 +30,7 @@ use vtsm_core::image::Rect;
 use vtsm_core::map::MapView;
 use vtsm_core::ncc::Run;
 use vtsm_core::raster::{self, Target};
-use vtsm_core::reloc::{Engine, MatchPolicy, Outcome, Workspace, WorkspaceSizes};
+use vtsm_core::reloc::{MatchPolicy, Outcome, Workspace, WorkspaceSizes};
 use vtsm_core::FailureCode;
 use vtsm_hal::runner::{
     Between, DriveLimits, InStore, Job, RamPair, RelocReport, Runner, RunnerConfig, StageEvent,
@@ -34,11 +44,56 @@ pub fn params_for_width(width: u32) -> Params {
     Params::for_image_width(width)
 }
 
-/// Everything one relocalization needs.
+/// The map product a [`Request`] runs against.
+#[derive(Clone, Copy, Debug)]
+#[allow(
+    clippy::large_enum_variant,
+    reason = "a Copy value built once per request; boxing the view would allocate for nothing"
+)]
+pub enum MapIn<'a> {
+    /// Encoded bytes: the runner checks them (in place or after reading
+    /// them from the simulated storage), as on the flight path.
+    Bytes(&'a [u8]),
+    /// A view the caller checked once when it loaded or built the product
+    /// ([`MapView::new_checked`]): handed to the runner as is, never read,
+    /// copied or checked again (the host path).
+    Checked(MapView<'a>),
+}
+
+impl<'a> MapIn<'a> {
+    /// The encoded product.
+    pub fn bytes(&self) -> &'a [u8] {
+        match self {
+            MapIn::Bytes(b) => b,
+            MapIn::Checked(v) => v.bytes(),
+        }
+    }
+}
+
+impl<'a> From<&'a [u8]> for MapIn<'a> {
+    fn from(b: &'a [u8]) -> Self {
+        MapIn::Bytes(b)
+    }
+}
+
+impl<'a> From<&'a Vec<u8>> for MapIn<'a> {
+    fn from(b: &'a Vec<u8>) -> Self {
+        MapIn::Bytes(b)
+    }
+}
+
+impl<'a> From<MapView<'a>> for MapIn<'a> {
+    fn from(v: MapView<'a>) -> Self {
+        MapIn::Checked(v)
+    }
+}
+
+/// Everything one relocalization needs. Built by [`Request::new`] and its
+/// `with_*` methods.
 #[derive(Clone, Copy)]
 pub struct Request<'a> {
-    /// Encoded map product (checked here).
-    pub map: &'a [u8],
+    /// The map product.
+    pub map: MapIn<'a>,
     /// Left image, row-major, `rig.cam.width × rig.cam.height`.
     pub left: &'a [u8],
     /// Right image, same size.
@@ -57,6 +112,55 @@ pub struct Request<'a> {
     pub seed: u64,
     /// The engine's upset checks ([`Job::verify`](vtsm_hal::runner::Job::verify)).
     pub verify: VerifyChecks,
+}
+
+impl<'a> Request<'a> {
+    /// The request of `map`, the pair `left`/`right` seen by `rig` and the
+    /// prior `prior`, with the parameters for the rig's image width
+    /// ([`params_for_width`]), seed 0, no upset check and no stated prior
+    /// uncertainty.
+    pub fn new(
+        map: impl Into<MapIn<'a>>,
+        left: &'a [u8],
+        right: &'a [u8],
+        rig: StereoRig,
+        prior: Pose,
+    ) -> Self {
+        Self {
+            map: map.into(),
+            left,
+            right,
+            rig,
+            prior,
+            uncertainty: None,
+            params: params_for_width(rig.cam().width()),
+            seed: 0,
+            verify: VerifyChecks::OFF,
+        }
+    }
+
+    /// The same request with these parameters.
+    pub fn with_params(self, params: Params) -> Self {
+        Self { params, ..self }
+    }
+
+    /// The same request with this seed.
+    pub fn with_seed(self, seed: u64) -> Self {
+        Self { seed, ..self }
+    }
+
+    /// The same request with these upset checks.
+    pub fn with_verify(self, verify: VerifyChecks) -> Self {
+        Self { verify, ..self }
+    }
+
+    /// The same request with the prior's stated uncertainty.
+    pub fn with_uncertainty(self, uncertainty: Option<PriorUncertainty>) -> Self {
+        Self {
+            uncertainty,
+            ..self
+        }
+    }
 }
 
 /// Seeded faults of the simulated devices one relocalization runs on.
@@ -112,54 +216,21 @@ pub struct Report {
     pub device_log: FailureLog,
     /// Telemetry frames decoded from the downlink.
     pub telemetry: Vec<DecodedFrame>,
+    /// Whole copies of the stereo pair made ([`DeviceRun::pair_copies`]).
+    pub pair_copies: u32,
 }
 
-/// Run one relocalization to completion on fault-free simulated devices.
-///
-/// # Errors
-/// As [`relocalize_on_devices`].
-pub fn relocalize(req: &Request<'_>) -> Result<Report> {
-    relocalize_on_devices(req, &DeviceFaults::default(), &DriveLimits::UNLIMITED)
-}
-
-/// Run one relocalization through the HAL runner, on simulated devices that
-/// serve `req`'s map, pair and prior with `faults`, under `limits`: the path a
-/// flight computer runs, with the engine built by the core's one constructor.
+/// Run one relocalization to completion with `opts`
+/// ([`RunOptions::default`]: fault-free devices, no limit, pair in RAM): the
+/// one [`run`], with a runner failure returned as an error.
 ///
 /// # Errors
 /// Bad map product, image sizes that disagree with the rig, parameters the
 /// core rejects, or device faults that outlast their retries — each with its
 /// failure code. A relocalization that fails cleanly is not an error: it is
 /// an [`Outcome`] with a failure code.
-pub fn relocalize_on_devices(
-    req: &Request<'_>,
-    faults: &DeviceFaults,
-    limits: &DriveLimits,
-) -> Result<Report> {
-    let run = run_job(req, faults, limits, PairPath::Ram, None, None)?;
-    into_report(req, run)
-}
-
-/// [`relocalize`] with the engine stepped one stage at a time through
-/// [`Runner::run`]'s observer: `observe` gets [`StageEvent::Start`] once
-/// the engine is built and [`StageEvent::Ran`] after each stage, and may read
-/// a clock at each event. The outcome is bit-identical to [`relocalize`]'s
-/// (the simulated clock does not move between steps).
-///
-/// # Errors
-/// As [`relocalize_on_devices`].
-pub fn relocalize_by_stage(
-    req: &Request<'_>,
-    observe: &mut dyn FnMut(StageEvent),
-) -> Result<Report> {
-    let run = run_job(
-        req,
-        &DeviceFaults::default(),
-        &DriveLimits::UNLIMITED,
-        PairPath::Ram,
-        None,
-        Some(observe),
-    )?;
+pub fn relocalize(req: &Request<'_>, opts: RunOptions<'_>) -> Result<Report> {
+    let run = run(req, opts)?;
     into_report(req, run)
 }
 
@@ -174,6 +245,7 @@ fn into_report(req: &Request<'_>, run: DeviceRun) -> Result<Report> {
         run: report,
         device_log: run.log,
         telemetry: run.telemetry,
+        pair_copies: run.pair_copies,
     })
 }
 
@@ -193,6 +265,10 @@ pub struct DeviceRun {
     /// The simulated clock at the end of the run, ticks from 0 (camera
     /// timeouts and, with [`DeviceFaults::clock_ticks_per_read`], every clock read).
     pub ticks: u64,
+    /// Whole copies of the stereo pair made: the camera's captures into the
+    /// runner's RAM buffers (1 on [`PairPath::Ram`], 0 on
+    /// [`PairPath::Store`]); setting the camera up copies nothing.
+    pub pair_copies: u32,
 }
 
 impl DeviceRun {
@@ -200,7 +276,7 @@ impl DeviceRun {
     /// runner's log and telemetry, and the simulated clock.
     fn of(
         result: std::result::Result<(Outcome, RelocReport), FailureCode>,
-        runner: &SimRunner,
+        runner: &SimRunner<'_>,
         start: Instant,
         workspace_bytes: usize,
         probe: &ManualClock,
@@ -214,6 +290,7 @@ impl DeviceRun {
             elapsed,
             workspace_bytes,
             ticks: probe.ticks(),
+            pair_copies: runner.camera.pair_copies,
         }
     }
 }
@@ -222,14 +299,14 @@ impl DeviceRun {
 /// camera's frame memory) and how the map is stored.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum PairPath {
-    /// The pair is captured into RAM buffers ([`RamPair`]); the map is read
-    /// into a RAM buffer.
+    /// The pair is captured into RAM buffers ([`RamPair`]); a map given as
+    /// bytes is read into a RAM buffer.
     #[default]
     Ram,
     /// The pair stays in the camera's memory and the engine reads each
     /// search window from it ([`InStore`]), with `window_faults` drawn once
     /// per window read (seeded from the devices' seed); with `map_in_place`
-    /// the map store is memory-mapped ([`MemMapStore::memory_mapped`]) and
+    /// the map store of a map given as bytes is memory-mapped ([`MemMapStore::memory_mapped`]) and
     /// the product is checked and used in place, without a RAM copy.
     Store {
         /// Faults of the window reads.
@@ -239,91 +316,120 @@ pub enum PairPath {
     },
 }
 
-/// [`relocalize_on_devices`], keeping the runner's log and telemetry whatever
-/// the result.
+/// How one run is set up besides its [`Request`]: device faults, drive
+/// limits, the pair path, a hook before every step and a stage observer.
+pub struct RunOptions<'h> {
+    /// Seeded faults of the simulated devices.
+    pub faults: DeviceFaults,
+    /// Step, work and tick budget of the drive.
+    pub limits: DriveLimits,
+    /// Where the pair goes and how a map given as bytes is stored.
+    pub path: PairPath,
+    /// Called before every step call ([`PairPath::Ram`]; upset injection,
+    /// a ground abort).
+    pub between: Option<Between<'h>>,
+    /// Stepping one stage at a time, each stage reported
+    /// ([`Runner::run`]'s observer); the outcome is bit-identical.
+    pub observe: Option<&'h mut dyn FnMut(StageEvent)>,
+}
+
+impl Default for RunOptions<'_> {
+    /// Fault-free devices, no limit, the pair in RAM, no hook, no observer.
+    fn default() -> Self {
+        Self {
+            faults: DeviceFaults::default(),
+            limits: DriveLimits::UNLIMITED,
+            path: PairPath::Ram,
+            between: None,
+            observe: None,
+        }
+    }
+}
+
+impl<'h> RunOptions<'h> {
+    /// The same options with these device faults.
+    pub fn faults(self, faults: DeviceFaults) -> Self {
+        Self { faults, ..self }
+    }
+
+    /// The same options with these drive limits.
+    pub fn limits(self, limits: DriveLimits) -> Self {
+        Self { limits, ..self }
+    }
+
+    /// The same options with this pair path.
+    pub fn path(self, path: PairPath) -> Self {
+        Self { path, ..self }
+    }
+
+    /// The same options with `between` called before every step.
+    pub fn between(self, between: Between<'h>) -> Self {
+        Self {
+            between: Some(between),
+            ..self
+        }
+    }
+
+    /// The same options with each engine stage reported to `observe`.
+    pub fn observe(self, observe: &'h mut dyn FnMut(StageEvent)) -> Self {
+        Self {
+            observe: Some(observe),
+            ..self
+        }
+    }
+}
+
+/// The one run of `req` on the simulated devices: set them up with
+/// `opts.faults`, serve the pair by `opts.path`, and make the one runner call
+/// ([`Runner::run`]) with the job of `req` and `opts.limits`, the hook
+/// `opts.between` (RAM path) and the stage observer `opts.observe`; the
+/// runner's log and telemetry are kept whatever the result.
 ///
 /// # Errors
 /// Only what stops the devices from being set up (image sizes that disagree
 /// with the rig, parameters that cannot size a workspace, invalid fault
 /// settings); everything after that is in [`DeviceRun::result`].
-pub fn run_on_devices(
-    req: &Request<'_>,
-    faults: &DeviceFaults,
-    limits: &DriveLimits,
-) -> Result<DeviceRun> {
-    run_job(req, faults, limits, PairPath::Ram, None, None)
-}
-
-/// [`run_on_devices`] with `between(engine, now)` called before every step
-/// call (upset injection between steps).
-///
-/// # Errors
-/// As [`run_on_devices`].
-pub fn run_on_devices_with<F>(
-    req: &Request<'_>,
-    faults: &DeviceFaults,
-    limits: &DriveLimits,
-    mut between: F,
-) -> Result<DeviceRun>
-where
-    F: for<'m, 'w> FnMut(&mut Engine<'m, 'w>, u64),
-{
-    run_job(req, faults, limits, PairPath::Ram, Some(&mut between), None)
-}
-
-/// [`run_on_devices`] on the frame-store path ([`PairPath::Store`]): no RAM
-/// copy of the pair is made.
-///
-/// # Errors
-/// As [`run_on_devices`].
-pub fn run_from_store(
-    req: &Request<'_>,
-    faults: &DeviceFaults,
-    window_faults: FaultConfig,
-    map_in_place: bool,
-    limits: &DriveLimits,
-) -> Result<DeviceRun> {
-    let path = PairPath::Store {
-        window_faults,
-        map_in_place,
-    };
-    run_job(req, faults, limits, path, None, None)
-}
-
-/// The one run of `req` on the simulated devices: set them up with
-/// `faults`, serve the pair by `path`, and make the one runner call
-/// ([`Runner::run`]) with the job of `req` and `limits`, the hook `between`
-/// (RAM path) and the stage observer `observe`.
-///
-/// # Errors
-/// As [`run_on_devices`].
-pub fn run_job<'h>(
-    req: &Request<'_>,
-    faults: &DeviceFaults,
-    limits: &DriveLimits,
-    path: PairPath,
-    between: Option<Between<'h>>,
-    observe: Option<&mut dyn FnMut(StageEvent)>,
-) -> Result<DeviceRun> {
+pub fn run(req: &Request<'_>, opts: RunOptions<'_>) -> Result<DeviceRun> {
+    let RunOptions {
+        faults,
+        limits,
+        path,
+        between,
+        observe,
+    } = opts;
     let (n, mut storage) = checked_storage(req)?;
     let sizes = storage.sizes;
     let ws = storage.workspace()?;
-    let (mut runner, probe) = devices_for(req, faults)?;
+    let (mut runner, probe) = devices_for(req, &faults)?;
     let job = Job {
         rig: req.rig,
         params: req.params,
         seed: req.seed,
-        limits: *limits,
+        limits,
         verify: req.verify,
     };
-    let mut map = Vec::new();
-    let (mut left, mut right) = (Vec::new(), Vec::new());
+    // RAM for the map only when it must be read from storage (bytes, not
+    // memory-mapped); a checked view is used where it is.
+    let read_into_ram = matches!(req.map, MapIn::Bytes(_))
+        && !matches!(
+            path,
+            PairPath::Store {
+                map_in_place: true,
+                ..
+            }
+        );
+    let mut map = vec![
+        0u8;
+        if read_into_ram {
+            req.map.bytes().len()
+        } else {
+            0
+        }
+    ];
     let start;
     let result = match path {
         PairPath::Ram => {
-            map.resize(req.map.len(), 0);
-            left.resize(n, 0);
-            right.resize(n, 0);
+            let (mut left, mut right) = (vec![0u8; n], vec![0u8; n]);
             let pair = RamPair {
                 left: &mut left,
                 right: &mut right,
@@ -339,8 +445,6 @@ pub fn run_job<'h>(
             runner.camera.window_faults = FaultInjector::new(window_faults, faults.seed ^ 0xf4a3e)?;
             if map_in_place {
                 runner.store = runner.store.memory_mapped();
-            } else {
-                map.resize(req.map.len(), 0);
             }
             start = Instant::now();
             runner.run(&job, &mut map, InStore, ws, observe)
@@ -400,14 +504,21 @@ fn checked_storage(req: &Request<'_>) -> Result<(usize, HeapStorage)> {
 
 /// The simulated runner of `req` (camera, clock, map store, prior,
 /// telemetry, with `faults`) and a probe of its clock.
-fn devices_for(req: &Request<'_>, faults: &DeviceFaults) -> Result<(SimRunner, ManualClock)> {
+fn devices_for<'a>(
+    req: &Request<'a>,
+    faults: &DeviceFaults,
+) -> Result<(SimRunner<'a>, ManualClock)> {
     let (w, h) = (req.rig.cam().width(), req.rig.cam().height());
     let clock = ManualClock::new(1_000);
-    let camera = FixedCamera::new(req.left.to_vec(), req.right.to_vec(), w, h)?
+    // The camera and the store borrow the request's memory: nothing copied.
+    let camera = FixedCamera::new(req.left, req.right, w, h)?
         .with_clock(clock.clone())
         .with_faults(FaultInjector::new(faults.camera, faults.seed)?);
-    let store = MemMapStore::new(req.map.to_vec())
-        .with_faults(FaultInjector::new(faults.store, faults.seed ^ 0x5107e)?);
+    let store = match req.map {
+        MapIn::Bytes(b) => MemMapStore::new(b),
+        MapIn::Checked(v) => MemMapStore::from_checked(v),
+    }
+    .with_faults(FaultInjector::new(faults.store, faults.seed ^ 0x5107e)?);
     let u = req.uncertainty.unwrap_or(req.params.uncertainty());
     let t0 = u.t_m * u.t_m;
     let r0 = u.r_deg.to_radians() * u.r_deg.to_radians();
@@ -429,9 +540,14 @@ fn devices_for(req: &Request<'_>, faults: &DeviceFaults) -> Result<(SimRunner, M
     ))
 }
 
-/// The runner over the simulated devices.
-type SimRunner =
-    Runner<FixedCamera, ManualClock, MemMapStore, FixedPrior, FramedTelemetry<RecordingSink>>;
+/// The runner over the simulated devices, borrowing a request's memory.
+type SimRunner<'a> = Runner<
+    FixedCamera<'a>,
+    ManualClock,
+    MemMapStore<'a>,
+    FixedPrior,
+    FramedTelemetry<RecordingSink>,
+>;
 
 /// An ℓ×ℓ synthetic template with its depth and §III-C mask, row-major.
 pub struct Template {
@@ -495,20 +611,18 @@ mod tests {
         let light = scene.lighting(9.5);
         let map = scene.map(&light).encode_map(0.5).unwrap();
         let (rig, truth, pair) = scene.capture(&light, &Capture::from_index(5, 0, 0.40));
-        let req = Request {
-            map: &map,
-            left: &pair.left,
-            right: &pair.right,
+        let req = Request::new(
+            &map,
+            &pair.left,
+            &pair.right,
             rig,
-            prior: perturbed_prior(&truth, 3),
-            params: params_for_width(rig.cam().width()),
-            seed: 3,
-            verify: VerifyChecks::OFF,
-            uncertainty: None,
-        };
-        let whole = relocalize(&req).unwrap();
+            perturbed_prior(&truth, 3),
+        )
+        .with_seed(3);
+        let whole = relocalize(&req, RunOptions::default()).unwrap();
         let mut events = Vec::new();
-        let staged = relocalize_by_stage(&req, &mut |e| events.push(e)).unwrap();
+        let mut observe = |e| events.push(e);
+        let staged = relocalize(&req, RunOptions::default().observe(&mut observe)).unwrap();
         let (a, b) = (&whole.outcome, &staged.outcome);
         let bits = |o: &Outcome| {
             let (t, q) = (o.pose.t(), o.pose.q());
@@ -532,5 +646,54 @@ mod tests {
             .count() as u32;
         assert_eq!(renders, b.stats.attempts);
         assert!(events.contains(&StageEvent::Ran(Stage::Pose)));
+    }
+
+    /// The map is checked once and the pair copied at most once on every
+    /// host path, and the outcome does not depend on the path.
+    #[test]
+    fn map_checked_once_and_pair_copied_at_most_once_on_every_path() {
+        let scene = Scene::new(TerrainKind::Flagstone, 3, Profile::Test);
+        let light = scene.lighting(9.5);
+        let map = scene.map(&light).encode_map(0.5).unwrap();
+        let (rig, truth, pair) = scene.capture(&light, &Capture::from_index(5, 0, 0.40));
+        let prior = perturbed_prior(&truth, 3);
+        let view = MapView::new_checked(&map).unwrap(); // the host's one check
+        let store = PairPath::Store {
+            window_faults: FaultConfig::default(),
+            map_in_place: true,
+        };
+        let store_read = PairPath::Store {
+            window_faults: FaultConfig::default(),
+            map_in_place: false,
+        };
+        let mut outcomes = Vec::new();
+        // (map, path, checks in the runner, in place, pair copies)
+        for (map_in, path, checks, in_place, copies) in [
+            (MapIn::Checked(view), PairPath::Ram, 0, true, 1),
+            (MapIn::Checked(view), store, 0, true, 0),
+            (MapIn::Bytes(&map), PairPath::Ram, 1, false, 1),
+            (MapIn::Bytes(&map), store, 1, true, 0),
+            (MapIn::Bytes(&map), store_read, 1, false, 0),
+        ] {
+            let req = Request::new(map_in, &pair.left, &pair.right, rig, prior).with_seed(3);
+            // The devices serve the request's own memory.
+            let (runner, _) = devices_for(&req, &DeviceFaults::default()).unwrap();
+            let (l, r) = runner.camera.pixels();
+            assert!(
+                std::ptr::eq(l, pair.left.as_slice()) && std::ptr::eq(r, pair.right.as_slice())
+            );
+            assert!(std::ptr::eq(runner.store.data(), map.as_slice()));
+            let rep = relocalize(&req, RunOptions::default().path(path)).unwrap();
+            let what = format!("{path:?} checked {}", matches!(map_in, MapIn::Checked(_)));
+            assert_eq!(rep.run.map_read.checks, checks, "{what}");
+            assert_eq!(rep.run.map_read.in_place, in_place, "{what}");
+            assert_eq!(rep.pair_copies, copies, "{what}");
+            outcomes.push(rep.outcome);
+        }
+        let bits = |o: &Outcome| {
+            let (t, q) = (o.pose.t(), o.pose.q());
+            (t.map(f32::to_bits), q.map(f32::to_bits), o.stats)
+        };
+        assert!(outcomes.iter().all(|o| bits(o) == bits(&outcomes[0])));
     }
 }

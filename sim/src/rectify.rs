@@ -351,8 +351,10 @@ impl MapModel {
     }
 }
 
-/// The interpolation kernel of a remap, as `cv2.remap`'s flag of that name.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// The interpolation kernel of a remap, as `cv2.remap`'s flag of that name
+/// (also the command-line value of `--interp`, by [`Interp::name`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+#[value(rename_all = "lower")]
 pub enum Interp {
     /// `INTER_LINEAR`: 2 × 2 taps, bilinear.
     Linear,

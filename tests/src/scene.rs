@@ -8,7 +8,6 @@ use crate::testkit;
 use std::sync::OnceLock;
 use vtsm_core::geom::{Pose, Vec3};
 use vtsm_core::map::MapView;
-use vtsm_hal::runner::VerifyChecks;
 use vtsm_sim::locate::Request;
 
 /// Seed of the relocalization of every request built here (the upset
@@ -64,10 +63,7 @@ impl Scene {
 
     /// The runner request for `map` with this scene's pair and prior.
     pub fn request<'a>(&'a self, map: &'a [u8], seed: u64) -> Request<'a> {
-        Request {
-            seed,
-            ..request(map, &self.left, &self.right, self.prior)
-        }
+        request(map, &self.left, &self.right, self.prior).with_seed(seed)
     }
 }
 
@@ -90,15 +86,7 @@ pub fn render_pair(map: &MapView, pose: &Pose) -> (Vec<u8>, Vec<u8>) {
 /// The runner request for `map`, `left`/`right` and `prior` on the test kit's
 /// rig, with the test profile and seed [`RELOC_SEED`].
 pub fn request<'a>(map: &'a [u8], left: &'a [u8], right: &'a [u8], prior: Pose) -> Request<'a> {
-    Request {
-        map,
-        left,
-        right,
-        rig: testkit::rig(),
-        prior,
-        params: testkit::test_params(),
-        seed: RELOC_SEED,
-        verify: VerifyChecks::OFF,
-        uncertainty: None,
-    }
+    Request::new(map, left, right, testkit::rig(), prior)
+        .with_params(testkit::test_params())
+        .with_seed(RELOC_SEED)
 }

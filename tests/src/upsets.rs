@@ -4,7 +4,7 @@
 //! Three campaigns, all on the test-kit scene ([`Scene`]: an 8 m textured heightfield,
 //! a 640×480 pair, the test profile ℓ = 64, N_corr = 40):
 //! * **map in storage**: one bit of the stored map product is flipped and the
-//!   relocalization runs through the HAL runner (`run_on_devices`), which
+//!   relocalization runs through the HAL runner (`locate::run`), which
 //!   checks the product at load;
 //! * **map, CRC-blind**: the same flip, then every CRC recomputed
 //!   (`map::reseal`), as if the bit had flipped before the CRCs were computed
@@ -27,8 +27,7 @@ use vtsm_core::ncc::Run;
 use vtsm_core::reloc::{Outcome, Setup, StepResult, UpsetRegion, Workspace};
 use vtsm_core::rng::Rng;
 use vtsm_core::FailureCode;
-use vtsm_hal::runner::DriveLimits;
-use vtsm_sim::locate::{run_on_devices, workspace_sizes, DeviceFaults};
+use vtsm_sim::locate::{run, workspace_sizes, RunOptions};
 
 /// How one upset trial ended, compared with the clean run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -176,8 +175,7 @@ pub fn params() -> vtsm_core::config::Params {
 /// The runner's failure code, if the clean scene does not relocalize.
 pub fn clean_run(scene: &Scene) -> Result<Outcome, FailureCode> {
     let req = scene.request(&scene.map, RELOC_SEED);
-    let run = run_on_devices(&req, &DeviceFaults::default(), &DriveLimits::UNLIMITED)
-        .map_err(|_| FailureCode::ConfigParamOutOfRange)?;
+    let run = run(&req, RunOptions::default()).map_err(|_| FailureCode::ConfigParamOutOfRange)?;
     run.result.map(|(o, _)| o)
 }
 
@@ -199,8 +197,7 @@ pub fn map_trial(scene: &Scene, clean: &Outcome, rng: &mut Rng, reseal: bool) ->
     }
     let region = region_of(&regions, byte);
     let req = scene.request(&bytes, RELOC_SEED);
-    let result =
-        run_on_devices(&req, &DeviceFaults::default(), &DriveLimits::UNLIMITED).map(|r| r.result);
+    let result = run(&req, RunOptions::default()).map(|r| r.result);
     let (class, code, error_m) = match result {
         Ok(Ok((o, _))) => classify(&o, clean, &scene.truth),
         Ok(Err(code)) if code.group() == 0x03 => (Class::DetectedAtLoad, Some(code), None),

@@ -19,84 +19,24 @@
 //! input), 2 the batch itself is bad (pairs file or directory unreadable or
 //! empty, bad map or `--calib`, `--out` exists) — then nothing is written.
 
-use super::relocalize::{self, Args};
 use crate::error::{Error, Result, EXIT_RELOC_FAILED};
-use crate::io::{self, json};
+use crate::io;
+use crate::job::{self, Pair};
+pub use crate::job::{PairResult, PairSpec};
 use indicatif::{ProgressBar, ProgressStyle};
-use serde::{Deserialize, Serialize};
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
-
-/// One pair of a batch, as written in `pairs.jsonl`. Its prior file may
-/// state the prior's own uncertainty (`prior.json` form).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PairSpec {
-    /// Label echoed in the output line (default: the source `file:line`).
-    #[serde(default)]
-    pub id: Option<String>,
-    /// Left image.
-    pub left: PathBuf,
-    /// Right image.
-    pub right: PathBuf,
-    /// Prior pose file (`prior.json` form, user frame).
-    pub prior: PathBuf,
-    /// Calibration of this pair (default: `--calib`).
-    #[serde(default)]
-    pub calib: Option<PathBuf>,
-    /// Truth pose file: adds the final error to the output line.
-    #[serde(default)]
-    pub truth: Option<PathBuf>,
-    /// Also write this pair's `result.json` here (refused if it exists, unless `--force`).
-    #[serde(default)]
-    pub out: Option<PathBuf>,
-    /// Seed of this pair (default: `--seed`).
-    #[serde(default)]
-    pub seed: Option<u64>,
-}
-
-/// One output line of a batch.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PairResult {
-    /// Position of the pair in the batch, from 0.
-    pub index: usize,
-    /// Where the pair was read: `file:line` or the pair file.
-    pub source: String,
-    /// The pair's `id`, when it had one.
-    pub id: Option<String>,
-    /// `"ok"`, `"failed"` (clean relocalization failure) or `"error"` (bad pair input).
-    pub status: String,
-    /// Failure code name, or `null` (success, or a bad input without a code).
-    pub failure: Option<String>,
-    /// One-line reason when not `"ok"`.
-    pub message: Option<String>,
-    /// Final estimate in the user frame (the last estimate when failed), or `null`.
-    pub world_from_left: Option<json::PoseJson>,
-    /// RANSAC inliers of the final estimate.
-    pub inliers: u32,
-    /// Successful iterations.
-    pub iterations: u32,
-    /// The prior uncertainty (t̃₀, r̃₀) the engine ran with (the prior's
-    /// stated `uncertainty`, else the default); `null` for a bad pair.
-    #[serde(default)]
-    pub prior_uncertainty: Option<json::UncertaintyJson>,
-    /// Translation error to `truth`, mm (when given).
-    pub error_t_mm: Option<f64>,
-    /// Rotation error to `truth`, degrees (when given).
-    pub error_r_deg: Option<f64>,
-    /// Wall time of the pair (loading its files and relocalizing), seconds.
-    pub time_s: f64,
-}
 
 /// What a batch did.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Summary {
     /// One line per pair, in input order.
     pub results: Vec<PairResult>,
-    /// Times the map product was loaded (read and checked, or built): 1.
+    /// Times the map product was loaded (read, or built): 1.
     pub map_loads: usize,
+    /// Checks of the map product over the batch: 1 (the job's; the runner
+    /// uses the checked view for every pair).
+    pub map_checks: u32,
     /// Wall time of loading the map, seconds.
     pub map_load_s: f64,
     /// Wall time of all pairs, seconds.
@@ -191,125 +131,25 @@ fn read_entries(path: &Path) -> Result<Vec<Entry>> {
     Ok(out)
 }
 
-fn resolve(base: &Path, p: &Path) -> PathBuf {
-    if p.is_absolute() {
-        p.to_path_buf()
-    } else {
-        base.join(p)
-    }
-}
-
-fn failed_line(index: usize, e: &Entry, id: Option<String>, err: &Error) -> PairResult {
-    PairResult {
-        index,
-        source: e.source.clone(),
-        id,
-        status: "error".to_string(),
-        failure: err.code.map(|c| c.name().to_string()),
-        message: Some(err.to_string()),
-        world_from_left: None,
-        inliers: 0,
-        iterations: 0,
-        prior_uncertainty: None,
-        error_t_mm: None,
-        error_r_deg: None,
-        time_s: 0.0,
-    }
-}
-
-/// Relocalize one pair against the loaded map, with its own calibration
-/// when it names one, else `calib` (the batch's `--calib`, read once).
-fn run_pair(
-    args: &Args,
-    calib: &relocalize::Calibration,
-    map: &[u8],
-    index: usize,
-    e: &Entry,
-) -> PairResult {
-    let t0 = Instant::now();
-    let spec = match &e.spec {
-        Ok(s) => s,
-        Err(m) => return failed_line(index, e, None, &Error::msg(m.clone())),
-    };
-    let id = spec.id.clone();
-    let r = (|| -> Result<PairResult> {
-        let a = Args {
-            left: Some(resolve(&e.base, &spec.left)),
-            right: Some(resolve(&e.base, &spec.right)),
-            prior: Some(resolve(&e.base, &spec.prior)),
-            calib: spec
-                .calib
-                .as_ref()
-                .map_or_else(|| args.calib.clone(), |c| resolve(&e.base, c)),
-            seed: spec.seed.unwrap_or(args.seed),
-            out: spec.out.as_ref().map(|o| resolve(&e.base, o)),
-            pairs: None,
-            ..args.clone()
-        };
-        if let Some(out) = &a.out {
-            io::check_output(out, args.force)?;
-        }
-        let truth = spec
-            .truth
-            .as_ref()
-            .map(|t| json::read_user_pose(&resolve(&e.base, t)))
-            .transpose()?;
-        let own;
-        let calib = match &spec.calib {
-            Some(_) => {
-                own = relocalize::read_calibration(&a.calib, &a.interp)?;
-                &own
-            }
-            None => calib,
-        };
-        let (outcome, result) = relocalize::relocalize_pair(&a, calib, map.to_vec())?;
-        let user = outcome
-            .pose
-            .as_ref()
-            .map(|p| crate::frame::to_user(p, outcome.origin));
-        let err = truth
-            .as_ref()
-            .zip(user.as_ref())
-            .map(|(t, u)| crate::frame::error_to(u, t));
-        Ok(PairResult {
-            index,
-            source: e.source.clone(),
-            id: id.clone(),
-            status: result.status.clone(),
-            failure: result.failure.clone(),
-            message: outcome.failure.map(|c| c.description().to_string()),
-            world_from_left: result.world_from_left,
-            inliers: result.inliers,
-            iterations: result.iterations,
-            prior_uncertainty: result.prior_uncertainty,
-            error_t_mm: err.map(|(t, _)| t * 1e3),
-            error_r_deg: err.map(|(_, r)| r.to_degrees()),
-            time_s: 0.0,
-        })
-    })();
-    let mut line = r.unwrap_or_else(|err| failed_line(index, e, id, &err));
-    line.time_s = t0.elapsed().as_secs_f64();
-    line
-}
-
-/// Run a batch: check the batch's own inputs, load the map once, relocalize
-/// every pair in order. `progress` shows a bar on stderr.
+/// Run a batch: read the pairs of `pairs`, then run them as one job
+/// ([`job::run`]: the map loaded and checked once), `seed` the seed of every
+/// pair that names none, `out` the results file (without it each line goes
+/// to stdout as its pair ends). `progress` shows a bar on stderr.
 ///
 /// # Errors
 /// Bad input of the batch itself (see the module doc); per-pair problems are
 /// in the returned lines.
-pub fn run_batch(args: &Args, pairs: &Path, progress: bool) -> Result<Summary> {
-    relocalize::check_args(args)?;
-    if let Some(out) = &args.out {
-        io::check_output(out, args.force)?;
+pub fn run_batch(
+    spec: &job::Spec,
+    seed: u64,
+    pairs: &Path,
+    out: Option<&Path>,
+    progress: bool,
+) -> Result<Summary> {
+    if let Some(out) = out {
+        io::check_output(out, spec.force)?;
     }
     let entries = read_entries(pairs)?;
-    // Every form of calibration the single-pair path reads, by the same reader.
-    let calib = relocalize::read_calibration(&args.calib, &args.interp)?;
-    let t_map = Instant::now();
-    let map = relocalize::load_map(args)?;
-    let map_load_s = t_map.elapsed().as_secs_f64();
-    let map_loads = 1;
     let bar = if progress {
         let b = ProgressBar::new(entries.len() as u64);
         if let Ok(style) = ProgressStyle::with_template(
@@ -321,11 +161,24 @@ pub fn run_batch(args: &Args, pairs: &Path, progress: bool) -> Result<Summary> {
     } else {
         ProgressBar::hidden()
     };
-    let t_pairs = Instant::now();
-    let mut results = Vec::with_capacity(entries.len());
-    for (i, e) in entries.iter().enumerate() {
-        let line = run_pair(args, &calib, &map, i, e);
-        if args.out.is_none() {
+    let jobs: Vec<std::result::Result<Pair, String>> = entries
+        .iter()
+        .map(|e| {
+            e.spec
+                .as_ref()
+                .map(|s| s.pair(&e.base, seed))
+                .map_err(Clone::clone)
+        })
+        .collect();
+    let id = |i: usize| {
+        entries
+            .get(i)
+            .and_then(|e| e.spec.as_ref().ok()?.id.clone())
+    };
+    let source = |i: usize| entries.get(i).map(|e| e.source.clone()).unwrap_or_default();
+    let summary = job::run(spec, &jobs, |i, r| {
+        if out.is_none() {
+            let line = PairResult::of(i, source(i), id(i), r, 0.0);
             let text = serde_json::to_string(&line).unwrap_or_default();
             bar.suspend(|| {
                 let mut so = std::io::stdout().lock();
@@ -333,15 +186,21 @@ pub fn run_batch(args: &Args, pairs: &Path, progress: bool) -> Result<Summary> {
                 let _ = so.flush();
             });
         }
-        results.push(line);
         bar.inc(1);
-    }
+    })?;
     bar.finish_and_clear();
+    let results = summary
+        .pairs
+        .iter()
+        .enumerate()
+        .map(|(i, (r, t))| PairResult::of(i, source(i), id(i), r, *t))
+        .collect();
     Ok(Summary {
         results,
-        map_loads,
-        map_load_s,
-        pairs_s: t_pairs.elapsed().as_secs_f64(),
+        map_loads: summary.map_loads,
+        map_checks: summary.map_checks,
+        map_load_s: summary.map_load_s,
+        pairs_s: summary.pairs_s,
     })
 }
 
@@ -355,14 +214,15 @@ pub fn results_text(results: &[PairResult]) -> String {
     s
 }
 
-/// Run `vtsm relocalize --pairs`; returns the exit code.
+/// Run `vtsm relocalize --pairs` ([`run_batch`]), write the results to
+/// `out` or stdout and the summary line to stderr; returns the exit code.
 ///
 /// # Errors
 /// Bad input of the batch itself (exit code 2 at the command line).
-pub fn run(args: &Args, pairs: &Path) -> Result<u8> {
-    let summary = run_batch(args, pairs, true)?;
-    if let Some(out) = &args.out {
-        io::write_atomic(out, results_text(&summary.results).as_bytes(), args.force)?;
+pub fn run(spec: &job::Spec, seed: u64, pairs: &Path, out: Option<&Path>) -> Result<u8> {
+    let summary = run_batch(spec, seed, pairs, out, true)?;
+    if let Some(out) = out {
+        io::write_atomic(out, results_text(&summary.results).as_bytes(), spec.force)?;
     }
     eprintln!("vtsm: {}", summary.line());
     Ok(summary.exit_code())

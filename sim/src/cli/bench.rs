@@ -7,7 +7,7 @@
 //!   target features, compiler; recorded by `sim/build.rs`).
 //! * **Relocalization**: for each chosen [`Profile`], the seeded scene of
 //!   [`SCENE`] is built and relocalized once, single thread, through the
-//!   desktop runner ([`locate::relocalize_by_stage`]), which steps the engine
+//!   desktop runner ([`locate::relocalize`] with a stage observer), which steps the engine
 //!   one stage at a time. [`StageClock`] reads `Instant` at every runner event
 //!   and gives the time since the previous event to the stage the engine
 //!   reports it ran; the core reads no clock. The outcome is bit-identical to
@@ -27,12 +27,13 @@
 //! before any work, with one line and exit code 2.
 
 use crate::error::{Error, Result};
-use crate::locate::{self, Request};
+use crate::locate::{self, Request, RunOptions};
 use crate::scene::{perturbed_prior, Capture, Profile, Scene};
 use crate::terrain::TerrainKind;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
+use vtsm_core::map::MapView;
 use vtsm_core::ncc::Search;
 use vtsm_core::reloc::{Outcome, Stage};
 use vtsm_hal::runner::StageEvent;
@@ -273,20 +274,12 @@ pub fn relocalize_profile(profile: Profile, seed: u64) -> Result<RelocRun> {
     let (rig, truth, pair) = scene.capture(&light, &Capture::from_index(stop, 0, 0.40));
     let prior = perturbed_prior(&truth, seed);
     let scene_build = t0.elapsed();
-    let req = Request {
-        map: &map,
-        left: &pair.left,
-        right: &pair.right,
-        rig,
-        prior,
-        params: locate::params_for_width(rig.cam().width()),
-        seed,
-        verify: vtsm_hal::runner::VerifyChecks::OFF,
-        uncertainty: None,
-    };
+    let view = MapView::new_checked(&map)?;
+    let req = Request::new(view, &pair.left, &pair.right, rig, prior).with_seed(seed);
     let mut clock = StageClock::default();
     let cpu0 = ncc_cases::thread_cpu_ns();
-    let report = locate::relocalize_by_stage(&req, &mut |e| clock.observe(e))?;
+    let mut observe = |e| clock.observe(e);
+    let report = locate::relocalize(&req, RunOptions::default().observe(&mut observe))?;
     let cpu = match (cpu0, ncc_cases::thread_cpu_ns()) {
         (Some(a), Some(b)) => Some(Duration::from_nanos(b.saturating_sub(a))),
         _ => None,
@@ -781,7 +774,7 @@ fn reloc_section(s: &mut String, relocs: &[RelocRun]) {
          images at {hours} h, capture stop {stop} (0.40 m baseline), prior perturbed \
          10–20 cm and ≤ 1.5° (`scene::perturbed_prior`), the profile's parameters \
          (`Params::for_image_width`). It runs through the desktop runner \
-         (`locate::relocalize_by_stage`), which steps the engine one stage at a time; \
+         (`locate::relocalize` with a stage observer), which steps the engine one stage at a time; \
          the outcome is bit-identical to the runner's usual stepping (VTSM-RELOC-035). \
          *Runner* is the whole runner call (device reads of the in-memory map and pair, \
          map check, engine build, the engine, telemetry); building the scene is not \

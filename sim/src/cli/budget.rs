@@ -9,7 +9,7 @@
 //! relocalization of a simulated test-profile scene through the same
 //! [`crate::locate::relocalize`] as every other command.
 
-use crate::locate::{self, Request};
+use crate::locate::{self, Request, RunOptions};
 use crate::scene::{perturbed_prior, Capture, Profile, Scene};
 use crate::terrain::TerrainKind;
 use std::mem::size_of;
@@ -18,7 +18,6 @@ use vtsm_core::reloc::workspace::{
     WorkspaceSizes, PAPER_WORKSPACE, PAPER_WORKSPACE_BYTES, TEST_WORKSPACE, TEST_WORKSPACE_BYTES,
 };
 use vtsm_core::reloc::{Outcome, Pipeline, RansacSolver, Relocalizer};
-use vtsm_hal::runner::VerifyChecks;
 use vtsm_hal::StoreFrames;
 
 /// RAM of the flight envelope the budgets are held against (10 MB).
@@ -362,18 +361,9 @@ pub fn measured_rows(seed: u64) -> crate::Result<Vec<Row>> {
     let bytes = map.encode_map(super::map_build::DEFAULT_TILE_SIZE_M)?;
     let (rig, truth, pair) = scene.capture(&light, &Capture::from_index(stop, 0, 0.40));
     let prior = perturbed_prior(&truth, seed);
-    let req = Request {
-        map: &bytes,
-        left: &pair.left,
-        right: &pair.right,
-        rig,
-        prior,
-        uncertainty: None,
-        params: locate::params_for_width(rig.cam().width()),
-        seed,
-        verify: VerifyChecks::OFF,
-    };
-    let report = locate::relocalize(&req)?;
+    let view = vtsm_core::map::MapView::new_checked(&bytes)?;
+    let req = Request::new(view, &pair.left, &pair.right, rig, prior).with_seed(seed);
+    let report = locate::relocalize(&req, RunOptions::default())?;
     let o = &report.outcome;
     let s = &o.stats;
     let p = &s.pipeline;

@@ -7,7 +7,7 @@
 use crate::cli::relocalize::{outcome_from_core, outcome_result, Outcome};
 use crate::error::{Error, Result, EXIT_RELOC_FAILED};
 use crate::io::json;
-use crate::locate::{self, Request};
+use crate::locate::{self, Request, RunOptions};
 use crate::panel::Canvas;
 use crate::scene::{perturbed_prior, Capture, Profile, Scene, STOPS_PER_CIRCLE};
 use crate::terrain::TerrainKind;
@@ -114,18 +114,12 @@ pub fn run(args: &Args) -> Result<u8> {
         t0.elapsed().as_secs_f64()
     );
 
-    let req = Request {
-        map: &map_bytes,
-        left: &pair.left,
-        right: &pair.right,
-        rig,
-        prior,
-        uncertainty: None,
-        params: locate::params_for_width(rig.cam().width()),
-        seed: args.seed,
-        verify: args.verify.checks(),
-    };
-    let report = locate::relocalize(&req)?;
+    // The map product is checked once; the runner and the panel use the view.
+    let map = MapView::new_checked(&map_bytes)?;
+    let req = Request::new(map, &pair.left, &pair.right, rig, prior)
+        .with_seed(args.seed)
+        .with_verify(args.verify.checks());
+    let report = locate::relocalize(&req, RunOptions::default())?;
     let o = &report.outcome;
     let (t0_m, r0) = prior.error_to(&truth);
     let (t1_m, r1) = o.pose.error_to(&truth);
@@ -204,7 +198,6 @@ pub fn run(args: &Args) -> Result<u8> {
     );
     println!("  status: {status}");
 
-    let map = MapView::new_checked(&map_bytes)?;
     let canvas = panel(
         &map,
         &rig.cam(),

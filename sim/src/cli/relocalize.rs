@@ -1,31 +1,20 @@
 //! `vtsm relocalize`: one stereo pair against a mesh or map product, from a prior.
 //!
-//! This module loads and validates every input ([`load_inputs`]), hands them to
-//! the engine ([`run_engine`]) and writes `result.json` ([`outcome_result`]).
-//! Any bad input gives a one-line error naming the file, exit code 2, and no
-//! output; a clean relocalization failure gives exit code 1 and a result with
-//! `"status": "failed"`. With `--pairs` it relocalizes a batch against one map
-//! ([`super::batch`]).
-//!
-//! Poses in and out (prior, result) are f64 in the mesh's own frame; the map's
-//! origin ([`MapView::origin`]) is subtracted on the way into the core and added
-//! on the way out ([`crate::frame`]). A prior's stated `uncertainty` travels
-//! with it to the runner, which builds the engine with it as (t̃₀, r̃₀); the
-//! result echoes the pair used as `prior_uncertainty`.
+//! A thin wrapper over the host job ([`crate::job`]): the arguments become a
+//! [`job::Spec`] and one [`job::Pair`] (a batch of one), the job loads and
+//! checks every input once and runs the pair, and this module writes
+//! `result.json`. Any bad input gives a one-line error naming the file, exit
+//! code 2, and no output; a clean relocalization failure gives exit code 1
+//! and a result with `"status": "failed"`. With `--pairs` it relocalizes a
+//! batch against one map ([`super::batch`], the same job).
 
 use crate::error::{Error, Result, EXIT_RELOC_FAILED};
-use crate::io::calib::{self, CalibFile};
-use crate::io::image::{self as img, Gray8};
-use crate::io::json::{self, Calib, ResultFile, Verified};
-use crate::io::{self, mesh};
-use crate::rectify::{Interp, Rectifier};
-use std::collections::BTreeMap;
+use crate::io::{self, json};
+use crate::job::{self, Pair, PairDone, Spec};
+use crate::rectify::Interp;
 use std::path::{Path, PathBuf};
-use vtsm_core::config::PriorUncertainty;
-use vtsm_core::geom::{Pose, StereoRig};
-use vtsm_core::map::MapView;
-use vtsm_core::FailureCode;
-use vtsm_hal::runner::VerifyChecks;
+
+pub use crate::job::{outcome_from_core, outcome_result, verified, Calibration, Inputs, Outcome};
 
 /// Arguments of `vtsm relocalize`.
 #[derive(Debug, Clone, clap::Args)]
@@ -90,53 +79,14 @@ pub struct Args {
         long,
         value_name = "X,Y,Z",
         requires = "mesh",
-        allow_hyphen_values = true
+        allow_hyphen_values = true,
+        value_parser = crate::frame::origin_arg
     )]
-    pub origin: Option<String>,
+    pub origin: Option<[f64; 3]>,
     /// Kernel of the host rectification when calib.json is the OpenCV stereo
     /// form: linear, cubic or lanczos4 (`cv2.remap`'s INTER_* of those names).
-    #[arg(long, value_name = "KERNEL", default_value = "lanczos4")]
-    pub interp: String,
-}
-
-/// Every input of one relocalization, loaded and checked.
-#[derive(Clone, Debug)]
-pub struct Inputs {
-    /// Map product bytes, already accepted by `MapView::new_checked`.
-    pub map: Vec<u8>,
-    /// The calibration as read (for a physical pair: the rectified one).
-    pub calib: Calib,
-    /// The checked stereo rig.
-    pub rig: StereoRig,
-    /// Left image, calibration size.
-    pub left: Gray8,
-    /// Right image, calibration size.
-    pub right: Gray8,
-    /// Prior `world_from_left` in the map's local frame (user frame minus
-    /// `origin`) of the camera the core sees (for a physical pair: the
-    /// rectified left camera).
-    pub prior: Pose,
-    /// The prior's stated uncertainty (`None`: the engine's default t̃₀, r̃₀).
-    pub uncertainty: Option<PriorUncertainty>,
-    /// Seed.
-    pub seed: u64,
-    /// Upset checks asked for (`--verify`).
-    pub verify: VerifyChecks,
-    /// The rectifier of a physical pair (OpenCV form of `calib.json`); the
-    /// images above are already rectified.
-    pub physical: Option<Rectifier>,
-    /// The map's origin in the user frame ([`MapView::origin`]).
-    pub origin: [f64; 3],
-}
-
-impl Inputs {
-    /// The checked view of the map product.
-    ///
-    /// # Errors
-    /// Never for inputs from [`load_inputs`] (the bytes were checked there).
-    pub fn map_view(&self) -> std::result::Result<MapView<'_>, FailureCode> {
-        MapView::new_checked(&self.map)
-    }
+    #[arg(long, value_name = "KERNEL", value_enum, default_value_t = Interp::Lanczos4)]
+    pub interp: Interp,
 }
 
 /// Argument combinations the parser lets through: clap does not enforce
@@ -155,346 +105,115 @@ pub fn check_args(args: &Args) -> Result<()> {
     Ok(())
 }
 
-/// The calibration of a pair, read from any form of `calib.json` (or a
-/// `cv::FileStorage` file given itself) and checked once: the rectified
-/// calibration the core sees, its rig, and for a physical pair the rectifier
-/// and the physical image size.
-#[derive(Clone, Debug)]
-pub struct Calibration {
-    /// The calibration as read (for a physical pair: the rectified one).
-    pub calib: Calib,
-    /// The checked stereo rig.
-    pub rig: StereoRig,
-    /// The rectifier of a physical pair, else `None`.
-    pub physical: Option<Rectifier>,
-    /// Size (width, height) of the images as captured.
-    pub image_size: (u32, u32),
+impl Args {
+    /// The job these arguments describe (everything but the pairs).
+    ///
+    /// # Errors
+    /// As [`check_args`].
+    pub fn spec(&self) -> Result<Spec> {
+        check_args(self)?;
+        Ok(Spec {
+            calib: self.calib.clone(),
+            interp: self.interp,
+            map: job::MapSpec {
+                map: self.map.clone(),
+                mesh: self.mesh.clone(),
+                mask: self.mask.clone(),
+                origin: self.origin,
+                tile_size_m: self.tile_size_m,
+            },
+            verify: self.verify.checks(),
+            force: self.force,
+        })
+    }
+
+    /// The one pair these arguments name (`--left`, `--right`, `--prior`,
+    /// `--seed`, and `--out` as its `result.json`).
+    ///
+    /// # Errors
+    /// A required path is missing (clap requires it unless `--pairs` is given).
+    pub fn pair(&self) -> Result<Pair> {
+        let required = |p: &Option<PathBuf>, name: &str| {
+            p.clone()
+                .ok_or_else(|| Error::msg(format!("--{name} is required (or give --pairs)")))
+        };
+        Ok(Pair {
+            left: required(&self.left, "left")?,
+            right: required(&self.right, "right")?,
+            prior: required(&self.prior, "prior")?,
+            seed: self.seed,
+            out: self.out.clone(),
+            ..Pair::default()
+        })
+    }
 }
 
-/// Read and check a calibration in every form `vtsm relocalize` accepts,
-/// with `interp` the kernel of the host rectification of a physical pair.
-/// The one reader of `--calib` and of a batch pair's `calib`.
-///
-/// # Errors
-/// The file is unreadable or malformed, cannot be rectified, or its rig is
-/// rejected by the core (with its code).
-pub fn read_calibration(path: &Path, interp: &str) -> Result<Calibration> {
-    let (calib, physical) = match calib::read_calib_any(path)? {
-        CalibFile::Rectified(c) => (c, None),
-        CalibFile::OpenCv(c) => {
-            let interp = Interp::parse(interp).map_err(Error::msg)?;
-            let r = Rectifier::new(&c)
-                .map_err(|why| Error::file(path, why))?
-                .with_interp(interp);
-            (r.calib(), Some((r, c.size())))
-        }
-    };
-    let rig = calib
-        .rig()
-        .map_err(|c| Error::file(path, format!("rejected: {}", c.description())).with_code(c))?;
-    let image_size = physical
-        .as_ref()
-        .map_or((calib.width, calib.height), |p| p.1);
-    Ok(Calibration {
-        calib,
-        rig,
-        physical: physical.map(|p| p.0),
-        image_size,
-    })
-}
-
-/// Load and validate every input named by `args`.
+/// Relocalize the one pair `args` names as a batch of one ([`job::run`]),
+/// writing `args.out` when given.
 ///
 /// # Errors
 /// The first bad input, as a one-line error naming its file.
-pub fn load_inputs(args: &Args) -> Result<Inputs> {
-    check_args(args)?;
-    // The small file first: a bad calibration is reported before a map
-    // product is read or built from a mesh.
-    let calib = read_calibration(&args.calib, &args.interp)?;
-    let map = load_map(args)?;
-    load_inputs_with_map(args, &calib, map)
+pub fn relocalize_one(args: &Args) -> Result<PairDone> {
+    let spec = args.spec()?;
+    let pair = args.pair()?;
+    let summary = job::run(&spec, &[Ok(pair)], |_, _| {})?;
+    summary
+        .pairs
+        .into_iter()
+        .next()
+        .map_or_else(|| Err(Error::msg("no pair")), |(r, _)| r)
 }
 
-/// A required single-pair path (clap requires it unless `--pairs` is given).
-fn required<'a>(p: &'a Option<PathBuf>, name: &str) -> Result<&'a PathBuf> {
-    p.as_ref()
-        .ok_or_else(|| Error::msg(format!("--{name} is required (or give --pairs)")))
-}
-
-/// Load and validate the images and prior named by `args`, for the
-/// calibration `calib` already read by [`read_calibration`], against a map
-/// product already loaded by [`load_map`].
+/// The inputs of the one pair `args` names, loaded and checked as the job
+/// loads them, handed to `f` with the job's checked map (for a caller that
+/// looks at the inputs before running them with [`job::run_engine`]).
 ///
 /// # Errors
-/// The first bad input, as a one-line error naming its file.
-pub fn load_inputs_with_map(args: &Args, calib: &Calibration, map: Vec<u8>) -> Result<Inputs> {
-    let (left_path, right_path, prior_path) = (
-        required(&args.left, "left")?,
-        required(&args.right, "right")?,
-        required(&args.prior, "prior")?,
-    );
-    let origin = MapView::new_checked(&map).map_err(Error::from)?.origin();
-    let prior_file = json::read_prior(prior_path)?;
-    let uncertainty = prior_file.uncertainty.map(|u| u.core());
-    let prior = prior_file.world_from_left.to_local(origin).map_err(|c| {
-        Error::file(
-            prior_path,
-            format!("pose rejected in the map's local frame: {}", c.name()),
-        )
-        .with_code(c)
-    })?;
-    let (w, h) = calib.image_size;
-    let left = img::read_gray_sized(left_path, w, h)?;
-    let right = img::read_gray_sized(right_path, w, h)?;
-    let physical = calib.physical.clone();
-    // A physical pair: the core sees the rectified left camera (a rotation
-    // of the physical one about its centre, so the origin shift commutes).
-    let (left, right, prior) = match &physical {
-        Some(r) => r.rectify_input(&left, &right, &prior),
-        None => (left, right, prior),
-    };
-    Ok(Inputs {
-        map,
-        calib: calib.calib,
-        rig: calib.rig,
-        left,
-        right,
-        prior,
-        uncertainty,
-        seed: args.seed,
-        verify: args.verify.checks(),
-        physical,
-        origin,
-    })
-}
-
-/// Relocalize the one pair `args` names (its images, prior, seed, and
-/// `out` when given) with the calibration `calib` against the loaded map
-/// product: load its inputs, run the engine, write `args.out`. The same
-/// code for a single pair and for every pair of a batch.
-///
-/// # Errors
-/// The first bad input, as a one-line error naming its file.
-pub fn relocalize_pair(
+/// The first bad input, or `f`'s error.
+pub fn with_inputs<R>(
     args: &Args,
-    calib: &Calibration,
-    map: Vec<u8>,
-) -> Result<(Outcome, ResultFile)> {
-    let inputs = load_inputs_with_map(args, calib, map)?;
-    let outcome = run_engine(&inputs)?;
-    let result = outcome_result(&outcome);
-    if let Some(out) = &args.out {
-        json::write_result(out, &result, args.force)?;
-    }
-    Ok((outcome, result))
+    f: impl FnOnce(vtsm_core::map::MapView<'_>, &Inputs) -> Result<R>,
+) -> Result<R> {
+    let spec = args.spec()?;
+    let pair = args.pair()?;
+    let calib = job::read_calibration(&spec.calib, spec.interp)?;
+    let bytes = job::load_map(&spec.map)?;
+    let map = job::check_map(&bytes, &spec.map)?;
+    let inputs = job::load_inputs(&map, &calib, &pair, spec.verify)?;
+    f(map, &inputs)
 }
 
-/// Load the map product named by `args`: read and check `--map`, or build it
-/// from `--mesh` (and `--mask`, `--origin`, `--tile-size-m`).
+/// `vtsm relocalize --pairs` with these arguments ([`super::batch::run_batch`]).
 ///
 /// # Errors
-/// The first bad input, as a one-line error naming its file.
-pub fn load_map(args: &Args) -> Result<Vec<u8>> {
-    check_args(args)?;
-    let origin = args
-        .origin
-        .as_deref()
-        .map(crate::frame::parse_origin)
-        .transpose()?;
-    let map = match (&args.map, &args.mesh) {
-        (Some(path), None) => {
-            let bytes = io::read_file(path)?;
-            MapView::new_checked(&bytes).map_err(|c| {
-                Error::file(
-                    path,
-                    format!(
-                        "not a valid map product: {} ({})",
-                        c.name(),
-                        c.description()
-                    ),
-                )
-                .with_code(c)
-            })?;
-            bytes
-        }
-        (None, Some(path)) => {
-            let mut m = mesh::load_mesh_at(path, origin)?;
-            if let Some(k) = &args.mask {
-                let geo = mesh::load_geometry(k)?;
-                m.apply_mask(&geo, k)?;
-            }
-            m.encode_map(args.tile_size_m).map_err(|mut e| {
-                if e.file.is_none() {
-                    e.file = Some(path.clone());
-                }
-                e
-            })?
-        }
-        _ => return Err(Error::msg("give exactly one of --mesh and --map")),
-    };
-    Ok(map)
-}
-
-/// What the engine reports for one relocalization.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Outcome {
-    /// The failure code when the relocalization failed cleanly, `None` on success.
-    pub failure: Option<FailureCode>,
-    /// Final estimate (the last estimate on failure), if any, in the map's
-    /// local frame.
-    pub pose: Option<Pose>,
-    /// The map's origin: `pose` plus this is the estimate in the user frame.
-    pub origin: [f64; 3],
-    /// RANSAC inliers of the final estimate.
-    pub inliers: u32,
-    /// Successful iterations.
-    pub iterations: u32,
-    /// Work counters by name.
-    pub stats: BTreeMap<String, u64>,
-    /// Pose covariance from the final refinement (`vtsm_core::pose::Covariance`).
-    pub covariance: Option<vtsm_core::pose::Covariance>,
-    /// The upset checks that ran.
-    pub verified: Verified,
-    /// The prior uncertainty (t̃₀, r̃₀) the engine ran with, when known.
-    pub prior_uncertainty: Option<PriorUncertainty>,
-}
-
-/// The relocalization engine call: the same [`crate::locate::relocalize`] as
-/// `vtsm demo` and `vtsm eval`, with the paper's parameters and ℓ scaled to the
-/// image width, and the prior's stated uncertainty served with the prior (one
-/// start: it replaces t̃₀, r̃₀). For a physical pair the outcome's pose is
-/// converted back from the rectified left camera to the physical one.
-///
-/// # Errors
-/// Inputs the core rejects (map, image sizes, parameters), with their codes.
-pub fn run_engine(inputs: &Inputs) -> Result<Outcome> {
-    let req = crate::locate::Request {
-        map: &inputs.map,
-        left: &inputs.left.pixels,
-        right: &inputs.right.pixels,
-        rig: inputs.rig,
-        prior: inputs.prior,
-        uncertainty: inputs.uncertainty,
-        params: crate::locate::params_for_width(inputs.rig.cam().width()),
-        seed: inputs.seed,
-        verify: inputs.verify,
-    };
-    let report = crate::locate::relocalize(&req)?;
-    let mut outcome = Outcome {
-        origin: inputs.origin,
-        prior_uncertainty: Some(report.run.prior_uncertainty),
-        ..outcome_from_core(&report.outcome, inputs.verify)
-    };
-    // The core solved for the rectified left camera; report the physical one.
-    if let (Some(r), Some(p)) = (&inputs.physical, outcome.pose.as_mut()) {
-        *p = r.to_physical(p);
-    }
-    Ok(outcome)
-}
-
-/// Which of the upset checks `asked` ran in `o`: the repeated solve when it
-/// did work; the map re-check when the run reached it (it is the last step
-/// before a success: the run then succeeded or ended with `RELOC_MAP_CHANGED`).
-pub fn verified(o: &vtsm_core::reloc::Outcome, asked: VerifyChecks) -> Verified {
-    Verified {
-        repeat_solve: asked.repeat_solve && o.stats.verify_units > 0,
-        recheck_map: asked.recheck_map
-            && matches!(o.failure, None | Some(FailureCode::RelocMapChanged)),
-    }
-}
-
-/// The command-line view of a core outcome (pose, inliers, iterations,
-/// every work counter by name, and which of the upset checks `asked` ran),
-/// for a map at origin 0.
-pub fn outcome_from_core(o: &vtsm_core::reloc::Outcome, asked: VerifyChecks) -> Outcome {
-    let s = &o.stats;
-    let p = &s.pipeline;
-    let mut stats = BTreeMap::new();
-    for (k, v) in [
-        ("work_units", u64::from(s.work_units)),
-        ("rounds", u64::from(s.rounds)),
-        ("attempts", u64::from(s.attempts)),
-        ("correspondences", u64::from(s.correspondences)),
-        ("reused", u64::from(s.reused)),
-        ("solves", u64::from(s.solves)),
-        ("ransac_iterations", u64::from(s.ransac_iterations)),
-        ("stalls", u64::from(s.stalls)),
-        ("reseeds", u64::from(s.reseeds)),
-        ("seeds_tried", u64::from(s.seeds_tried)),
-        ("widened_solves", u64::from(s.widened_solves)),
-        ("focused_rounds", u64::from(s.focused_rounds)),
-        ("gradient_rounds", u64::from(s.gradient_rounds)),
-        ("renders", u64::from(p.renders)),
-        ("render_pixels", p.render_pixels),
-        ("ncc_matches", p.matches.iter().map(|&m| u64::from(m)).sum()),
-        (
-            "ncc_accepted",
-            p.accepted.iter().map(|&m| u64::from(m)).sum(),
-        ),
-        ("ncc_positions", p.ncc_positions),
-        ("ncc_macs", p.ncc_macs),
-        ("samples_out_of_view", u64::from(p.out_of_view)),
-        ("samples_occluded", u64::from(p.occluded)),
-        ("triangulations", u64::from(p.triangulations)),
-        ("refine_iterations", u64::from(s.refine.iterations)),
-        ("refine_accepted", u64::from(s.refine.accepted)),
-        ("verify_units", u64::from(s.verify_units)),
-    ] {
-        stats.insert(k.to_string(), v);
-    }
-    Outcome {
-        failure: o.failure,
-        pose: Some(o.pose),
-        origin: [0.0; 3],
-        inliers: u32::from(o.quality.inliers),
-        iterations: u32::from(s.successes),
-        stats,
-        covariance: o.quality.covariance,
-        verified: verified(o, asked),
-        prior_uncertainty: None,
-    }
-}
-
-/// The `result.json` content of an outcome (pose in the user frame).
-pub fn outcome_result(o: &Outcome) -> ResultFile {
-    ResultFile {
-        status: if o.failure.is_none() { "ok" } else { "failed" }.to_string(),
-        failure: o.failure.map(|c| c.name().to_string()),
-        world_from_left: o
-            .pose
-            .as_ref()
-            .map(|p| json::PoseJson::from_local(p, o.origin)),
-        inliers: o.inliers,
-        iterations: o.iterations,
-        stats: o.stats.clone(),
-        covariance: o
-            .covariance
-            .map(|c| c.m.iter().map(|&v| f64::from(v)).collect()),
-        verified: o.verified,
-        prior_uncertainty: o
-            .prior_uncertainty
-            .as_ref()
-            .map(json::UncertaintyJson::from_core),
-    }
+/// Bad input of the batch itself.
+pub fn run_batch(args: &Args, pairs: &Path, progress: bool) -> Result<super::batch::Summary> {
+    super::batch::run_batch(
+        &args.spec()?,
+        args.seed,
+        pairs,
+        args.out.as_deref(),
+        progress,
+    )
 }
 
 /// Run the command; returns the exit code.
+///
+/// # Errors
+/// Bad input (exit code 2 at the command line).
 pub fn run(args: &Args) -> Result<u8> {
-    check_args(args)?;
+    let spec = args.spec()?;
     if let Some(pairs) = &args.pairs {
-        return super::batch::run(args, pairs);
+        return super::batch::run(&spec, args.seed, pairs, args.out.as_deref());
     }
     if let Some(out) = &args.out {
         io::check_output(out, args.force)?;
     }
-    let calib = read_calibration(&args.calib, &args.interp)?;
-    let map = load_map(args)?;
-    let (outcome, result) = relocalize_pair(args, &calib, map)?;
+    let done = relocalize_one(args)?;
     if args.out.is_none() {
-        print!("{}", json::result_text(&result));
+        print!("{}", json::result_text(&done.result));
     }
-    Ok(if outcome.failure.is_none() {
+    Ok(if done.outcome.failure.is_none() {
         0
     } else {
         EXIT_RELOC_FAILED

@@ -290,8 +290,8 @@ pub struct ResultFile {
     pub inliers: u32,
     /// Successful iterations.
     pub iterations: u32,
-    /// Work counters, by name (ordered, so the file is deterministic).
-    pub stats: std::collections::BTreeMap<String, u64>,
+    /// Work counters of the engine ([`WorkStats`]).
+    pub stats: WorkStats,
     /// 6×6 covariance of `world_from_left`, row-major (36 numbers): world-frame
     /// camera position in metres, then a world-frame rotation vector in
     /// radians (`fsw-docs/interfaces/files.md`); `null` when not estimated.
@@ -306,6 +306,100 @@ pub struct ResultFile {
     /// known (results written before the field existed).
     #[serde(default)]
     pub prior_uncertainty: Option<UncertaintyJson>,
+}
+
+/// The engine's work counters as `result.json` writes them (`stats`): the
+/// core's [`vtsm_core::reloc::Stats`] with its pipeline counters, summed over
+/// match variants where the core keeps one counter per variant. Fields in
+/// name order, the order of the file. A reader takes a missing counter as 0
+/// and ignores one it does not know (files of other versions).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct WorkStats {
+    /// Correspondence attempts (one template synthesized and matched).
+    pub attempts: u64,
+    /// Correspondences collected.
+    pub correspondences: u64,
+    /// Rounds run with the focused search.
+    pub focused_rounds: u64,
+    /// Rounds run in the gradient domain.
+    pub gradient_rounds: u64,
+    /// NCC matches accepted, over every variant.
+    pub ncc_accepted: u64,
+    /// NCC multiply-accumulates.
+    pub ncc_macs: u64,
+    /// NCC matches made, over every variant.
+    pub ncc_matches: u64,
+    /// NCC positions scored.
+    pub ncc_positions: u64,
+    /// RANSAC iterations.
+    pub ransac_iterations: u64,
+    /// Refinement steps accepted.
+    pub refine_accepted: u64,
+    /// Refinement iterations.
+    pub refine_iterations: u64,
+    /// Pixels rendered.
+    pub render_pixels: u64,
+    /// Templates rendered.
+    pub renders: u64,
+    /// Reseeds.
+    pub reseeds: u64,
+    /// Correspondences reused from the previous round.
+    pub reused: u64,
+    /// Rounds.
+    pub rounds: u64,
+    /// Sampled points occluded.
+    pub samples_occluded: u64,
+    /// Sampled points out of view.
+    pub samples_out_of_view: u64,
+    /// Pose seeds tried (multi-seed mode).
+    pub seeds_tried: u64,
+    /// Pose solves.
+    pub solves: u64,
+    /// Stalls.
+    pub stalls: u64,
+    /// Stereo triangulations.
+    pub triangulations: u64,
+    /// Work units of the upset checks.
+    pub verify_units: u64,
+    /// Solves with a widened threshold.
+    pub widened_solves: u64,
+    /// Work units.
+    pub work_units: u64,
+}
+
+impl From<&vtsm_core::reloc::Stats> for WorkStats {
+    fn from(s: &vtsm_core::reloc::Stats) -> Self {
+        let p = &s.pipeline;
+        let sum = |v: &[u32]| v.iter().map(|&m| u64::from(m)).sum();
+        Self {
+            attempts: s.attempts.into(),
+            correspondences: s.correspondences.into(),
+            focused_rounds: s.focused_rounds.into(),
+            gradient_rounds: s.gradient_rounds.into(),
+            ncc_accepted: sum(&p.accepted),
+            ncc_macs: p.ncc_macs,
+            ncc_matches: sum(&p.matches),
+            ncc_positions: p.ncc_positions,
+            ransac_iterations: s.ransac_iterations.into(),
+            refine_accepted: s.refine.accepted.into(),
+            refine_iterations: s.refine.iterations.into(),
+            render_pixels: p.render_pixels,
+            renders: p.renders.into(),
+            reseeds: s.reseeds.into(),
+            reused: s.reused.into(),
+            rounds: s.rounds.into(),
+            samples_occluded: p.occluded.into(),
+            samples_out_of_view: p.out_of_view.into(),
+            seeds_tried: s.seeds_tried.into(),
+            solves: s.solves.into(),
+            stalls: s.stalls.into(),
+            triangulations: p.triangulations.into(),
+            verify_units: s.verify_units.into(),
+            widened_solves: s.widened_solves.into(),
+            work_units: s.work_units.into(),
+        }
+    }
 }
 
 /// The upset checks that ran on a relocalization (`result.json` `verified`).

@@ -28,9 +28,8 @@ use std::process::ExitCode;
 use vtsm_core::geom::{Pose, Vec3};
 use vtsm_core::image::GrayView;
 use vtsm_core::map::{MapSource, MapView};
-use vtsm_hal::runner::VerifyChecks;
 use vtsm_sim::io::{image::read_gray_sized, json, read_file, write_atomic};
-use vtsm_sim::locate::{self, Request};
+use vtsm_sim::locate::{self, MapIn, Request, RunOptions};
 
 /// Image widening for the crop, fraction of the image size on each side.
 const MARGIN: f32 = 0.15;
@@ -70,18 +69,12 @@ fn run(scene: &Path, out: &Path) -> Result<(), String> {
     let params = locate::params_for_width(w);
 
     let cropped = crop(&map, &rig, &prior, params.t0_m)?;
-    let request = |map| Request {
-        map,
-        left: &left.pixels,
-        right: &right.pixels,
-        rig,
-        params,
-        prior,
-        uncertainty: None,
-        seed: SEED,
-        verify: VerifyChecks::OFF,
+    let request = |map| {
+        Request::new(MapIn::Bytes(map), &left.pixels, &right.pixels, rig, prior)
+            .with_params(params)
+            .with_seed(SEED)
     };
-    let full = locate::relocalize(&request(&full_bytes))
+    let full = locate::relocalize(&request(&full_bytes), RunOptions::default())
         .map_err(s)?
         .outcome;
     let (f1, fr1) = full.pose.error_to(&truth);
@@ -92,7 +85,7 @@ fn run(scene: &Path, out: &Path) -> Result<(), String> {
         fr1.to_degrees(),
         full.stats.attempts
     );
-    let report = locate::relocalize(&request(&cropped)).map_err(s)?;
+    let report = locate::relocalize(&request(&cropped), RunOptions::default()).map_err(s)?;
     let o = &report.outcome;
     let digest = vtsm_tests::outcome_digest(o);
     let (e0, _) = prior.error_to(&truth);

@@ -9,8 +9,7 @@
 use std::sync::OnceLock;
 use vtsm_core::geom::{Pose, StereoRig, Vec3};
 use vtsm_core::reloc::Outcome;
-use vtsm_hal::runner::VerifyChecks;
-use vtsm_sim::locate::{self, Request};
+use vtsm_sim::locate::{self, Request, RunOptions};
 use vtsm_sim::scene::{perturbed_prior, Capture, Profile, Scene, StereoPair};
 use vtsm_sim::terrain::TerrainKind;
 
@@ -72,18 +71,12 @@ fn relocalize_with(
     seed: u64,
     params: vtsm_core::config::Params,
 ) -> Outcome {
-    let req = Request {
-        map: &depot().map,
-        left: &pair.left,
-        right: &pair.right,
-        rig,
-        prior,
-        uncertainty: None,
-        params,
-        seed,
-        verify: VerifyChecks::OFF,
-    };
-    locate::relocalize(&req).unwrap().outcome
+    let req = Request::new(&depot().map, &pair.left, &pair.right, rig, prior)
+        .with_params(params)
+        .with_seed(seed);
+    locate::relocalize(&req, RunOptions::default())
+        .unwrap()
+        .outcome
 }
 
 /// A failure code, or a success that is right: never a confident wrong pose.

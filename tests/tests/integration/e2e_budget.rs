@@ -7,7 +7,6 @@ use vtsm_core::config as cfg;
 use vtsm_core::ncc::Run;
 use vtsm_core::reloc::workspace::{PAPER_WORKSPACE_BYTES, TEST_WORKSPACE_BYTES};
 use vtsm_core::reloc::{Outcome, Pipeline, RansacSolver, Relocalizer};
-use vtsm_hal::runner::VerifyChecks;
 use vtsm_sim::cli::budget::{measured_rows, rows, Row, MEASURED_SCENE};
 use vtsm_sim::locate::{self, Request};
 use vtsm_sim::scene::{perturbed_prior, Capture, Profile, Scene};
@@ -67,18 +66,9 @@ fn budget_measured_rows_are_a_real_run() {
     let bytes = map.encode_map(0.5).unwrap();
     let (rig, truth, pair) = scene.capture(&light, &Capture::from_index(stop, 0, 0.40));
     let prior = perturbed_prior(&truth, seed);
-    let report = locate::relocalize(&Request {
-        map: &bytes,
-        left: &pair.left,
-        right: &pair.right,
-        rig,
-        prior,
-        uncertainty: None,
-        params: locate::params_for_width(rig.cam().width()),
-        seed,
-        verify: VerifyChecks::OFF,
-    })
-    .unwrap();
+    let view = vtsm_core::map::MapView::new_checked(&bytes).unwrap();
+    let req = Request::new(view, &pair.left, &pair.right, rig, prior).with_seed(seed);
+    let report = locate::relocalize(&req, locate::RunOptions::default()).unwrap();
     let o = &report.outcome;
     let s = &o.stats;
     assert_eq!(v("image width"), u64::from(rig.cam().width()));

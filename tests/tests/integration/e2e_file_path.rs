@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use vtsm_core::geom::{Pose, Vec3};
 use vtsm_hal::runner::VerifyChecks;
 use vtsm_sim::cli::map_build::DEFAULT_TILE_SIZE_M;
-use vtsm_sim::cli::relocalize::{self, load_inputs, outcome_from_core, run_engine, Args};
+use vtsm_sim::cli::relocalize::{self, outcome_from_core, Args};
 use vtsm_sim::error::{EXIT_BAD_INPUT, EXIT_RELOC_FAILED};
 use vtsm_sim::io::mesh;
 use vtsm_sim::locate::{self, Request};
@@ -85,11 +85,11 @@ fn args(dir: &Path, prior: &str, out: Option<PathBuf>) -> Args {
         out,
         force: false,
         tile_size_m: DEFAULT_TILE_SIZE_M,
-        interp: "lanczos4".into(),
+        interp: vtsm_sim::rectify::Interp::Lanczos4,
         // The simulator's frame is the exported files' frame: origin 0 keeps
         // the local vertices those of the in-memory scene, bit for bit (the
         // default, the box centre, moves the local frame by it).
-        origin: Some("0,0,0".to_string()),
+        origin: Some([0.0; 3]),
     }
 }
 
@@ -104,7 +104,6 @@ fn bits(p: &Pose) -> ([u32; 3], [u32; 4]) {
 #[test]
 fn exported_files_read_back_bit_for_bit() {
     let e = exported();
-    let inputs = load_inputs(&args(&e.dir, "prior.json", None)).unwrap();
     let m = mesh::load_mesh_at(&e.dir.join("map.obj"), Some([0.0; 3])).unwrap();
     assert_eq!(m.vertices.len(), e.map.vertices.len());
     for (a, b) in m.vertices.iter().zip(&e.map.vertices) {
@@ -126,16 +125,20 @@ fn exported_files_read_back_bit_for_bit() {
     assert_eq!(m.texture.height, e.map.texture.height);
     assert!(m.texture.pixels == e.map.texture.pixels, "texture differs");
     // The mask is re-derived from mask.obj by vertex positions.
-    assert!(inputs.map == e.map_bytes, "map product differs");
-    assert!(inputs.left.pixels == e.left && inputs.right.pixels == e.right);
-    let c = inputs.rig.cam();
-    let r = e.rig.cam();
-    assert_eq!(
-        [c.fx(), c.fy(), c.cx(), c.cy(), inputs.rig.baseline_m()].map(f32::to_bits),
-        [r.fx(), r.fy(), r.cx(), r.cy(), e.rig.baseline_m()].map(f32::to_bits)
-    );
-    assert_eq!((c.width(), c.height()), (r.width(), r.height()));
-    assert_eq!(bits(&inputs.prior), bits(&e.prior), "prior.json");
+    relocalize::with_inputs(&args(&e.dir, "prior.json", None), |map, inputs| {
+        assert!(map.bytes() == e.map_bytes.as_slice(), "map product differs");
+        assert!(inputs.left.pixels == e.left && inputs.right.pixels == e.right);
+        let c = inputs.rig.cam();
+        let r = e.rig.cam();
+        assert_eq!(
+            [c.fx(), c.fy(), c.cx(), c.cy(), inputs.rig.baseline_m()].map(f32::to_bits),
+            [r.fx(), r.fy(), r.cx(), r.cy(), e.rig.baseline_m()].map(f32::to_bits)
+        );
+        assert_eq!((c.width(), c.height()), (r.width(), r.height()));
+        assert_eq!(bits(&inputs.prior), bits(&e.prior), "prior.json");
+        Ok(())
+    })
+    .unwrap();
     let truth = vtsm_sim::io::json::read_pose(&e.dir.join("truth.json")).unwrap();
     assert_eq!(bits(&truth), bits(&e.truth), "truth.json");
 }
@@ -146,20 +149,13 @@ fn exported_files_read_back_bit_for_bit() {
 #[test]
 fn file_path_equals_in_memory_path_bit_for_bit() {
     let e = exported();
-    let inputs = load_inputs(&args(&e.dir, "prior.json", None)).unwrap();
-    let from_files = run_engine(&inputs).unwrap();
-    let req = Request {
-        map: &e.map_bytes,
-        left: &e.left,
-        right: &e.right,
-        rig: e.rig,
-        prior: e.prior,
-        uncertainty: None,
-        params: locate::params_for_width(e.rig.cam().width()),
-        seed: SEED,
-        verify: VerifyChecks::OFF,
-    };
-    let report = locate::relocalize(&req).unwrap();
+    let done = relocalize::relocalize_one(&args(&e.dir, "prior.json", None)).unwrap();
+    // One check of the map product on the whole file path (the job's; the
+    // runner uses its view), and one copy of the pair (into the runner's RAM).
+    assert_eq!((done.runner_map_checks, done.pair_copies), (0, 1));
+    let from_files = done.outcome;
+    let req = Request::new(&e.map_bytes, &e.left, &e.right, e.rig, e.prior).with_seed(SEED);
+    let report = locate::relocalize(&req, locate::RunOptions::default()).unwrap();
     let in_memory = relocalize::Outcome {
         prior_uncertainty: Some(report.run.prior_uncertainty),
         ..outcome_from_core(&report.outcome, VerifyChecks::OFF)

@@ -6,13 +6,13 @@
 
 use std::path::{Path, PathBuf};
 use vtsm_core::geom::Pose;
-use vtsm_core::map::MapView;
 use vtsm_sim::cli::batch;
 use vtsm_sim::cli::map_build::DEFAULT_TILE_SIZE_M;
-use vtsm_sim::cli::relocalize::{self, load_inputs, run_engine, Args, Outcome};
+use vtsm_sim::cli::relocalize::{self, Args, Outcome};
 use vtsm_sim::error::EXIT_RELOC_FAILED;
 use vtsm_sim::frame::{self, UserPose};
 use vtsm_sim::io::json;
+use vtsm_sim::job;
 use vtsm_sim::scene::export::{pose_json, write_scene, SceneFiles};
 use vtsm_sim::scene::{perturbed_prior, Capture, Profile, Scene};
 use vtsm_sim::terrain::TerrainKind;
@@ -99,16 +99,15 @@ fn args(dir: &Path, prior: &str, origin: Option<&str>) -> Args {
         out: None,
         force: false,
         tile_size_m: DEFAULT_TILE_SIZE_M,
-        interp: "lanczos4".into(),
-        origin: origin.map(str::to_string),
+        interp: vtsm_sim::rectify::Interp::Lanczos4,
+        origin: origin.map(|o| frame::parse_origin(o).unwrap()),
     }
 }
 
 /// Relocalize; the map's origin, the outcome and the estimate in the user frame.
 fn relocalize(a: &Args) -> ([f64; 3], Outcome, UserPose) {
-    let inputs = load_inputs(a).unwrap();
-    let origin = MapView::new_checked(&inputs.map).unwrap().origin();
-    let o = run_engine(&inputs).unwrap();
+    let o = relocalize::relocalize_one(a).unwrap().outcome;
+    let origin = o.origin;
     let r = relocalize::outcome_result(&o);
     let p = r.world_from_left.unwrap().user();
     (origin, o, p)
@@ -159,9 +158,9 @@ fn utm_shifted_scene_relocalizes_like_the_unshifted_one() {
 
     // Control: the georeferenced mesh without an origin.
     let zero = args(&d.shifted, "prior.json", Some("0,0,0"));
-    let bad = load_inputs(&zero).and_then(|i| {
-        let o = run_engine(&i)?;
-        Ok((o.failure, frame::to_user(&o.pose.unwrap(), [0.0; 3])))
+    let bad = relocalize::relocalize_one(&zero).map(|d| {
+        let o = d.outcome;
+        (o.failure, frame::to_user(&o.pose.unwrap(), [0.0; 3]))
     });
     match bad {
         Err(e) => eprintln!("origin 0: refused: {e}"),
@@ -188,54 +187,69 @@ fn utm_shifted_scene_relocalizes_like_the_unshifted_one() {
 #[test]
 fn origin_equal_to_the_shift_gives_the_same_local_map_and_outcome() {
     let d = dirs();
-    let a = load_inputs(&args(&d.plain, "prior.json", Some("0,0,0"))).unwrap();
-    let b = load_inputs(&args(&d.shifted, "prior.json", Some(SHIFT_ARG))).unwrap();
-    let (ma, mb) = (
-        MapView::new_checked(&a.map).unwrap(),
-        MapView::new_checked(&b.map).unwrap(),
+    let (args_a, args_b) = (
+        args(&d.plain, "prior.json", Some("0,0,0")),
+        args(&d.shifted, "prior.json", Some(SHIFT_ARG)),
     );
-    assert_eq!(mb.origin().map(f64::to_bits), SHIFT.map(f64::to_bits));
-    assert_eq!(ma.vertex_count(), mb.vertex_count());
-    let differ = (0..ma.vertex_count())
-        .filter(|&i| ma.vertex(i) != mb.vertex(i))
-        .count();
-    let prior_same = a.prior.t().map(f32::to_bits) == b.prior.t().map(f32::to_bits)
-        && a.prior.q().map(f32::to_bits) == b.prior.q().map(f32::to_bits);
-    eprintln!(
-        "{differ} of {} local vertices differ; local prior identical: {prior_same}",
-        ma.vertex_count()
-    );
-    // Only vertices with a coordinate near 0 may round differently.
-    for i in 0..ma.vertex_count() {
-        let (p, q) = (ma.vertex(i).unwrap(), mb.vertex(i).unwrap());
-        if p != q {
-            assert!((p - q).norm() < 1e-8, "vertex {i}: {p:?} vs {q:?}");
-        }
-    }
-    let (oa, ob) = (run_engine(&a).unwrap(), run_engine(&b).unwrap());
-    assert_eq!(oa.failure, None);
-    assert_eq!((oa.inliers, oa.iterations), (ob.inliers, ob.iterations));
-    if differ == 0 && prior_same {
-        // Same core input, same core output, bit for bit.
-        assert_eq!(oa.stats, ob.stats);
-        assert_eq!(
-            oa.pose.unwrap().t().map(f32::to_bits),
-            ob.pose.unwrap().t().map(f32::to_bits)
-        );
-    }
-    let pa = frame::to_user(&oa.pose.unwrap(), oa.origin);
-    let pb = frame::offset(
-        &frame::to_user(&ob.pose.unwrap(), ob.origin),
-        SHIFT.map(|c| -c),
-    );
-    let (dt, dr) = frame::error_to(&pb, &pa);
-    assert!(dt < 1e-6 && dr < 1e-6, "{dt} m {dr} rad");
+    relocalize::with_inputs(&args_a, |ma, a| {
+        relocalize::with_inputs(&args_b, |mb, b| {
+            assert_eq!(mb.origin().map(f64::to_bits), SHIFT.map(f64::to_bits));
+            assert_eq!(ma.vertex_count(), mb.vertex_count());
+            let differ = (0..ma.vertex_count())
+                .filter(|&i| ma.vertex(i) != mb.vertex(i))
+                .count();
+            let prior_same = a.prior.t().map(f32::to_bits) == b.prior.t().map(f32::to_bits)
+                && a.prior.q().map(f32::to_bits) == b.prior.q().map(f32::to_bits);
+            eprintln!(
+                "{differ} of {} local vertices differ; local prior identical: {prior_same}",
+                ma.vertex_count()
+            );
+            // Only vertices with a coordinate near 0 may round differently.
+            for i in 0..ma.vertex_count() {
+                let (p, q) = (ma.vertex(i).unwrap(), mb.vertex(i).unwrap());
+                if p != q {
+                    assert!((p - q).norm() < 1e-8, "vertex {i}: {p:?} vs {q:?}");
+                }
+            }
+            let (oa, ob) = (
+                job::run_engine(ma, a)?.outcome,
+                job::run_engine(mb, b)?.outcome,
+            );
+            assert_eq!(oa.failure, None);
+            assert_eq!((oa.inliers, oa.iterations), (ob.inliers, ob.iterations));
+            if differ == 0 && prior_same {
+                // Same core input, same core output, bit for bit.
+                assert_eq!(oa.stats, ob.stats);
+                assert_eq!(
+                    oa.pose.unwrap().t().map(f32::to_bits),
+                    ob.pose.unwrap().t().map(f32::to_bits)
+                );
+            }
+            let pa = frame::to_user(&oa.pose.unwrap(), oa.origin);
+            let pb = frame::offset(
+                &frame::to_user(&ob.pose.unwrap(), ob.origin),
+                SHIFT.map(|c| -c),
+            );
+            let (dt, dr) = frame::error_to(&pb, &pa);
+            assert!(dt < 1e-6 && dr < 1e-6, "{dt} m {dr} rad");
+            Ok(())
+        })
+    })
+    .unwrap();
 }
 
 fn write_pairs(dir: &Path, name: &str, lines: &[String]) -> PathBuf {
     let p = dir.join(name);
     std::fs::write(&p, lines.join("\n") + "\n").unwrap();
     p
+}
+
+/// `args` with the batch `pairs`.
+fn with_pairs(args: Args, pairs: &Path) -> Args {
+    Args {
+        pairs: Some(pairs.to_path_buf()),
+        ..args
+    }
 }
 
 fn batch_args(dir: &Path, out: Option<PathBuf>) -> Args {
@@ -277,8 +291,11 @@ fn batch_of_pairs_runs_against_one_map_load() {
         ],
     );
     let out = dir.join("results.jsonl");
-    let s = batch::run_batch(&batch_args(&d.plain, Some(out.clone())), &pairs, false).unwrap();
+    let s = relocalize::run_batch(&batch_args(&d.plain, Some(out.clone())), &pairs, false).unwrap();
     assert_eq!(s.map_loads, 1);
+    // One check of the map product for the whole batch: the job's, whose
+    // view the runner uses for every pair.
+    assert_eq!(s.map_checks, 1);
     assert_eq!(s.results.len(), 3);
     assert_eq!(s.exit_code(), 0, "{:?}", s.results);
     let ids: Vec<Option<&str>> = s.results.iter().map(|r| r.id.as_deref()).collect();
@@ -297,7 +314,9 @@ fn batch_of_pairs_runs_against_one_map_load() {
     }
     assert_eq!(s.results[2].error_t_mm, None);
     // The first pair is exactly the single-pair command's result.
-    let single = run_engine(&load_inputs(&args(&d.plain, "prior.json", None)).unwrap()).unwrap();
+    let single = relocalize::relocalize_one(&args(&d.plain, "prior.json", None))
+        .unwrap()
+        .outcome;
     let first = s.results[0].world_from_left;
     assert_eq!(first, relocalize::outcome_result(&single).world_from_left);
     // The per-pair result.json of pair b is the batch line's pose.
@@ -331,7 +350,7 @@ fn bad_pairs_fail_alone_and_bad_batches_are_refused() {
             r#"{"left":"../left.png","right":"../right.png","prior":"../prior.json"}"#.to_string(),
         ],
     );
-    let s = batch::run_batch(&batch_args(&d.plain, None), &pairs, false).unwrap();
+    let s = relocalize::run_batch(&batch_args(&d.plain, None), &pairs, false).unwrap();
     let status: Vec<&str> = s.results.iter().map(|r| r.status.as_str()).collect();
     assert_eq!(status, ["error", "error", "error", "ok"], "{:?}", s.results);
     assert_eq!(s.exit_code(), EXIT_RELOC_FAILED);
@@ -351,7 +370,7 @@ fn bad_pairs_fail_alone_and_bad_batches_are_refused() {
     // `run` writes one line per pair to --out and exits 1 (some pair failed).
     let out = dir.join("results.jsonl");
     assert_eq!(
-        batch::run(&batch_args(&d.plain, Some(out.clone())), &pairs).unwrap(),
+        relocalize::run(&with_pairs(batch_args(&d.plain, Some(out.clone())), &pairs)).unwrap(),
         EXIT_RELOC_FAILED
     );
     let lines: Vec<batch::PairResult> = std::fs::read_to_string(&out)
@@ -362,17 +381,19 @@ fn bad_pairs_fail_alone_and_bad_batches_are_refused() {
     assert_eq!(lines.len(), 4);
     assert_eq!(lines[3].world_from_left, s.results[3].world_from_left);
     std::fs::remove_file(&out).unwrap();
-    let missing = batch::run(
-        &batch_args(&d.plain, Some(out.clone())),
+    let missing = relocalize::run(&with_pairs(
+        batch_args(&d.plain, Some(out.clone())),
         &dir.join("nope.jsonl"),
-    );
+    ));
     assert_eq!(vtsm_sim::cli::report(&missing.unwrap_err()), 2);
     let empty = write_pairs(&dir, "empty.jsonl", &[String::new()]);
-    let e = batch::run(&batch_args(&d.plain, Some(out.clone())), &empty).unwrap_err();
+    let e =
+        relocalize::run(&with_pairs(batch_args(&d.plain, Some(out.clone())), &empty)).unwrap_err();
     assert!(e.to_string().contains("no pairs"), "{e}");
     assert!(!out.exists(), "nothing is written for a bad batch");
     std::fs::write(&out, "keep\n").unwrap();
-    let e = batch::run(&batch_args(&d.plain, Some(out.clone())), &pairs).unwrap_err();
+    let e =
+        relocalize::run(&with_pairs(batch_args(&d.plain, Some(out.clone())), &pairs)).unwrap_err();
     assert!(e.to_string().contains("exists"), "{e}");
     assert_eq!(std::fs::read_to_string(&out).unwrap(), "keep\n");
 }

@@ -9,12 +9,11 @@
 
 use std::path::{Path, PathBuf};
 use vtsm_core::geom::Pose;
-use vtsm_sim::cli::batch;
 use vtsm_sim::cli::eval::{
     args::TerrainArg, config_from_args, run_suite, write_run, Args as EvalArgs, Suite, SuiteConfig,
 };
 use vtsm_sim::cli::map_build::DEFAULT_TILE_SIZE_M;
-use vtsm_sim::cli::relocalize::{load_inputs, outcome_result, run_engine, Args};
+use vtsm_sim::cli::relocalize::{self, outcome_result, Args};
 use vtsm_sim::io::calib::model::{OpenCvCalib, OpenCvCamera};
 use vtsm_sim::io::calib::opencv::opencv_calib_text;
 use vtsm_sim::io::calib::ros::{self as calib_ros, camera_info_text};
@@ -42,7 +41,7 @@ fn args(dir: &Path) -> Args {
         out: None,
         force: false,
         tile_size_m: DEFAULT_TILE_SIZE_M,
-        interp: "lanczos4".into(),
+        interp: vtsm_sim::rectify::Interp::Lanczos4,
         origin: None,
     }
 }
@@ -107,12 +106,12 @@ fn relocalize(dir: &Path, truth: &Pose) -> (f32, f32, Pose) {
 
 /// [`relocalize`] with the calibration file `calib`.
 fn relocalize_calib(dir: &Path, calib: &Path, truth: &Pose) -> (f32, f32, Pose) {
-    let inputs = load_inputs(&Args {
+    let out = relocalize::relocalize_one(&Args {
         calib: calib.to_path_buf(),
         ..args(dir)
     })
-    .unwrap();
-    let out = run_engine(&inputs).unwrap();
+    .unwrap()
+    .outcome;
     assert_eq!(out.failure, None, "{}", dir.display());
     // The outcome is in the map's local frame; the truth in the mesh's.
     let local = out.pose.unwrap();
@@ -179,10 +178,12 @@ fn physical_pair_relocalizes_like_the_rectified_one() {
                 "{\"left\": \"left.png\", \"right\": \"right.png\", \"prior\": \"prior.json\"}\n",
             )
             .unwrap();
-            let summary = batch::run_batch(&args(&phys_dir), &pairs, false).unwrap();
+            let summary = relocalize::run_batch(&args(&phys_dir), &pairs, false).unwrap();
             let line = &summary.results[0];
             assert_eq!(line.status, "ok", "{line:?}");
-            let single = run_engine(&load_inputs(&args(&phys_dir)).unwrap()).unwrap();
+            let single = relocalize::relocalize_one(&args(&phys_dir))
+                .unwrap()
+                .outcome;
             assert_eq!(
                 line.world_from_left,
                 outcome_result(&single).world_from_left,
@@ -230,8 +231,10 @@ fn physical_pair_relocalizes_like_the_rectified_one() {
         }
         // The rectified left camera is turned from the physical one by R1; an
         // estimate that were left rectified would be off by that rotation.
-        let inputs = load_inputs(&args(&phys_dir)).unwrap();
-        let rect = inputs.physical.as_ref().unwrap();
+        let rect = relocalize::with_inputs(&args(&phys_dir), |_, i| Ok(i.physical.clone()))
+            .unwrap()
+            .unwrap();
+        let rect = &rect;
         let (_, to_rect) = pose.error_to(&rect.to_rectified(&truth));
         println!(
             "stop {stop}: rectified {:.1} mm {rr:.3}°, physical {:.1} mm {pr:.3}° \

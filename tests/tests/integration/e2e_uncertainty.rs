@@ -9,7 +9,6 @@
 use std::path::{Path, PathBuf};
 use vtsm_core::config::PriorUncertainty;
 use vtsm_core::geom::{Pose, Vec3};
-use vtsm_sim::cli::batch;
 use vtsm_sim::cli::map_build::DEFAULT_TILE_SIZE_M;
 use vtsm_sim::cli::relocalize::{self, Args};
 use vtsm_sim::io::json::{self, UncertaintyJson};
@@ -92,7 +91,7 @@ fn args(dir: &Path, prior: Option<&str>, out: Option<PathBuf>) -> Args {
         out,
         force: false,
         tile_size_m: DEFAULT_TILE_SIZE_M,
-        interp: "lanczos4".into(),
+        interp: vtsm_sim::rectify::Interp::Lanczos4,
         origin: None,
         verify: Default::default(),
     }
@@ -125,8 +124,8 @@ fn far_prior_stating_its_uncertainty_relocalizes_within_5_cm() {
     assert!(e < 50.0, "final error {e} mm");
     assert_eq!(r.prior_uncertainty, Some(STATED));
     // One start: the multi-seed mode stays off.
-    assert_eq!(r.stats["seeds_tried"], 0);
-    assert!(r.stats["focused_rounds"] >= 1, "{:?}", r.stats);
+    assert_eq!(r.stats.seeds_tried, 0);
+    assert!(r.stats.focused_rounds >= 1, "{:?}", r.stats);
     let text = std::fs::read_to_string(&out).unwrap();
     assert!(
         text.contains("\"prior_uncertainty\": {\n    \"t_m\": 0.5,\n    \"r_deg\": 1.5\n  }"),
@@ -153,7 +152,7 @@ fn batch_pairs_use_their_own_prior_uncertainty() {
             + "\n",
     )
     .unwrap();
-    let b = batch::run_batch(&args(&s.dir, None, None), &pairs, false).unwrap();
+    let b = relocalize::run_batch(&args(&s.dir, None, None), &pairs, false).unwrap();
     let status: Vec<&str> = b.results.iter().map(|r| r.status.as_str()).collect();
     assert_eq!(status, ["ok", "ok"], "{:?}", b.results);
     assert_eq!(b.results[0].prior_uncertainty, Some(STATED));
@@ -172,10 +171,9 @@ fn batch_pairs_use_their_own_prior_uncertainty() {
         assert!(r.error_t_mm.is_some_and(|e| e < 50.0), "{r:?}");
     }
     // The far line is the single-pair relocalization (same inputs and seed).
-    let single = relocalize::run_engine(
-        &relocalize::load_inputs(&args(&s.dir, Some("prior_far.json"), None)).unwrap(),
-    )
-    .unwrap();
+    let single = relocalize::relocalize_one(&args(&s.dir, Some("prior_far.json"), None))
+        .unwrap()
+        .outcome;
     assert_eq!(
         b.results[0].world_from_left,
         relocalize::outcome_result(&single).world_from_left

@@ -1,5 +1,5 @@
 //! Fault scenarios on the flight path: each runs one relocalization through
-//! the HAL runner on simulated devices (`run_on_devices`) with one fault, and
+//! the HAL runner on simulated devices (`locate::run`) with one fault, and
 //! asserts the exact failure code, that the failure log counts it (the
 //! runner's log and its downlinked counters frame for acquisition faults, the
 //! outcome's log and the downlinked outcome for engine ends), and that the run
@@ -8,7 +8,7 @@
 //! tick per clock read and a capture timeout per timed-out capture.
 //!
 //! A map product upset in memory after its check at load is injected between
-//! two engine steps through the runner's step hook (`run_on_devices_with`,
+//! two engine steps through the runner's step hook (`RunOptions::between`,
 //! the core's `upset-injection` feature).
 //!
 //! Every bound is a named constant with the reason for it. The whole binary
@@ -19,14 +19,12 @@
 use std::sync::OnceLock;
 use vtsm_core::geom::{Pose, Vec3};
 use vtsm_core::map::{self, MapView};
-use vtsm_core::reloc::{Options, Outcome};
+use vtsm_core::reloc::{Engine, Options, Outcome};
 use vtsm_core::FailureCode;
 use vtsm_hal::runner::{DriveLimits, RelocReport, VerifyChecks};
 use vtsm_hal::telemetry::{parse_outcome, FrameKind};
 use vtsm_sim::devices::FaultConfig;
-use vtsm_sim::locate::{
-    run_on_devices, run_on_devices_with, runner_config, DeviceFaults, DeviceRun, Request,
-};
+use vtsm_sim::locate::{self, runner_config, DeviceFaults, DeviceRun, Request, RunOptions};
 use vtsm_tests::scene::{render_pair, request, scene};
 use vtsm_tests::testkit;
 use vtsm_tests::upsets::map_regions;
@@ -62,7 +60,7 @@ fn every(timeout_pct: u8, truncate_pct: u8, corrupt_pct: u8) -> FaultConfig {
 }
 
 fn run(req: &Request<'_>, f: &DeviceFaults) -> DeviceRun {
-    run_on_devices(req, f, &DriveLimits::UNLIMITED).unwrap()
+    locate::run(req, RunOptions::default().faults(*f)).unwrap()
 }
 
 /// The work one run did.
@@ -563,18 +561,16 @@ fn changed_map() -> &'static MapView<'static> {
 /// engine step (after the load check and some engine work); the hook's calls.
 fn run_with_map_upset(req: &Request<'_>) -> (DeviceRun, u32) {
     let mut calls = 0u32;
-    let r = run_on_devices_with(
-        req,
-        &faults(FaultConfig::NONE, FaultConfig::NONE),
-        &DriveLimits::UNLIMITED,
-        |engine, _now| {
-            calls += 1;
-            if calls == 2 {
-                engine.upset_map(changed_map());
-            }
-        },
-    )
-    .unwrap();
+    let mut upset = |engine: &mut Engine<'_, '_>, _now: u64| {
+        calls += 1;
+        if calls == 2 {
+            engine.upset_map(changed_map());
+        }
+    };
+    let opts = RunOptions::default()
+        .faults(faults(FaultConfig::NONE, FaultConfig::NONE))
+        .between(&mut upset);
+    let r = locate::run(req, opts).unwrap();
     (r, calls)
 }
 
@@ -589,13 +585,10 @@ fn run_with_map_upset(req: &Request<'_>) -> (DeviceRun, u32) {
 /// Verifies: VTSM-HAL-025, VTSM-RELOC-033
 #[test]
 fn map_changed_after_load() {
-    let recheck = Request {
-        verify: VerifyChecks {
-            repeat_solve: false,
-            recheck_map: true,
-        },
-        ..clean_request()
-    };
+    let recheck = clean_request().with_verify(VerifyChecks {
+        repeat_solve: false,
+        recheck_map: true,
+    });
     let (checked, calls) = run_with_map_upset(&recheck);
     let w = work(&checked);
     println!("map changed after load: {w:?}, {calls} steps");

@@ -8,21 +8,19 @@
 
 use vtsm_core::reloc::Outcome;
 use vtsm_core::FailureCode;
-use vtsm_hal::runner::DriveLimits;
 use vtsm_hal::telemetry::{parse_outcome, FrameKind};
 use vtsm_sim::devices::FaultConfig;
-use vtsm_sim::locate::{run_from_store, run_on_devices, DeviceFaults, DeviceRun, Request};
+use vtsm_sim::locate::{run, DeviceFaults, DeviceRun, PairPath, Request, RunOptions};
 use vtsm_tests::scene::{scene, RELOC_SEED};
 use vtsm_tests::testkit;
 
 fn request(map: &[u8]) -> Request<'_> {
-    Request {
-        params: vtsm_core::config::Params {
+    scene()
+        .request(map, RELOC_SEED)
+        .with_params(vtsm_core::config::Params {
             attempts_per_iter: 300,
             ..testkit::test_params()
-        },
-        ..scene().request(map, RELOC_SEED)
-    }
+        })
 }
 
 fn from_store(window_faults: FaultConfig) -> DeviceRun {
@@ -30,12 +28,12 @@ fn from_store(window_faults: FaultConfig) -> DeviceRun {
         seed: 11,
         ..DeviceFaults::default()
     };
-    run_from_store(
+    run(
         &request(&scene().map),
-        &faults,
-        window_faults,
-        false,
-        &DriveLimits::UNLIMITED,
+        RunOptions::default().faults(faults).path(PairPath::Store {
+            window_faults,
+            map_in_place: false,
+        }),
     )
     .unwrap()
 }
@@ -52,12 +50,7 @@ fn bits(o: &Outcome) -> Vec<u32> {
 /// Verifies: VTSM-HAL-027
 #[test]
 fn reading_windows_from_the_store_gives_the_outcome_of_the_pair_in_ram() {
-    let ram = run_on_devices(
-        &request(&scene().map),
-        &DeviceFaults::default(),
-        &DriveLimits::UNLIMITED,
-    )
-    .unwrap();
+    let ram = run(&request(&scene().map), RunOptions::default()).unwrap();
     let store = from_store(FaultConfig::NONE);
     let (r, _) = ram.result.as_ref().unwrap();
     let (s, rep) = store.result.as_ref().unwrap();
@@ -147,12 +140,12 @@ fn occasional_window_faults_are_retried_and_counted() {
 }
 
 fn in_place(map: &[u8]) -> DeviceRun {
-    run_from_store(
+    run(
         &request(map),
-        &DeviceFaults::default(),
-        FaultConfig::NONE,
-        true,
-        &DriveLimits::UNLIMITED,
+        RunOptions::default().path(PairPath::Store {
+            window_faults: FaultConfig::NONE,
+            map_in_place: true,
+        }),
     )
     .unwrap()
 }
@@ -178,6 +171,11 @@ fn a_memory_mapped_map_is_used_in_place_with_the_same_outcome() {
     assert_eq!(mrep.map_read.reads, 0);
     assert_eq!(mrep.map_read.len, crep.map_read.len);
     assert_eq!(mrep.windows, crep.windows);
+    // The flight path's counts: one check of the product (in place, or in
+    // the retry loop after the read), the pair never copied out of the
+    // camera's memory.
+    assert_eq!((mrep.map_read.checks, crep.map_read.checks), (1, 1));
+    assert_eq!((mapped.pair_copies, copied.pair_copies), (0, 0));
 }
 
 /// A damaged mapped product ends in the failure code the copied product ends
@@ -190,12 +188,12 @@ fn a_damaged_or_empty_mapped_map_ends_in_its_failure_code() {
     let mut bad = scene().map.clone();
     let mid = bad.len() / 2;
     bad[mid] ^= 0x10;
-    let copied = run_from_store(
+    let copied = run(
         &request(&bad),
-        &DeviceFaults::default(),
-        FaultConfig::NONE,
-        false,
-        &DriveLimits::UNLIMITED,
+        RunOptions::default().path(PairPath::Store {
+            window_faults: FaultConfig::NONE,
+            map_in_place: false,
+        }),
     )
     .unwrap();
     let mapped = in_place(&bad);

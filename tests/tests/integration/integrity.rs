@@ -19,8 +19,7 @@ use vtsm_core::geom::Pose;
 use vtsm_core::map::MapView;
 use vtsm_core::reloc::Outcome;
 use vtsm_core::FailureCode;
-use vtsm_hal::runner::VerifyChecks;
-use vtsm_sim::locate::{relocalize, Request};
+use vtsm_sim::locate::{relocalize, Request, RunOptions};
 
 /// True translation error above which a success is confident wrong, metres.
 const WRONG_T_M: f32 = 0.10;
@@ -91,18 +90,10 @@ fn run(
     params: Params,
     seed: u64,
 ) -> Case {
-    let req = Request {
-        map,
-        left,
-        right,
-        rig: testkit::rig(),
-        prior,
-        uncertainty: None,
-        params,
-        seed,
-        verify: VerifyChecks::OFF,
-    };
-    let outcome = relocalize(&req).unwrap().outcome;
+    let req = Request::new(map, left, right, testkit::rig(), prior)
+        .with_params(params)
+        .with_seed(seed);
+    let outcome = relocalize(&req, RunOptions::default()).unwrap().outcome;
     let (t, r) = outcome.pose.error_to(truth);
     let c = Case {
         name: format!("{name} seed {seed}"),

@@ -11,23 +11,26 @@ use vtsm_core::FailureCode;
 use vtsm_hal::runner::{DriveLimits, VerifyChecks};
 use vtsm_hal::telemetry::{parse_outcome, FrameKind};
 use vtsm_sim::devices::FaultConfig;
-use vtsm_sim::locate::{run_on_devices, DeviceFaults, DeviceRun, Request};
+use vtsm_sim::locate::{self, DeviceFaults, DeviceRun, Request, RunOptions};
 use vtsm_tests::scene::{scene, RELOC_SEED};
 use vtsm_tests::testkit;
 
 fn request(map: &[u8]) -> Request<'_> {
-    Request {
-        params: vtsm_core::config::Params {
+    scene()
+        .request(map, RELOC_SEED)
+        .with_params(vtsm_core::config::Params {
             // Short failing runs are not under test here: only how they end.
             attempts_per_iter: 300,
             ..testkit::test_params()
-        },
-        ..scene().request(map, RELOC_SEED)
-    }
+        })
 }
 
 fn run(faults: DeviceFaults, limits: DriveLimits) -> DeviceRun {
-    run_on_devices(&request(&scene().map), &faults, &limits).unwrap()
+    locate::run(
+        &request(&scene().map),
+        RunOptions::default().faults(faults).limits(limits),
+    )
+    .unwrap()
 }
 
 fn all(timeout_pct: u8, truncate_pct: u8, corrupt_pct: u8) -> FaultConfig {
@@ -100,11 +103,8 @@ fn runner_relocalizes_and_step_granularity_does_not_change_the_outcome() {
 #[test]
 fn runner_config_turns_the_upset_checks_on() {
     let plain = run(DeviceFaults::default(), DriveLimits::UNLIMITED);
-    let req = Request {
-        verify: VerifyChecks::ALL,
-        ..request(&scene().map)
-    };
-    let checked = run_on_devices(&req, &DeviceFaults::default(), &DriveLimits::UNLIMITED).unwrap();
+    let req = request(&scene().map).with_verify(VerifyChecks::ALL);
+    let checked = locate::run(&req, RunOptions::default()).unwrap();
     let (p, _) = plain.result.as_ref().unwrap();
     let (c, _) = checked.result.as_ref().unwrap();
     println!(
@@ -225,11 +225,8 @@ fn runner_builds_the_engine_with_the_priors_stated_uncertainty() {
         r_deg: 2.0,
     };
     for (uncertainty, used) in [(None, base.params.uncertainty()), (Some(stated), stated)] {
-        let req = Request {
-            uncertainty,
-            ..base
-        };
-        let r = run_on_devices(&req, &DeviceFaults::default(), &DriveLimits::UNLIMITED).unwrap();
+        let req = base.with_uncertainty(uncertainty);
+        let r = locate::run(&req, RunOptions::default()).unwrap();
         let (o, rep) = r.result.as_ref().unwrap();
         assert_eq!(o.failure, None, "{uncertainty:?}");
         assert_eq!(rep.prior_uncertainty, used);
@@ -251,27 +248,21 @@ fn runner_builds_the_engine_with_the_priors_stated_uncertainty() {
         );
         assert_eq!(o.stats.seeds_tried, 0);
     }
-    let bad = Request {
-        uncertainty: Some(PriorUncertainty {
-            t_m: vtsm_core::config::MAX_T0_M * 2.0,
-            r_deg: 1.5,
-        }),
-        ..base
-    };
-    let r = run_on_devices(&bad, &DeviceFaults::default(), &DriveLimits::UNLIMITED).unwrap();
+    let bad = base.with_uncertainty(Some(PriorUncertainty {
+        t_m: vtsm_core::config::MAX_T0_M * 2.0,
+        r_deg: 1.5,
+    }));
+    let r = locate::run(&bad, RunOptions::default()).unwrap();
     assert_eq!(r.result.err(), Some(FailureCode::HalPriorInvalid));
     assert_eq!(r.log.count(FailureCode::HalPriorInvalid), 1);
 }
 
 fn run_frames(left: &[u8], right: &[u8], prior: Pose) -> DeviceRun {
     let s = scene();
-    let req = Request {
-        left,
-        right,
-        prior,
-        ..request(&s.map)
-    };
-    run_on_devices(&req, &DeviceFaults::default(), &DriveLimits::UNLIMITED).unwrap()
+    let req = Request::new(&s.map, left, right, testkit::rig(), prior)
+        .with_params(request(&s.map).params)
+        .with_seed(RELOC_SEED);
+    locate::run(&req, RunOptions::default()).unwrap()
 }
 
 /// Hopeless frames end fast with their own codes, as failed relocalizations:

@@ -67,29 +67,6 @@ impl From<BaselineArg> for Method {
     }
 }
 
-/// `--interp`: the kernel of the host rectification.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
-#[value(rename_all = "lower")]
-pub enum InterpArg {
-    /// `INTER_LINEAR`.
-    Linear,
-    /// `INTER_CUBIC`.
-    Cubic,
-    /// `INTER_LANCZOS4`.
-    #[default]
-    Lanczos4,
-}
-
-impl From<InterpArg> for Interp {
-    fn from(i: InterpArg) -> Self {
-        match i {
-            InterpArg::Linear => Self::Linear,
-            InterpArg::Cubic => Self::Cubic,
-            InterpArg::Lanczos4 => Self::Lanczos4,
-        }
-    }
-}
-
 /// `--light-model`: the parts of the sunlight the depot has.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum LightModelArg {
@@ -189,10 +166,10 @@ pub struct Args {
         long,
         value_name = "KERNEL",
         value_enum,
-        default_value_t = InterpArg::Lanczos4,
+        default_value_t = Interp::Lanczos4,
         requires = "physical"
     )]
-    pub interp: InterpArg,
+    pub interp: Interp,
     /// Parts of the sunlight the simulated depot has, at mapping and live time
     /// alike (`flat`: neither cast shadows nor attached shading; a diagnostic
     /// of how each part moves the error after a change of the time of day).
@@ -234,7 +211,7 @@ impl Args {
             origin: None,
             verify: super::super::VerifyArg::default(),
             physical: false,
-            interp: InterpArg::Lanczos4,
+            interp: Interp::Lanczos4,
             light_model: LightModelArg::Full,
             mask: MaskArg::Paper,
             wind: 0.0,
@@ -296,7 +273,7 @@ pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
         .transpose()?;
     cfg.verify = args.verify.checks();
     cfg.physical = args.physical;
-    cfg.interp = args.interp.into();
+    cfg.interp = args.interp;
     cfg.light_model = args.light_model.into();
     cfg.mask_all = args.mask == MaskArg::All;
     if !(0.0..=1.0).contains(&args.wind) {

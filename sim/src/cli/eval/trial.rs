@@ -13,10 +13,11 @@ use crate::eval::columns::{
 };
 use crate::eval::TrialOutcome;
 use crate::io::image::Gray8;
-use crate::locate::{self, Request};
+use crate::locate::{self, Request, RunOptions};
 use crate::rectify::Rectifier;
 use crate::scene::STOPS_PER_CIRCLE;
 use vtsm_core::geom::{Pose, StereoRig, Vec3};
+use vtsm_core::map::MapView;
 use vtsm_core::FailureCode;
 
 /// Trial `k` of a group.
@@ -141,7 +142,15 @@ pub fn run_trial(sh: &Shared<'_>, s: &Spec) -> TrialOutcome {
             return o;
         }
     };
-    let req = request(cfg, g, bytes, &inputs, seed);
+    // The trial's one check of the map product; the runner uses the view.
+    let view = match MapView::new_checked(bytes) {
+        Ok(v) => v,
+        Err(c) => {
+            o.failure = Some(format!("map: {}", c.name()));
+            return o;
+        }
+    };
+    let req = request(cfg, g, view, &inputs, seed);
     match g.method {
         Method::Features => run_features(&mut o, &req, &inputs, &frame),
         Method::Vtsm => run_vtsm(&mut o, cfg, &req, &inputs, &frame),
@@ -216,7 +225,7 @@ fn inputs(cfg: &SuiteConfig, live: LiveFrames, prior: Pose) -> Result<Inputs, St
 fn request<'a>(
     cfg: &SuiteConfig,
     g: &Group,
-    map: &'a [u8],
+    map: MapView<'a>,
     inputs: &'a Inputs,
     seed: u64,
 ) -> Request<'a> {
@@ -227,17 +236,11 @@ fn request<'a>(
         params.n_iter = 1;
         params.max_reseed = 3;
     }
-    Request {
-        map,
-        left: &inputs.left,
-        right: &inputs.right,
-        rig: inputs.rig,
-        prior: inputs.prior,
-        uncertainty: g.uncertainty,
-        params,
-        seed,
-        verify: cfg.verify,
-    }
+    Request::new(map, &inputs.left, &inputs.right, inputs.rig, inputs.prior)
+        .with_uncertainty(g.uncertainty)
+        .with_params(params)
+        .with_seed(seed)
+        .with_verify(cfg.verify)
 }
 
 /// The local-feature baseline on the same request.
@@ -272,7 +275,7 @@ fn run_vtsm(
     inputs: &Inputs,
     frame: &ErrorFrame,
 ) {
-    let r = match locate::relocalize(req) {
+    let r = match locate::relocalize(req, RunOptions::default()) {
         Ok(r) => r,
         Err(e) => {
             o.failure = Some(format!("error: {e}"));
