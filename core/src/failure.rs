@@ -245,6 +245,8 @@ failure_codes! {
         "A buffer given to the C interface is not aligned as its contents require (engine storage: VTSM_STORAGE_ALIGN); nothing is done.";
     FfiBadHandle = 0x0A03, Fatal, Never, "FFI_BAD_HANDLE",
         "The engine handle does not point at storage set up by vtsm_engine_create (never created, released, or overwritten since); nothing is done.";
+    FfiEngineState = 0x0A04, Fatal, Never, "FFI_ENGINE_STATE",
+        "vtsm_engine_step or vtsm_engine_outcome on an engine with no relocalization under way (not started, or its outcome already taken), or vtsm_engine_start on one that has one; nothing is done.";
 }
 
 impl FailureCode {

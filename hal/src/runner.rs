@@ -39,10 +39,10 @@ use crate::telemetry::{
 use crate::telemetry::{outcome_payload, OutcomeSummary};
 use vtsm_core::config::Params;
 use vtsm_core::failure::{FailureLog, Retry};
-use vtsm_core::frame::FrameSource;
-use vtsm_core::geom::{Pose, StereoRig};
+use vtsm_core::frame::{FrameSource, StereoPair};
+use vtsm_core::geom::StereoRig;
 use vtsm_core::image::GrayView;
-use vtsm_core::map::MapView;
+use vtsm_core::map::{CheckedMap, MapView};
 use vtsm_core::reloc::{Engine, Outcome, Setup, Stage, StepResult, Workspace};
 use vtsm_core::FailureCode;
 
@@ -702,38 +702,25 @@ where
 
     /// Send one frame; a failure is counted and logged, never retried.
     pub fn send(&mut self, kind: u8, payload: &[u8]) {
-        if payload.len() > MAX_PAYLOAD {
-            // The frame format cannot carry it: dropped before the device sees it.
-            self.telemetry_dropped = self.telemetry_dropped.saturating_add(1);
-            let now = self.now();
-            self.log.record(
-                FailureCode::HalTelemetryPayloadTooLong,
-                now,
-                u32::from(kind),
-            );
-            return;
-        }
-        if self.telemetry.send(kind, payload).is_err() {
-            self.telemetry_dropped = self.telemetry_dropped.saturating_add(1);
-            let now = self.now();
-            self.log
-                .record(FailureCode::HalTelemetryWrite, now, u32::from(kind));
-        }
+        send_frame(
+            &mut self.telemetry,
+            &mut self.telemetry_dropped,
+            &mut self.clock,
+            &mut self.log,
+            kind,
+            payload,
+        );
     }
 
     /// Downlink the failure log: one counters frame, then the recent events
     /// oldest first (at most the ring length of frames).
     pub fn send_failure_log(&mut self) {
-        let mut payload = [0u8; MAX_PAYLOAD];
-        let n = failure_counters_payload(&self.log, &mut payload);
-        let log = self.log.clone();
-        self.send(
-            FrameKind::FailureCounters as u8,
-            payload.get(..n).unwrap_or(&[]),
+        send_log(
+            &mut self.telemetry,
+            &mut self.telemetry_dropped,
+            &mut self.clock,
+            &mut self.log,
         );
-        for e in log.recent() {
-            self.send(FrameKind::FailureEvent as u8, &failure_event_payload(&e));
-        }
     }
 }
 
@@ -800,64 +787,66 @@ pub struct Job {
     pub verify: VerifyChecks,
 }
 
-/// The devices and the acquisition state a [`PairSource`] runs with: the
-/// camera, the clock, the failure log, the runner configuration and the
-/// clock times when acquisition started and when the pair is captured.
+/// What a [`PairSource`] hands the runner after the capture: the engine's
+/// frame source, the frame metadata, the capture work and the caller's hook.
 #[derive(Debug)]
-pub struct PairContext<'r, C, K> {
-    /// The stereo camera (or frame store).
-    pub camera: &'r mut C,
-    /// The runner's clock.
-    pub clock: &'r mut K,
-    /// The runner's failure log.
-    pub log: &'r mut FailureLog,
-    /// The runner's configuration.
-    pub cfg: &'r RunnerConfig,
-    /// Clock time when acquisition started (build errors are logged at it).
-    pub start: u64,
-    /// Clock time of the capture.
-    pub now: u64,
-}
-
-/// What a [`PairSource`] gives back: the engine's outcome and the work of
-/// the capture, the drive and the window reads.
-#[derive(Clone, Debug)]
-pub struct PairRun {
-    /// The engine's outcome.
-    pub outcome: Outcome,
-    /// Frame metadata of the pair used.
+pub struct Captured<F, H> {
+    /// Where the engine reads its windows and preflight rows from.
+    pub frames: F,
+    /// Frame metadata of the pair.
     pub frame: FrameInfo,
     /// Capture work.
     pub capture: CaptureReport,
-    /// Engine driving.
-    pub drive: DriveReport,
-    /// Window reads from a frame store (zero for a pair in RAM).
-    pub windows: WindowReport,
+    /// The caller's work before every engine step ([`PairSource::before_step`]).
+    pub hook: H,
 }
 
 /// Where the stereo pair of a job comes from: captured into RAM
 /// ([`RamPair`], camera `C: StereoCamera`) or left in the camera's frame
-/// memory ([`InStore`], `C: FrameStore`). [`Runner::run`] has checked the map
-/// and the prior; the source captures the pair, builds the engine with
-/// [`Setup`] over `ws` and drives it with the runner's one drive loop.
-/// Sealed: these two are the pair paths the runner knows how to drive.
-pub trait PairSource<'w, C>: sealed::Sealed {
-    /// Capture, build and drive. `params` are the job's with the prior's
-    /// uncertainty applied; `prior` is the prior pose.
+/// memory ([`InStore`], `C: FrameStore`). [`Runner::start`] has checked the
+/// map and the prior; the source captures the pair and gives the engine's
+/// frame source, which [`Runner::start`] builds the engine over with
+/// [`Setup`]. Sealed: these two are the pair paths the runner knows how to
+/// drive.
+pub trait PairSource<C>: sealed::Sealed {
+    /// The engine's frame source, borrowing the camera for `'c`.
+    type Frames<'c>: FrameSource
+    where
+        Self: 'c,
+        C: 'c;
+    /// The caller's work before every engine step.
+    type Hook<'c>
+    where
+        Self: 'c,
+        C: 'c;
+
+    /// Capture the pair at clock time `now` (faults logged in `log`).
     ///
     /// # Errors
-    /// The capture's code or [`Setup::build`]'s (logged at `ctx.start`).
-    #[allow(clippy::too_many_arguments)] // the job's parts, checked by the runner
-    fn run<K: Clock>(
+    /// The capture's code, or a frame that disagrees with `cfg.image_size`.
+    fn capture<'c>(
         self,
-        ctx: PairContext<'_, C, K>,
-        map: &MapView<'_>,
-        job: &Job,
-        params: &Params,
-        prior: &Pose,
-        ws: Workspace<'w>,
-        observe: Option<&mut dyn FnMut(StageEvent)>,
-    ) -> Result<PairRun, FailureCode>;
+        camera: &'c mut C,
+        cfg: &RunnerConfig,
+        now: u64,
+        log: &mut FailureLog,
+    ) -> Result<Captured<Self::Frames<'c>, Self::Hook<'c>>, FailureCode>
+    where
+        Self: 'c;
+
+    /// Run the hook before an engine step at `now`.
+    fn before_step<'c, 'w>(
+        hook: &mut Self::Hook<'c>,
+        engine: &mut Engine<'c, 'w, Self::Frames<'c>>,
+        now: u64,
+    ) where
+        Self: 'c;
+
+    /// The window reads of `frames` once the engine is done; their failures
+    /// go into `log`.
+    fn windows<'c>(frames: &Self::Frames<'c>, log: &mut FailureLog) -> WindowReport
+    where
+        Self: 'c;
 }
 
 mod sealed {
@@ -903,42 +892,57 @@ impl<'b, 'h> RamPair<'b, 'h> {
     }
 }
 
-impl<'w, C: StereoCamera> PairSource<'w, C> for RamPair<'_, '_> {
-    fn run<K: Clock>(
+impl<'b, 'h, C: StereoCamera> PairSource<C> for RamPair<'b, 'h> {
+    type Frames<'c>
+        = StereoPair<'c>
+    where
+        Self: 'c,
+        C: 'c;
+    type Hook<'c>
+        = Option<Between<'h>>
+    where
+        Self: 'c,
+        C: 'c;
+
+    fn capture<'c>(
         self,
-        ctx: PairContext<'_, C, K>,
-        map: &MapView<'_>,
-        job: &Job,
-        params: &Params,
-        prior: &Pose,
-        ws: Workspace<'w>,
-        observe: Option<&mut dyn FnMut(StageEvent)>,
-    ) -> Result<PairRun, FailureCode> {
-        let (frame, capture) =
-            capture_pair(ctx.camera, self.left, self.right, ctx.cfg, ctx.now, ctx.log)?;
-        let (left, right) = frame.views(ctx.cfg.image_size, self.left, self.right)?;
-        let setup = Setup::new(map, left, right, &job.rig, params, prior, job.seed);
-        let mut engine = build(setup, job.verify, ws, ctx.log, ctx.start)?;
-        let mut between = self.between;
-        let (outcome, drive) = drive_engine(
-            &mut engine,
-            ctx.clock,
-            ctx.log,
-            &job.limits,
-            &mut |e, now| {
-                if let Some(b) = between.as_mut() {
-                    b(e, now);
-                }
-            },
-            observe,
-        );
-        Ok(PairRun {
-            outcome,
+        camera: &'c mut C,
+        cfg: &RunnerConfig,
+        now: u64,
+        log: &mut FailureLog,
+    ) -> Result<Captured<StereoPair<'c>, Option<Between<'h>>>, FailureCode>
+    where
+        Self: 'c,
+    {
+        let (frame, capture) = capture_pair(camera, self.left, self.right, cfg, now, log)?;
+        let left: &'c [u8] = self.left;
+        let right: &'c [u8] = self.right;
+        let (left, right) = frame.views(cfg.image_size, left, right)?;
+        Ok(Captured {
+            frames: StereoPair::new(left, right),
             frame,
             capture,
-            drive,
-            windows: WindowReport::default(),
+            hook: self.between,
         })
+    }
+
+    fn before_step<'c, 'w>(
+        hook: &mut Option<Between<'h>>,
+        engine: &mut Engine<'c, 'w, StereoPair<'c>>,
+        now: u64,
+    ) where
+        Self: 'c,
+    {
+        if let Some(b) = hook.as_mut() {
+            b(engine, now);
+        }
+    }
+
+    fn windows<'c>(_: &StereoPair<'c>, _: &mut FailureLog) -> WindowReport
+    where
+        Self: 'c,
+    {
+        WindowReport::default()
     }
 }
 
@@ -953,38 +957,49 @@ impl<'w, C: StereoCamera> PairSource<'w, C> for RamPair<'_, '_> {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct InStore;
 
-impl<'w, C: FrameStore> PairSource<'w, C> for InStore {
-    fn run<K: Clock>(
+impl<C: FrameStore> PairSource<C> for InStore {
+    type Frames<'c>
+        = StoreFrames<&'c mut C>
+    where
+        Self: 'c,
+        C: 'c;
+    type Hook<'c>
+        = ()
+    where
+        Self: 'c,
+        C: 'c;
+
+    fn capture<'c>(
         self,
-        ctx: PairContext<'_, C, K>,
-        map: &MapView<'_>,
-        job: &Job,
-        params: &Params,
-        prior: &Pose,
-        ws: Workspace<'w>,
-        observe: Option<&mut dyn FnMut(StageEvent)>,
-    ) -> Result<PairRun, FailureCode> {
-        let (frame, capture) = capture_to_store(ctx.camera, ctx.cfg, ctx.now, ctx.log)?;
-        let frames = StoreFrames::new(ctx.camera, &frame, ctx.cfg.attempts, ctx.now);
-        let setup = Setup::with_frames(map, frames, &job.rig, params, prior, job.seed);
-        let mut engine = build(setup, job.verify, ws, ctx.log, ctx.start)?;
-        let (outcome, drive) = drive_engine(
-            &mut engine,
-            ctx.clock,
-            ctx.log,
-            &job.limits,
-            &mut |_, _| {},
-            observe,
-        );
-        let frames = engine.attempt_ref().frames();
-        ctx.log.absorb(&frames.log);
-        Ok(PairRun {
-            outcome,
+        camera: &'c mut C,
+        cfg: &RunnerConfig,
+        now: u64,
+        log: &mut FailureLog,
+    ) -> Result<Captured<StoreFrames<&'c mut C>, ()>, FailureCode>
+    where
+        Self: 'c,
+    {
+        let (frame, capture) = capture_to_store(camera, cfg, now, log)?;
+        Ok(Captured {
+            frames: StoreFrames::new(camera, &frame, cfg.attempts, now),
             frame,
             capture,
-            drive,
-            windows: frames.report,
+            hook: (),
         })
+    }
+
+    fn before_step<'c, 'w>(_: &mut (), _: &mut Engine<'c, 'w, StoreFrames<&'c mut C>>, _: u64)
+    where
+        Self: 'c,
+    {
+    }
+
+    fn windows<'c>(frames: &StoreFrames<&'c mut C>, log: &mut FailureLog) -> WindowReport
+    where
+        Self: 'c,
+    {
+        log.absorb(&frames.log);
+        frames.report
     }
 }
 
@@ -1003,45 +1018,241 @@ fn build<'a, 'w, F: FrameSource>(
         .inspect_err(|&c| log.record(c, start, 0))
 }
 
-/// Drive a built engine with the clock under `limits`, calling `between`
-/// before every step; stepped one stage at a time with each stage reported
-/// to `observe` when given (`limits.units_per_step` is then not used and
-/// `limits.max_steps` counts stages), else `limits.units_per_step` units per
-/// step. Ends with the engine's anytime result when the budget runs out.
-fn drive_engine<'a, 'w, F: FrameSource, K: Clock>(
-    engine: &mut Engine<'a, 'w, F>,
+/// Read the map product into `buf` and check it, as [`read_map_checked`],
+/// and give the view that passed over `buf`'s bytes without a second check
+/// ([`CheckedMap`]).
+fn read_map_view<'m, S: MapStore>(
+    store: &mut S,
+    buf: &'m mut [u8],
+    cfg: &RunnerConfig,
+    now_ticks: u64,
+    log: &mut FailureLog,
+    rep: &mut ReadReport,
+) -> Result<MapView<'m>, FailureCode> {
+    let checked: CheckedMap = read_passes(store, buf, cfg, now_ticks, log, rep, |b, _, _| {
+        MapView::new_checked(b).map(|v| v.detach())
+    })?;
+    let len = usize::try_from(rep.len).map_err(|_| FailureCode::HalMapTooLarge)?;
+    let bytes: &'m [u8] = buf;
+    bytes
+        .get(..len)
+        .and_then(|b| checked.attach(b))
+        .ok_or(FailureCode::HalMapTooLarge)
+}
+
+/// Where [`Runner::start`] keeps the checked map view the engine borrows:
+/// the caller's, declared before the [`Session`] (`let mut slot = None;`).
+pub type MapSlot<'m> = Option<MapView<'m>>;
+
+/// Send one frame over `telemetry`; a failure is counted in `dropped` and
+/// logged at the clock's time, never retried.
+fn send_frame<K: Clock, T: Telemetry>(
+    telemetry: &mut T,
+    dropped: &mut u32,
     clock: &mut K,
     log: &mut FailureLog,
-    limits: &DriveLimits,
-    between: &mut dyn FnMut(&mut Engine<'a, 'w, F>, u64),
-    observe: Option<&mut dyn FnMut(StageEvent)>,
-) -> (Outcome, DriveReport) {
-    let status = |r: StepResult<'_>| match r {
-        StepResult::Running => StepStatus::Continue,
-        StepResult::Done(_) => StepStatus::Done,
-    };
-    let (drive, _) = match observe {
-        None => {
-            let units = limits.units_per_step.max(1);
-            drive_steps(clock, log, limits.max_steps, limits.budget_ticks, |now| {
-                between(engine, now);
-                Ok(status(engine.step_n(now, units)))
-            })
+    kind: u8,
+    payload: &[u8],
+) {
+    if payload.len() > MAX_PAYLOAD {
+        // The frame format cannot carry it: dropped before the device sees it.
+        *dropped = dropped.saturating_add(1);
+        let now = time_or_zero(clock, log);
+        log.record(
+            FailureCode::HalTelemetryPayloadTooLong,
+            now,
+            u32::from(kind),
+        );
+        return;
+    }
+    if telemetry.send(kind, payload).is_err() {
+        *dropped = dropped.saturating_add(1);
+        let now = time_or_zero(clock, log);
+        log.record(FailureCode::HalTelemetryWrite, now, u32::from(kind));
+    }
+}
+
+/// Downlink `log`: one counters frame, then the recent events oldest first
+/// (at most the ring length of frames).
+fn send_log<K: Clock, T: Telemetry>(
+    telemetry: &mut T,
+    dropped: &mut u32,
+    clock: &mut K,
+    log: &mut FailureLog,
+) {
+    let mut payload = [0u8; MAX_PAYLOAD];
+    let n = failure_counters_payload(log, &mut payload);
+    let snapshot = log.clone();
+    send_frame(
+        telemetry,
+        dropped,
+        clock,
+        log,
+        FrameKind::FailureCounters as u8,
+        payload.get(..n).unwrap_or(&[]),
+    );
+    for e in snapshot.recent() {
+        send_frame(
+            telemetry,
+            dropped,
+            clock,
+            log,
+            FrameKind::FailureEvent as u8,
+            &failure_event_payload(&e),
+        );
+    }
+}
+
+/// One relocalization under way: the engine built by [`Runner::start`] over
+/// the checked map, the captured pair and the caller's workspace, with the
+/// runner's clock, log and telemetry borrowed until [`Session::finish`].
+///
+/// [`Session::step`] does a bounded piece of work per call (a rate group's
+/// or a wakeup's budget), so the relocalization can be spread over periods;
+/// [`Runner::run`] is [`Runner::start`], [`Session::step`] until
+/// [`StepStatus::Done`], and [`Session::finish`]. The outcome does not depend
+/// on how the work is cut into steps.
+pub struct Session<'r, 'w, C, K, T, Src>
+where
+    Src: PairSource<C> + 'r,
+    C: 'r,
+{
+    engine: Engine<'r, 'w, Src::Frames<'r>>,
+    hook: Src::Hook<'r>,
+    clock: &'r mut K,
+    log: &'r mut FailureLog,
+    telemetry: &'r mut T,
+    telemetry_dropped: &'r mut u32,
+    observe: Option<&'r mut dyn FnMut(StageEvent)>,
+    max_steps: u32,
+    budget_ticks: u64,
+    report: RelocReport,
+    /// Clock time of the first step.
+    t0: u64,
+    /// Cycle counter at the first step.
+    c0: Option<u64>,
+    /// Clock time of the next step.
+    now: u64,
+    /// The drive has ended (engine done or limits reached).
+    ended: bool,
+}
+
+impl<C, K, T, Src> core::fmt::Debug for Session<'_, '_, C, K, T, Src>
+where
+    Src: PairSource<C>,
+{
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Session")
+            .field("drive", &self.report.drive)
+            .field("now", &self.now)
+            .field("ended", &self.ended)
+            .finish()
+    }
+}
+
+impl<'r, 'w, C, K, T, Src> Session<'r, 'w, C, K, T, Src>
+where
+    Src: PairSource<C> + 'r,
+    C: 'r,
+    K: Clock,
+    T: Telemetry,
+{
+    /// One step call: the hook, then up to `max_units` (≥ 1) units of engine
+    /// work at the clock time of the previous step — one [`Stage`] reported
+    /// to the observer instead when [`Runner::start`] got one — then the
+    /// clock is read. Returns [`StepStatus::Done`] once the engine has its
+    /// outcome or the job's step or tick limit ([`DriveLimits`]) is reached
+    /// (the limit is then logged as [`FailureCode::RelocBudgetExhausted`]),
+    /// and from then on without doing any work; else
+    /// [`StepStatus::Continue`].
+    pub fn step(&mut self, max_units: u32) -> StepStatus {
+        if self.ended {
+            return StepStatus::Done;
         }
-        Some(observe) => {
-            observe(StageEvent::Start);
-            drive_steps(clock, log, limits.max_steps, limits.budget_ticks, |now| {
-                between(engine, now);
-                let (stage, r) = engine.step_stage(now);
+        if self.limit_reached() {
+            self.end();
+            return StepStatus::Done;
+        }
+        self.report.drive.steps = self.report.drive.steps.saturating_add(1);
+        let now = self.now;
+        Src::before_step(&mut self.hook, &mut self.engine, now);
+        let done = match self.observe.as_mut() {
+            None => matches!(
+                self.engine.step_n(now, max_units.max(1)),
+                StepResult::Done(_)
+            ),
+            Some(observe) => {
+                let (stage, r) = self.engine.step_stage(now);
+                let done = matches!(r, StepResult::Done(_));
                 if let Some(s) = stage {
                     observe(StageEvent::Ran(s));
                 }
-                Ok(status(r))
-            })
+                done
+            }
+        };
+        self.now = time_or_zero(self.clock, self.log).max(now);
+        if done {
+            self.report.drive.done = true;
+            self.end();
+            return StepStatus::Done;
         }
-    };
-    let now = time_or_zero(clock, log);
-    (engine.stop(now).clone(), drive)
+        if self.limit_reached() {
+            self.end();
+            return StepStatus::Done;
+        }
+        StepStatus::Continue
+    }
+
+    /// Whether the job's step or tick limit is reached.
+    fn limit_reached(&self) -> bool {
+        self.report.drive.steps >= self.max_steps
+            || self.now.saturating_sub(self.t0) >= self.budget_ticks
+    }
+
+    /// Close the drive report; without an outcome, log the limit.
+    fn end(&mut self) {
+        let drive = &mut self.report.drive;
+        drive.elapsed_ticks = self.now.saturating_sub(self.t0);
+        drive.cycles = match (self.c0, self.clock.cycles()) {
+            (Some(a), Some(b)) => Some(b.wrapping_sub(a)),
+            _ => None,
+        };
+        if !drive.done {
+            self.log
+                .record(FailureCode::RelocBudgetExhausted, self.now, drive.steps);
+        }
+        self.ended = true;
+    }
+
+    /// The drive so far (steps called, and once ended the elapsed ticks and
+    /// cycles).
+    pub fn drive(&self) -> DriveReport {
+        self.report.drive
+    }
+
+    /// End the relocalization: the engine's outcome — its anytime result
+    /// ([`FailureCode::RelocBudgetExhausted`]) when [`Session::step`] has not
+    /// returned [`StepStatus::Done`] for the engine's own outcome — and the
+    /// report; the outcome and the failure log are sent as telemetry.
+    pub fn finish(mut self) -> (Outcome, RelocReport) {
+        if !self.ended {
+            self.end();
+        }
+        let now = time_or_zero(self.clock, self.log);
+        let outcome = self.engine.stop(now).clone();
+        self.report.windows = Src::windows(self.engine.attempt_ref().frames(), self.log);
+        let summary = outcome_payload(&OutcomeSummary::of(&outcome));
+        send_frame(
+            self.telemetry,
+            self.telemetry_dropped,
+            self.clock,
+            self.log,
+            FrameKind::Outcome as u8,
+            &summary,
+        );
+        send_log(self.telemetry, self.telemetry_dropped, self.clock, self.log);
+        (outcome, self.report)
+    }
 }
 
 impl<C, K, S, P, T> Runner<C, K, S, P, T>
@@ -1052,58 +1263,78 @@ where
     T: Telemetry,
 {
     /// One relocalization, the one entry of every path (flight, host,
-    /// tests): check the map product at most once — not at all when the
-    /// store hands over a view its owner already checked
+    /// tests): [`Runner::start`], [`Session::step`] with
+    /// `job.limits.units_per_step` units until [`StepStatus::Done`], and
+    /// [`Session::finish`]; a failed start sends the failure log.
+    ///
+    /// # Errors
+    /// As [`Runner::start`]; each code is also in [`Runner::log`] and sent
+    /// with the failure log.
+    pub fn run<'p, Src: PairSource<C> + 'p>(
+        &mut self,
+        job: &Job,
+        map: &mut [u8],
+        pair: Src,
+        ws: Workspace<'_>,
+        observe: Option<&mut dyn FnMut(StageEvent)>,
+    ) -> Result<(Outcome, RelocReport), FailureCode> {
+        let mut slot = None;
+        // Reborrowed for the session's lifetime.
+        let observe = observe.map(|o| o as &mut dyn FnMut(StageEvent));
+        let started = self.start(job, map, &mut slot, pair, ws, observe);
+        let mut session = match started {
+            Ok(s) => s,
+            Err(code) => {
+                // Ends the borrow of the runner before the log is sent.
+                drop(started);
+                self.send_failure_log();
+                return Err(code);
+            }
+        };
+        // Bounded: the session counts its step calls against
+        // `job.limits.max_steps` and is done at the limit.
+        for _ in 0..=job.limits.max_steps {
+            if session.step(job.limits.units_per_step) == StepStatus::Done {
+                break;
+            }
+        }
+        Ok(session.finish())
+    }
+
+    /// Start a relocalization: check the map product at most once — not at
+    /// all when the store hands over a view its owner already checked
     /// ([`MapStore::checked`], the host path), in place when the store is
     /// memory-mapped ([`MapStore::mapped`], the flight path; `map` is unused
     /// in both and may be empty), else read into `map` with bounded retries
-    /// and checked by the retry loop ([`read_map_checked`]) —, the view that
-    /// passed being the one the engine uses ([`ReadReport::checks`] counts
-    /// the checks); get
-    /// the checked prior, then let `pair` ([`RamPair`] or [`InStore`])
-    /// capture the stereo pair, build the engine with [`Setup`] (the job's
-    /// rig, seed and upset checks; its parameters with t̃₀, r̃₀ replaced by
-    /// the prior's stated uncertainty when it has one,
-    /// [`Params::with_uncertainty`]) over `ws` and drive it with `now` from
-    /// the clock under `job.limits`; if the budget ends first, the engine's
-    /// anytime result ([`FailureCode::RelocBudgetExhausted`]) is returned.
-    /// With `observe`, the engine is stepped one [`Stage`] at a time and
-    /// `observe` gets [`StageEvent::Start`] once the engine is built and
+    /// and checked by the retry loop —, the view that passed (kept in
+    /// `slot`) being the one the engine uses ([`ReadReport::checks`] counts
+    /// the checks); get the checked prior, then let `pair` ([`RamPair`] or
+    /// [`InStore`]) capture the stereo pair, and build the engine with
+    /// [`Setup`] (the job's rig, seed and upset checks; its parameters with
+    /// t̃₀, r̃₀ replaced by the prior's stated uncertainty when it has one,
+    /// [`Params::with_uncertainty`]) over `ws`. The [`Session`] drives it
+    /// with `now` from the clock under `job.limits`. With `observe`, the
+    /// engine is stepped one [`Stage`] at a time and `observe` gets
+    /// [`StageEvent::Start`] here, once the engine is built, and
     /// [`StageEvent::Ran`] after each step, so a host can time the stages
     /// with its own clock; with a clock that does not move between steps the
-    /// outcome is bit-identical. The outcome and the failure log are sent as
-    /// telemetry.
+    /// outcome is bit-identical.
     ///
     /// # Errors
     /// The failure code of acquisition (device faults after their retries, a
     /// map product that fails its check, an invalid prior, a frame that
-    /// disagrees with the calibration) or of [`Setup::build`]; each is also in
-    /// [`Runner::log`] and sent with the failure log.
-    pub fn run<'w, Src: PairSource<'w, C>>(
-        &mut self,
+    /// disagrees with the calibration) or of [`Setup::build`]; each is also
+    /// in [`Runner::log`]. The failure log is not sent: the caller sends it
+    /// ([`Runner::send_failure_log`]).
+    pub fn start<'r, 'w, Src: PairSource<C> + 'r>(
+        &'r mut self,
         job: &Job,
-        map: &mut [u8],
+        map: &'r mut [u8],
+        slot: &'r mut MapSlot<'r>,
         pair: Src,
         ws: Workspace<'w>,
-        observe: Option<&mut dyn FnMut(StageEvent)>,
-    ) -> Result<(Outcome, RelocReport), FailureCode> {
-        let result = self.run_job(job, map, pair, ws, observe);
-        if let Ok((o, _)) = &result {
-            let summary = outcome_payload(&OutcomeSummary::of(o));
-            self.send(FrameKind::Outcome as u8, &summary);
-        }
-        self.send_failure_log();
-        result
-    }
-
-    fn run_job<'w, Src: PairSource<'w, C>>(
-        &mut self,
-        job: &Job,
-        map: &mut [u8],
-        pair: Src,
-        ws: Workspace<'w>,
-        observe: Option<&mut dyn FnMut(StageEvent)>,
-    ) -> Result<(Outcome, RelocReport), FailureCode> {
+        mut observe: Option<&'r mut dyn FnMut(StageEvent)>,
+    ) -> Result<Session<'r, 'w, C, K, T, Src>, FailureCode> {
         self.cfg.validate()?;
         let start = self.now();
         let Self {
@@ -1111,67 +1342,81 @@ where
             clock,
             store,
             prior,
+            telemetry,
             cfg,
             log,
-            ..
+            telemetry_dropped,
         } = self;
         let cfg: &RunnerConfig = cfg;
-        // Everything after the map's one check, with the view that passed it.
-        let then = |view: MapView<'_>, log: &mut FailureLog, map_read: ReadReport| {
-            let prior = read_prior(prior, log, start)?;
-            let now = time_or_zero(clock, log);
-            // The prior's stated half-widths size the search (one start, as
-            // the caller's `seeds` says); `Setup::build` validates them again
-            // with the rest of the parameters.
-            let params = match prior.uncertainty {
-                Some(u) => job.params.with_uncertainty(u),
-                None => job.params,
-            };
-            let ctx = PairContext {
-                camera,
-                clock,
-                log,
-                cfg,
-                start,
-                now,
-            };
-            let run = pair.run(
-                ctx,
-                &view,
-                job,
-                &params,
-                &prior.world_from_left,
-                ws,
-                observe,
-            )?;
-            Ok((
-                run.outcome,
-                RelocReport {
-                    frame: run.frame,
-                    capture: run.capture,
-                    map_read,
-                    drive: run.drive,
-                    prior_uncertainty: params.uncertainty(),
-                    windows: run.windows,
-                },
-            ))
-        };
         // A view the store's owner checked is used as is; memory-mapped
         // bytes are checked in place; anything else is read into `map` and
         // checked by the retry loop. One check at most, on every path.
-        if let Some(view) = store.checked() {
-            let map_read = ReadReport {
-                len: u32::try_from(view.bytes().len()).unwrap_or(u32::MAX),
-                in_place: true,
-                ..ReadReport::default()
-            };
-            then(view, log, map_read)
-        } else if let Some(bytes) = store.mapped() {
-            let mut map_read = ReadReport::default();
-            let view = map_in_place(bytes, log, start, &mut map_read)?;
-            then(view, log, map_read)
+        let mut map_read = ReadReport::default();
+        let view = if store.checked().is_some() || store.mapped().is_some() {
+            let store: &'r S = store;
+            if let Some(view) = store.checked() {
+                map_read.len = u32::try_from(view.bytes().len()).unwrap_or(u32::MAX);
+                map_read.in_place = true;
+                view
+            } else {
+                let bytes = store.mapped().unwrap_or(&[]);
+                map_in_place(bytes, log, start, &mut map_read)?
+            }
         } else {
-            read_map_checked(store, map, cfg, start, log, then).and_then(|r| r)
+            read_map_view(store, map, cfg, start, log, &mut map_read)?
+        };
+        let view: &'r MapView<'r> = slot.insert(view);
+        let prior = read_prior(prior, log, start)?;
+        let now = time_or_zero(clock, log);
+        // The prior's stated half-widths size the search (one start, as the
+        // caller's `seeds` says); `Setup::build` validates them again with
+        // the rest of the parameters.
+        let params = match prior.uncertainty {
+            Some(u) => job.params.with_uncertainty(u),
+            None => job.params,
+        };
+        let captured = pair.capture(camera, cfg, now, log)?;
+        let setup = Setup::with_frames(
+            view,
+            captured.frames,
+            &job.rig,
+            &params,
+            &prior.world_from_left,
+            job.seed,
+        );
+        let engine = build(setup, job.verify, ws, log, start)?;
+        if let Some(o) = observe.as_mut() {
+            o(StageEvent::Start);
         }
+        let t0 = time_or_zero(clock, log);
+        let c0 = clock.cycles();
+        Ok(Session {
+            engine,
+            hook: captured.hook,
+            clock,
+            log,
+            telemetry,
+            telemetry_dropped,
+            observe,
+            max_steps: job.limits.max_steps,
+            budget_ticks: job.limits.budget_ticks,
+            report: RelocReport {
+                frame: captured.frame,
+                capture: captured.capture,
+                map_read,
+                drive: DriveReport {
+                    steps: 0,
+                    elapsed_ticks: 0,
+                    cycles: None,
+                    done: false,
+                },
+                prior_uncertainty: params.uncertainty(),
+                windows: WindowReport::default(),
+            },
+            t0,
+            c0,
+            now: t0,
+            ended: false,
+        })
     }
 }

@@ -116,6 +116,26 @@ int bad_input_tests(uint8_t *storage, size_t storage_len) {
     expect("run: ... ends with", out.failure, VTSM_RELOC_FRAME_READ_FAILED);
     dev.fail_windows = 0;
 
+    /* Step and outcome need a relocalization under way, and only one. */
+    VtsmStepStatus st = VTSM_STEP_RUNNING;
+    expect("step: not started", vtsm_engine_step(e, 4u, &st), VTSM_FFI_ENGINE_STATE);
+    expect("outcome: not started", vtsm_engine_outcome(e, &out), VTSM_FFI_ENGINE_STATE);
+    expect("outcome: ... carries the code", out.failure, VTSM_FFI_ENGINE_STATE);
+    expect("step: storage that holds no engine", vtsm_engine_step((VtsmEngine *)(void *)blank, 4u, &st),
+           VTSM_FFI_BAD_HANDLE);
+    expect("start: engine NULL", vtsm_engine_start(NULL, NULL), VTSM_FFI_NULL_POINTER);
+    expect("start: zero units per step", vtsm_engine_start(e, &zero_units), VTSM_CONFIG_PARAM_OUT_OF_RANGE);
+    expect("start", vtsm_engine_start(e, NULL), VTSM_OK);
+    expect("start: already under way", vtsm_engine_start(e, NULL), VTSM_FFI_ENGINE_STATE);
+    expect("step: status NULL", vtsm_engine_step(e, 4u, NULL), VTSM_FFI_NULL_POINTER);
+    expect("step: zero units", vtsm_engine_step(e, 0u, &st), VTSM_CONFIG_PARAM_OUT_OF_RANGE);
+    expect("step: one unit", vtsm_engine_step(e, 1u, &st), VTSM_OK);
+    expect("step: ... still running", st == VTSM_STEP_RUNNING ? VTSM_OK : 1, VTSM_OK);
+    expect("outcome: stopped early", vtsm_engine_outcome(e, &out), VTSM_OK);
+    expect("outcome: ... the anytime result", out.failure, VTSM_RELOC_BUDGET_EXHAUSTED);
+    expect("step: finished", vtsm_engine_step(e, 4u, &st), VTSM_FFI_ENGINE_STATE);
+    expect("outcome: taken already", vtsm_engine_outcome(e, &out), VTSM_FFI_ENGINE_STATE);
+
     /* The map read through the callback into a RAM buffer, one step. */
     c = good; c.map = NULL; c.map_buffer = map_copy; c.map_buffer_len = map_copy_len;
     expect("create: map through read_map", create_with(storage, storage_len, &c), VTSM_OK);

@@ -38,6 +38,15 @@ extern "C" int cpp_wrapper_run(std::uint8_t *storage, std::size_t storage_len, s
                     static_cast<double>(t[0]), static_cast<double>(t[1]), static_cast<double>(t[2]),
                     static_cast<double>(cov[0]));
         *digest = outcome_digest(&out.raw());
+        // The same relocalization stepped, 3 units per call.
+        bool done = false;
+        rc = engine.start(limits);
+        for (unsigned long i = 0; rc.ok() && !done && i < 100000ul; i++) rc = engine.step(3u, done);
+        if (rc.ok()) rc = engine.outcome(out);
+        if (!rc.ok() || outcome_digest(&out.raw()) != *digest) {
+            std::printf("c++: stepped run differs: %s\n", rc.name());
+            failed++;
+        }
         stale = reinterpret_cast<VtsmEngine *>(storage);
     }
     // After the wrapper's scope the storage holds no engine.

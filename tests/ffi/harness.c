@@ -171,6 +171,21 @@ int main(void) {
            (unsigned long long)SCENE_RUST_DIGEST);
     if (digest != SCENE_RUST_DIGEST) failed++;
 
+    /* The same relocalization stepped as a rate group would: start, then a
+     * small work budget per period until done, then the outcome. */
+    rc = vtsm_engine_start(engine, &limits);
+    unsigned long periods = 0;
+    VtsmStepStatus status = VTSM_STEP_RUNNING;
+    while (rc == VTSM_OK && status == VTSM_STEP_RUNNING && periods < 100000ul) {
+        rc = vtsm_engine_step(engine, 2u, &status);
+        periods++;
+    }
+    if (rc == VTSM_OK) rc = vtsm_engine_outcome(engine, &out);
+    uint64_t stepped = rc == VTSM_OK ? outcome_digest(&out) : 0;
+    printf("VTSM-C-STEPPED-DIGEST %016llx in %lu periods of 2 units (%s)\n", (unsigned long long)stepped,
+           periods, vtsm_failure_name(rc));
+    if (stepped != digest) failed++;
+
     failed += bad_input_tests(storage, sizeof storage);
 
     uint64_t cpp_digest = 0;

@@ -54,11 +54,13 @@
 //! record checks) and `crc.rs` (the checksum).
 
 mod crc;
+mod detached;
 mod encode;
 mod format;
 mod view;
 
 pub use crc::crc32;
+pub use detached::CheckedMap;
 pub use encode::{encode, encoded_len, reseal, MapSource};
 pub use format::{
     origin_ok, FLAG_MASK, HEADER_LEN, HEADER_LEN_V1, MAGIC, MASK_VERTEX_BYTES, MAX_UV_PX,

@@ -16,20 +16,41 @@
 #define VTSM_STORAGE_ALIGN 16
 
 // Bytes at the start of the engine storage that hold the engine's state
-// (the checked job, the callbacks); the workspace follows. Fixed, so the
-// storage sizes are the same on every target.
-#define VTSM_STORAGE_HEADER_BYTES 1024
+// (the checked job, the callbacks, and between [`vtsm_engine_start`] and
+// [`vtsm_engine_outcome`] the relocalization under way); the workspace
+// follows. Fixed, so the storage sizes are the same on every target.
+#define VTSM_STORAGE_HEADER_BYTES 20480
 
 // Engine storage for the `VTSM_PROFILE_PAPER` parameters (5472-pixel-wide
 // images): what [`vtsm_storage_size`] returns for them.
-#define VTSM_STORAGE_BYTES_PAPER 5416928
+#define VTSM_STORAGE_BYTES_PAPER 5436384
 
 // Engine storage for the `VTSM_PROFILE_DEMO` parameters (1368-pixel-wide images).
-#define VTSM_STORAGE_BYTES_DEMO 586768
+#define VTSM_STORAGE_BYTES_DEMO 606224
 
 // Engine storage for the `VTSM_PROFILE_TEST` parameters (480-pixel-wide
 // images; the CI flight-path scene).
-#define VTSM_STORAGE_BYTES_TEST 159840
+#define VTSM_STORAGE_BYTES_TEST 179296
+
+// What [`vtsm_engine_step`] says about the relocalization.
+enum VtsmStepStatus
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : uint32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+    // More work remains: call [`vtsm_engine_step`] again (next period).
+    VTSM_STEP_RUNNING = 1,
+    // The engine has its outcome, or the limits given to
+    // [`vtsm_engine_start`] are reached: call [`vtsm_engine_outcome`].
+    VTSM_STEP_DONE = 2,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum VtsmStepStatus VtsmStepStatus;
+#else
+typedef uint32_t VtsmStepStatus;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
 
 // The failure codes (the core's `FailureCode` table, and 0 for none):
 // `#[repr(u16)]`, grouped by subsystem in the high byte (0x01 config,
@@ -197,6 +218,8 @@ enum VtsmFailure
     VTSM_FFI_MISALIGNED = 2562,
     // The engine handle does not point at storage set up by vtsm_engine_create (never created, released, or overwritten since); nothing is done.
     VTSM_FFI_BAD_HANDLE = 2563,
+    // vtsm_engine_step or vtsm_engine_outcome on an engine with no relocalization under way (not started, or its outcome already taken), or vtsm_engine_start on one that has one; nothing is done.
+    VTSM_FFI_ENGINE_STATE = 2564,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L
@@ -575,42 +598,97 @@ uint16_t vtsm_engine_create(void *storage,
                             struct VtsmEngine **engine_out);
 
 // Run one relocalization with the engine set up in its storage by
-// [`vtsm_engine_create`], through the HAL runner: latch the pair (when a
-// latch callback is given), check the map product (in place, or read
-// through the callback into the map buffer), build the engine over the
-// storage's workspace and drive it under `limits` (null: unlimited),
-// reading each search window through the callback; the outcome and the
-// failure log go out through the telemetry callback. May be called again
-// on the same handle (a fresh run with the same inputs).
+// [`vtsm_engine_create`]: [`vtsm_engine_start`] with `limits`,
+// [`vtsm_engine_step`] with `limits->units_per_step` (null `limits`: 64)
+// until `VTSM_STEP_DONE`, and [`vtsm_engine_outcome`] — the same path as a
+// caller that steps the engine itself, so the outcome is the same. May be
+// called again on the same handle (a fresh run with the same inputs).
 //
 // Returns `VTSM_OK` when `*outcome` holds the engine's outcome (whose
 // `failure` says whether it succeeded), else the code that stopped the run
 // before the engine could (`FFI_NULL_POINTER`, `FFI_MISALIGNED`,
-// `FFI_BAD_HANDLE`, `CONFIG_PARAM_OUT_OF_RANGE` for a zero
-// `units_per_step`, a device or map code), which is then also in
+// `FFI_BAD_HANDLE`, `FFI_ENGINE_STATE`, `CONFIG_PARAM_OUT_OF_RANGE` for a
+// zero `units_per_step`, a device or map code), which is then also in
 // `outcome->failure` when `outcome` is valid.
 //
 // # Safety
-// `engine` is null or a handle from [`vtsm_engine_create`] whose storage,
-// map bytes, map buffer and callback context are still valid and were not
-// modified by the caller since; `limits` is null or points at one readable
-// `VtsmLimits`; `outcome` is null or points at one writable `VtsmOutcome`.
-// Not reentrant on one handle: one call at a time per storage.
+// As [`vtsm_engine_start`]; `outcome` is null or points at one writable
+// `VtsmOutcome`.
 uint16_t vtsm_engine_run(struct VtsmEngine *engine,
                          const struct VtsmLimits *limits,
                          struct VtsmOutcome *outcome);
 
+// Start one relocalization with the engine set up in its storage by
+// [`vtsm_engine_create`], through the HAL runner: latch the pair (when a
+// latch callback is given), check the map product (in place, or read
+// through the callback into the map buffer) and build the engine over the
+// storage's workspace, to be driven by [`vtsm_engine_step`] under `limits`
+// (null: unlimited; its `units_per_step` is used only by
+// [`vtsm_engine_run`]) and ended by [`vtsm_engine_outcome`].
+//
+// Returns `VTSM_OK` when the relocalization is under way, else the code
+// that stopped it (`FFI_NULL_POINTER`, `FFI_MISALIGNED`, `FFI_BAD_HANDLE`,
+// `FFI_ENGINE_STATE` when one is already under way on this handle,
+// `CONFIG_PARAM_OUT_OF_RANGE` for a zero `units_per_step`, a device or map
+// code); a device or map failure also sends the failure log through the
+// telemetry callback.
+//
+// # Safety
+// `engine` is null or a handle from [`vtsm_engine_create`] whose storage,
+// map bytes, map buffer and callback context are still valid and were not
+// modified by the caller since, and stay so until [`vtsm_engine_outcome`];
+// `limits` is null or points at one readable `VtsmLimits`. Not reentrant
+// on one handle: one call at a time per storage.
+uint16_t vtsm_engine_start(struct VtsmEngine *engine, const struct VtsmLimits *limits);
+
+// Do one bounded piece of the relocalization started by
+// [`vtsm_engine_start`]: at most `max_units` (≥ 1) units of engine work
+// (one unit is one attempt or one RANSAC chunk), with the time from the
+// `now_ticks` callback — what a rate group's `schedIn` or an app's wakeup
+// calls once per period. `*status` is then `VTSM_STEP_RUNNING` or
+// `VTSM_STEP_DONE`. How the work is cut into steps does not change the
+// outcome.
+//
+// Returns `VTSM_OK`, or `FFI_NULL_POINTER`, `FFI_MISALIGNED`,
+// `FFI_BAD_HANDLE`, `FFI_ENGINE_STATE` (no relocalization under way: not
+// started, or its outcome already taken), `CONFIG_PARAM_OUT_OF_RANGE` (zero
+// `max_units`); nothing is done then and `*status` is not written.
+//
+// # Safety
+// As [`vtsm_engine_start`]; `status` is null or points at one writable
+// `VtsmStepStatus`.
+uint16_t vtsm_engine_step(struct VtsmEngine *engine, uint32_t max_units, VtsmStepStatus *status);
+
+// End the relocalization started by [`vtsm_engine_start`] and write its
+// outcome: the engine's own once [`vtsm_engine_step`] said
+// `VTSM_STEP_DONE` for it, else its anytime result
+// (`RELOC_BUDGET_EXHAUSTED`: the caller stopped early). The outcome and the
+// failure log go out through the telemetry callback; the storage, the map
+// bytes, the map buffer and the callback context are the caller's again
+// (until the next [`vtsm_engine_start`]).
+//
+// Returns `VTSM_OK` when `*outcome` holds the outcome, else
+// `FFI_NULL_POINTER`, `FFI_MISALIGNED`, `FFI_BAD_HANDLE` or
+// `FFI_ENGINE_STATE` (no relocalization under way), which is then also in
+// `outcome->failure` when `outcome` is valid.
+//
+// # Safety
+// As [`vtsm_engine_start`]; `outcome` is null or points at one writable
+// `VtsmOutcome`.
+uint16_t vtsm_engine_outcome(struct VtsmEngine *engine, struct VtsmOutcome *outcome);
+
 // Release the engine set up in `engine`'s storage: its state is cleared,
 // so the handle (and any copy of it) is refused from now on with
 // `FFI_BAD_HANDLE`, and the storage, the map bytes, the map buffer and the
-// callback context are the caller's again. Null, misaligned or already
-// released handles are ignored.
+// callback context are the caller's again (a relocalization under way is
+// abandoned without its outcome). Null, misaligned or already released
+// handles are ignored.
 //
 // # Safety
 // `engine` is null, or a handle from [`vtsm_engine_create`] whose storage is
 // still valid, or the address of storage of at least
-// `VTSM_STORAGE_HEADER_BYTES` writable bytes; no [`vtsm_engine_run`] on it
-// is in progress.
+// `VTSM_STORAGE_HEADER_BYTES` writable bytes; no other call on it is in
+// progress.
 void vtsm_engine_release(struct VtsmEngine *engine);
 
 #ifdef __cplusplus

@@ -83,6 +83,28 @@ public:
         return c;
     }
 
+    /// Start one relocalization under `limits` (the step and tick limits;
+    /// the work per call is step()'s).
+    Code start(const VtsmLimits &limits) noexcept { return Code{vtsm_engine_start(handle_, &limits)}; }
+
+    /// At most `max_units` units of work (a rate group's budget per
+    /// period); `done` is then whether outcome() may be taken.
+    Code step(std::uint32_t max_units, bool &done) noexcept {
+        VtsmStepStatus s = VTSM_STEP_RUNNING;
+        Code c{vtsm_engine_step(handle_, max_units, &s)};
+        done = s == VTSM_STEP_DONE;
+        return c;
+    }
+
+    /// End the relocalization under way; `out` holds the outcome whenever
+    /// the returned code is VTSM_OK.
+    Code outcome(Outcome &out) noexcept {
+        VtsmOutcome raw{};
+        Code c{vtsm_engine_outcome(handle_, &raw)};
+        out = Outcome(raw);
+        return c;
+    }
+
 private:
     Storage<N> &storage_;
     VtsmEngine *handle_;

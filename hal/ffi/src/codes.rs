@@ -169,6 +169,8 @@ pub enum VtsmFailure {
     VTSM_FFI_MISALIGNED = 0x0A02,
     /// The engine handle does not point at storage set up by vtsm_engine_create (never created, released, or overwritten since); nothing is done.
     VTSM_FFI_BAD_HANDLE = 0x0A03,
+    /// vtsm_engine_step or vtsm_engine_outcome on an engine with no relocalization under way (not started, or its outcome already taken), or vtsm_engine_start on one that has one; nothing is done.
+    VTSM_FFI_ENGINE_STATE = 0x0A04,
 }
 
 /// The NUL-terminated name of a raw code.
@@ -251,6 +253,7 @@ pub(crate) fn c_name(code: u16) -> &'static CStr {
         0x0A01 => c"FFI_NULL_POINTER",
         0x0A02 => c"FFI_MISALIGNED",
         0x0A03 => c"FFI_BAD_HANDLE",
+        0x0A04 => c"FFI_ENGINE_STATE",
         _ => c"UNKNOWN",
     }
 }

@@ -59,7 +59,8 @@ use vtsm_core::reloc::{MatchPolicy, Outcome, Workspace, WorkspaceSizes};
 use vtsm_core::FailureCode;
 use vtsm_hal::prior::{Covariance, PriorEstimate};
 use vtsm_hal::runner::{
-    DriveLimits, InStore, Job, RelocReport, Runner, RunnerConfig, VerifyChecks,
+    DriveLimits, InStore, Job, MapSlot, RelocReport, Runner, RunnerConfig, Session, StepStatus,
+    VerifyChecks,
 };
 use vtsm_hal::{
     Clock, ErrorKind, ErrorType, FrameInfo, FrameStore, MapStore, PosePrior, PriorUncertainty,
@@ -70,20 +71,21 @@ use vtsm_hal::{
 pub const VTSM_STORAGE_ALIGN: usize = 16;
 
 /// Bytes at the start of the engine storage that hold the engine's state
-/// (the checked job, the callbacks); the workspace follows. Fixed, so the
-/// storage sizes are the same on every target.
-pub const VTSM_STORAGE_HEADER_BYTES: usize = 1024;
+/// (the checked job, the callbacks, and between [`vtsm_engine_start`] and
+/// [`vtsm_engine_outcome`] the relocalization under way); the workspace
+/// follows. Fixed, so the storage sizes are the same on every target.
+pub const VTSM_STORAGE_HEADER_BYTES: usize = 20480;
 
 /// Engine storage for the `VTSM_PROFILE_PAPER` parameters (5472-pixel-wide
 /// images): what [`vtsm_storage_size`] returns for them.
-pub const VTSM_STORAGE_BYTES_PAPER: usize = 5_416_928;
+pub const VTSM_STORAGE_BYTES_PAPER: usize = 5_436_384;
 
 /// Engine storage for the `VTSM_PROFILE_DEMO` parameters (1368-pixel-wide images).
-pub const VTSM_STORAGE_BYTES_DEMO: usize = 586_768;
+pub const VTSM_STORAGE_BYTES_DEMO: usize = 606_224;
 
 /// Engine storage for the `VTSM_PROFILE_TEST` parameters (480-pixel-wide
 /// images; the CI flight-path scene).
-pub const VTSM_STORAGE_BYTES_TEST: usize = 159_840;
+pub const VTSM_STORAGE_BYTES_TEST: usize = 179_296;
 
 /// `VtsmFailure::VTSM_OK` as the raw value the functions return.
 const VTSM_OK: u16 = VtsmFailure::VTSM_OK as u16;
@@ -628,8 +630,43 @@ struct Header {
     map_buffer: *mut u8,
     map_buffer_len: usize,
     io: VtsmIo,
+    /// [`STATE_IDLE`] or [`STATE_RUNNING`]; written in place through the
+    /// raw storage pointer.
+    state: u32,
 }
 
+/// No relocalization under way: [`vtsm_engine_start`] may start one.
+const STATE_IDLE: u32 = 0;
+/// A relocalization started by [`vtsm_engine_start`] is under way: its
+/// session is at [`LIVE_AT`]; [`vtsm_engine_step`] and
+/// [`vtsm_engine_outcome`] may be called.
+const STATE_RUNNING: u32 = 1;
+
+/// The runner over the callbacks.
+type CRunner = Runner<CFrames, CClock, CStore<'static>, CPrior, CTelemetry>;
+/// A relocalization under way over the storage ([`Runner::start`]).
+type CSession = Session<'static, 'static, CFrames, CClock, CTelemetry, InStore>;
+
+/// What a relocalization under way keeps in the storage's header area
+/// between calls: the runner, the checked map view and the session that
+/// borrows both. The `'static` lifetimes stand for "until
+/// [`vtsm_engine_outcome`]": every borrow is of the storage, the map bytes
+/// or the map buffer, which the caller keeps valid and untouched until then.
+#[repr(C)]
+struct Live {
+    runner: CRunner,
+    slot: MapSlot<'static>,
+    session: core::mem::MaybeUninit<CSession>,
+}
+
+/// Offset of the [`Live`] state in the storage's header area.
+const LIVE_AT: usize = match round16(size_of::<Header>()) {
+    Some(n) => n,
+    None => VTSM_STORAGE_HEADER_BYTES,
+};
+
+const _: () = assert!(LIVE_AT + size_of::<Live>() <= VTSM_STORAGE_HEADER_BYTES);
+const _: () = assert!(align_of::<Live>() <= VTSM_STORAGE_ALIGN);
 const _: () = assert!(size_of::<Header>() <= VTSM_STORAGE_HEADER_BYTES);
 const _: () = assert!(align_of::<Header>() <= VTSM_STORAGE_ALIGN);
 const _: () = assert!(VTSM_STORAGE_HEADER_BYTES % VTSM_STORAGE_ALIGN == 0);
@@ -1036,6 +1073,7 @@ unsafe fn create(
         map_buffer: cfg.map_buffer,
         map_buffer_len: cfg.map_buffer_len,
         io: cfg.io,
+        state: STATE_IDLE,
     };
     // SAFETY: `storage` is valid for `storage_len >= layout.total` writable
     // bytes (caller's guarantee, size checked), so zeroing the layout stays
@@ -1050,27 +1088,22 @@ unsafe fn create(
 }
 
 /// Run one relocalization with the engine set up in its storage by
-/// [`vtsm_engine_create`], through the HAL runner: latch the pair (when a
-/// latch callback is given), check the map product (in place, or read
-/// through the callback into the map buffer), build the engine over the
-/// storage's workspace and drive it under `limits` (null: unlimited),
-/// reading each search window through the callback; the outcome and the
-/// failure log go out through the telemetry callback. May be called again
-/// on the same handle (a fresh run with the same inputs).
+/// [`vtsm_engine_create`]: [`vtsm_engine_start`] with `limits`,
+/// [`vtsm_engine_step`] with `limits->units_per_step` (null `limits`: 64)
+/// until `VTSM_STEP_DONE`, and [`vtsm_engine_outcome`] — the same path as a
+/// caller that steps the engine itself, so the outcome is the same. May be
+/// called again on the same handle (a fresh run with the same inputs).
 ///
 /// Returns `VTSM_OK` when `*outcome` holds the engine's outcome (whose
 /// `failure` says whether it succeeded), else the code that stopped the run
 /// before the engine could (`FFI_NULL_POINTER`, `FFI_MISALIGNED`,
-/// `FFI_BAD_HANDLE`, `CONFIG_PARAM_OUT_OF_RANGE` for a zero
-/// `units_per_step`, a device or map code), which is then also in
+/// `FFI_BAD_HANDLE`, `FFI_ENGINE_STATE`, `CONFIG_PARAM_OUT_OF_RANGE` for a
+/// zero `units_per_step`, a device or map code), which is then also in
 /// `outcome->failure` when `outcome` is valid.
 ///
 /// # Safety
-/// `engine` is null or a handle from [`vtsm_engine_create`] whose storage,
-/// map bytes, map buffer and callback context are still valid and were not
-/// modified by the caller since; `limits` is null or points at one readable
-/// `VtsmLimits`; `outcome` is null or points at one writable `VtsmOutcome`.
-/// Not reentrant on one handle: one call at a time per storage.
+/// As [`vtsm_engine_start`]; `outcome` is null or points at one writable
+/// `VtsmOutcome`.
 #[no_mangle]
 pub unsafe extern "C" fn vtsm_engine_run(
     engine: *mut VtsmEngine,
@@ -1091,17 +1124,158 @@ pub unsafe extern "C" fn vtsm_engine_run(
     code
 }
 
+/// [`vtsm_engine_run`] with `Result`s.
+///
+/// # Safety
+/// That of [`vtsm_engine_run`].
+unsafe fn run(storage: *mut u8, limits: *const VtsmLimits) -> Result<VtsmOutcome, FailureCode> {
+    // SAFETY: forwarded from this function's contract.
+    let limits = unsafe { start(storage, limits) }?;
+    // Bounded: the session counts its steps against `max_steps` and is
+    // done at the limit.
+    for _ in 0..=limits.max_steps {
+        // SAFETY: started above; forwarded from this function's contract.
+        if unsafe { step(storage, limits.units_per_step) }? == StepStatus::Done {
+            break;
+        }
+    }
+    // SAFETY: as above.
+    unsafe { finish(storage) }
+}
+
+/// What [`vtsm_engine_step`] says about the relocalization.
+#[repr(u32)]
+#[allow(non_camel_case_types)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VtsmStepStatus {
+    /// More work remains: call [`vtsm_engine_step`] again (next period).
+    VTSM_STEP_RUNNING = 1,
+    /// The engine has its outcome, or the limits given to
+    /// [`vtsm_engine_start`] are reached: call [`vtsm_engine_outcome`].
+    VTSM_STEP_DONE = 2,
+}
+
+/// Start one relocalization with the engine set up in its storage by
+/// [`vtsm_engine_create`], through the HAL runner: latch the pair (when a
+/// latch callback is given), check the map product (in place, or read
+/// through the callback into the map buffer) and build the engine over the
+/// storage's workspace, to be driven by [`vtsm_engine_step`] under `limits`
+/// (null: unlimited; its `units_per_step` is used only by
+/// [`vtsm_engine_run`]) and ended by [`vtsm_engine_outcome`].
+///
+/// Returns `VTSM_OK` when the relocalization is under way, else the code
+/// that stopped it (`FFI_NULL_POINTER`, `FFI_MISALIGNED`, `FFI_BAD_HANDLE`,
+/// `FFI_ENGINE_STATE` when one is already under way on this handle,
+/// `CONFIG_PARAM_OUT_OF_RANGE` for a zero `units_per_step`, a device or map
+/// code); a device or map failure also sends the failure log through the
+/// telemetry callback.
+///
+/// # Safety
+/// `engine` is null or a handle from [`vtsm_engine_create`] whose storage,
+/// map bytes, map buffer and callback context are still valid and were not
+/// modified by the caller since, and stay so until [`vtsm_engine_outcome`];
+/// `limits` is null or points at one readable `VtsmLimits`. Not reentrant
+/// on one handle: one call at a time per storage.
+#[no_mangle]
+pub unsafe extern "C" fn vtsm_engine_start(
+    engine: *mut VtsmEngine,
+    limits: *const VtsmLimits,
+) -> u16 {
+    // SAFETY: forwarded from this function's contract.
+    match unsafe { start(engine.cast::<u8>(), limits) } {
+        Ok(_) => VTSM_OK,
+        Err(c) => c.code(),
+    }
+}
+
+/// Do one bounded piece of the relocalization started by
+/// [`vtsm_engine_start`]: at most `max_units` (≥ 1) units of engine work
+/// (one unit is one attempt or one RANSAC chunk), with the time from the
+/// `now_ticks` callback — what a rate group's `schedIn` or an app's wakeup
+/// calls once per period. `*status` is then `VTSM_STEP_RUNNING` or
+/// `VTSM_STEP_DONE`. How the work is cut into steps does not change the
+/// outcome.
+///
+/// Returns `VTSM_OK`, or `FFI_NULL_POINTER`, `FFI_MISALIGNED`,
+/// `FFI_BAD_HANDLE`, `FFI_ENGINE_STATE` (no relocalization under way: not
+/// started, or its outcome already taken), `CONFIG_PARAM_OUT_OF_RANGE` (zero
+/// `max_units`); nothing is done then and `*status` is not written.
+///
+/// # Safety
+/// As [`vtsm_engine_start`]; `status` is null or points at one writable
+/// `VtsmStepStatus`.
+#[no_mangle]
+pub unsafe extern "C" fn vtsm_engine_step(
+    engine: *mut VtsmEngine,
+    max_units: u32,
+    status: *mut VtsmStepStatus,
+) -> u16 {
+    if let Err(c) = check_ptr(status) {
+        return c.code();
+    }
+    // SAFETY: forwarded from this function's contract.
+    match unsafe { step(engine.cast::<u8>(), max_units) } {
+        Ok(s) => {
+            let s = match s {
+                StepStatus::Continue => VtsmStepStatus::VTSM_STEP_RUNNING,
+                StepStatus::Done => VtsmStepStatus::VTSM_STEP_DONE,
+            };
+            // SAFETY: non-null and aligned (checked), writable by the
+            // caller's guarantee.
+            unsafe { status.write(s) };
+            VTSM_OK
+        }
+        Err(c) => c.code(),
+    }
+}
+
+/// End the relocalization started by [`vtsm_engine_start`] and write its
+/// outcome: the engine's own once [`vtsm_engine_step`] said
+/// `VTSM_STEP_DONE` for it, else its anytime result
+/// (`RELOC_BUDGET_EXHAUSTED`: the caller stopped early). The outcome and the
+/// failure log go out through the telemetry callback; the storage, the map
+/// bytes, the map buffer and the callback context are the caller's again
+/// (until the next [`vtsm_engine_start`]).
+///
+/// Returns `VTSM_OK` when `*outcome` holds the outcome, else
+/// `FFI_NULL_POINTER`, `FFI_MISALIGNED`, `FFI_BAD_HANDLE` or
+/// `FFI_ENGINE_STATE` (no relocalization under way), which is then also in
+/// `outcome->failure` when `outcome` is valid.
+///
+/// # Safety
+/// As [`vtsm_engine_start`]; `outcome` is null or points at one writable
+/// `VtsmOutcome`.
+#[no_mangle]
+pub unsafe extern "C" fn vtsm_engine_outcome(
+    engine: *mut VtsmEngine,
+    outcome: *mut VtsmOutcome,
+) -> u16 {
+    if let Err(c) = check_ptr(outcome) {
+        return c.code();
+    }
+    // SAFETY: forwarded from this function's contract.
+    let (out, code) = match unsafe { finish(engine.cast::<u8>()) } {
+        Ok(o) => (o, VTSM_OK),
+        Err(c) => (VtsmOutcome::failed(c.code()), c.code()),
+    };
+    // SAFETY: `outcome` is non-null and aligned (checked), writable by the
+    // caller's guarantee.
+    unsafe { outcome.write(out) };
+    code
+}
+
 /// Release the engine set up in `engine`'s storage: its state is cleared,
 /// so the handle (and any copy of it) is refused from now on with
 /// `FFI_BAD_HANDLE`, and the storage, the map bytes, the map buffer and the
-/// callback context are the caller's again. Null, misaligned or already
-/// released handles are ignored.
+/// callback context are the caller's again (a relocalization under way is
+/// abandoned without its outcome). Null, misaligned or already released
+/// handles are ignored.
 ///
 /// # Safety
 /// `engine` is null, or a handle from [`vtsm_engine_create`] whose storage is
 /// still valid, or the address of storage of at least
-/// `VTSM_STORAGE_HEADER_BYTES` writable bytes; no [`vtsm_engine_run`] on it
-/// is in progress.
+/// `VTSM_STORAGE_HEADER_BYTES` writable bytes; no other call on it is in
+/// progress.
 #[no_mangle]
 pub unsafe extern "C" fn vtsm_engine_release(engine: *mut VtsmEngine) {
     let storage = engine.cast::<u64>();
@@ -1114,16 +1288,71 @@ pub unsafe extern "C" fn vtsm_engine_release(engine: *mut VtsmEngine) {
     unsafe { storage.write(0) };
 }
 
-/// [`vtsm_engine_run`] with `Result`s.
+/// The header of the engine in `storage`, checked: non-null, aligned, the
+/// magic and the layout.
 ///
 /// # Safety
-/// That of [`vtsm_engine_run`].
-unsafe fn run(storage: *mut u8, limits: *const VtsmLimits) -> Result<VtsmOutcome, FailureCode> {
+/// `storage` is null or a handle from [`vtsm_engine_create`] (the start of a
+/// storage of at least `VTSM_STORAGE_HEADER_BYTES` aligned bytes) that the
+/// caller has not modified since.
+unsafe fn open(storage: *mut u8) -> Result<Header, FailureCode> {
     if storage.is_null() {
         return Err(FailureCode::FfiNullPointer);
     }
     if !(storage as usize).is_multiple_of(VTSM_STORAGE_ALIGN) {
         return Err(FailureCode::FfiMisaligned);
+    }
+    // SAFETY: a handle is the start of a storage of at least
+    // VTSM_STORAGE_HEADER_BYTES aligned bytes, so its first 8 bytes are
+    // readable; a `u64` is valid for any bits.
+    let magic = unsafe { storage.cast::<u64>().read() };
+    if magic != MAGIC {
+        return Err(FailureCode::FfiBadHandle);
+    }
+    // SAFETY: the magic says `vtsm_engine_create` wrote a `Header` here, and
+    // the caller guarantees the storage was not modified since. A copy is
+    // taken so no reference into the storage outlives this line.
+    let h = unsafe { storage.cast::<Header>().read() };
+    let l = h.layout;
+    if h.storage_len < l.total || l.runs_at < l.words_at || l.words_at < VTSM_STORAGE_HEADER_BYTES {
+        return Err(FailureCode::FfiBadHandle);
+    }
+    if h.state != STATE_IDLE && h.state != STATE_RUNNING {
+        return Err(FailureCode::FfiBadHandle);
+    }
+    Ok(h)
+}
+
+/// Write the engine's state in its header.
+///
+/// # Safety
+/// `storage` passed [`open`].
+unsafe fn set_state(storage: *mut u8, state: u32) {
+    // SAFETY: `open` found a `Header` at the start of the aligned storage,
+    // which the caller lets this call write.
+    unsafe { core::ptr::addr_of_mut!((*storage.cast::<Header>()).state).write(state) };
+}
+
+/// The [`Live`] state in the storage's header area.
+///
+/// # Safety
+/// `storage` passed [`open`].
+unsafe fn live(storage: *mut u8) -> *mut Live {
+    // SAFETY: LIVE_AT + size_of::<Live>() <= VTSM_STORAGE_HEADER_BYTES
+    // (const assert), inside the storage; LIVE_AT is a multiple of 16 ≥
+    // align_of::<Live>().
+    unsafe { storage.add(LIVE_AT).cast::<Live>() }
+}
+
+/// [`vtsm_engine_start`] with `Result`s; gives the limits.
+///
+/// # Safety
+/// That of [`vtsm_engine_start`].
+unsafe fn start(storage: *mut u8, limits: *const VtsmLimits) -> Result<DriveLimits, FailureCode> {
+    // SAFETY: forwarded from this function's contract.
+    let h = unsafe { open(storage) }?;
+    if h.state != STATE_IDLE {
+        return Err(FailureCode::FfiEngineState);
     }
     let limits = if limits.is_null() {
         DriveLimits::UNLIMITED
@@ -1141,29 +1370,16 @@ unsafe fn run(storage: *mut u8, limits: *const VtsmLimits) -> Result<VtsmOutcome
             budget_ticks: l.budget_ticks,
         }
     };
-    // SAFETY: a handle is the start of a storage of at least
-    // VTSM_STORAGE_HEADER_BYTES aligned bytes, so its first 8 bytes are
-    // readable; a `u64` is valid for any bits.
-    let magic = unsafe { storage.cast::<u64>().read() };
-    if magic != MAGIC {
-        return Err(FailureCode::FfiBadHandle);
-    }
-    // SAFETY: the magic says `vtsm_engine_create` wrote a `Header` here, and
-    // the caller guarantees the storage was not modified since. A copy is
-    // taken so no reference into the storage outlives this line.
-    let h = unsafe { storage.cast::<Header>().read() };
     let l = h.layout;
-    if h.storage_len < l.total || l.runs_at < l.words_at || l.words_at < VTSM_STORAGE_HEADER_BYTES {
-        return Err(FailureCode::FfiBadHandle);
-    }
     let read_window = h.io.read_window.ok_or(FailureCode::FfiBadHandle)?;
     // SAFETY: the three buffers lie inside the storage after the header
-    // (`VTSM_STORAGE_HEADER_BYTES <= words_at - bytes <= ...`, `total <=
-    // storage_len`, checked above), do not overlap one another or the header
-    // (the layout rounds each up to 16 bytes), are aligned for their types
-    // (16-byte offsets in 16-byte-aligned storage; `Run` needs ≤ 16), hold
-    // integers zeroed at create (valid values), and this call has exclusive
-    // use of the storage by the caller's guarantee (not reentrant).
+    // area (`VTSM_STORAGE_HEADER_BYTES <= words_at - bytes <= ...`, `total
+    // <= storage_len`, checked by `open`), do not overlap one another or the
+    // header area (the layout rounds each up to 16 bytes), are aligned for
+    // their types (16-byte offsets in 16-byte-aligned storage; `Run` needs
+    // ≤ 16), hold integers (valid values for any bits), and the session has
+    // exclusive use of them until `vtsm_engine_outcome` by the caller's
+    // guarantee.
     let (bytes, words, runs) = unsafe {
         (
             core::slice::from_raw_parts_mut(storage.add(VTSM_STORAGE_HEADER_BYTES), l.ws.bytes),
@@ -1172,59 +1388,24 @@ unsafe fn run(storage: *mut u8, limits: *const VtsmLimits) -> Result<VtsmOutcome
         )
     };
     let ws = Workspace::new(l.ws, bytes, words, runs)?;
-    let mapped = if h.map.is_null() {
+    let mapped: Option<&'static [u8]> = if h.map.is_null() {
         None
     } else {
         // SAFETY: checked at create to be readable for `map_len` bytes and
-        // outside the storage; the caller keeps it valid and unchanged.
+        // outside the storage; the caller keeps it valid and unchanged until
+        // `vtsm_engine_outcome`.
         Some(unsafe { core::slice::from_raw_parts(h.map, h.map_len) })
     };
-    let map_ram: &mut [u8] = if h.map_buffer.is_null() || mapped.is_some() {
+    let map_ram: &'static mut [u8] = if h.map_buffer.is_null() || mapped.is_some() {
         &mut []
     } else {
         // SAFETY: checked at create to be non-null, at least `map_len`
-        // bytes and outside the storage; writable and exclusively ours for
-        // this call by the caller's guarantee.
+        // bytes and outside the storage; writable and exclusively the
+        // session's until `vtsm_engine_outcome` by the caller's guarantee.
         unsafe { core::slice::from_raw_parts_mut(h.map_buffer, h.map_buffer_len) }
     };
     let mut job = h.job;
     job.limits = limits;
-    let devices = Devices {
-        frames: CFrames {
-            io: h.io,
-            read_window,
-            width: job.rig.cam().width(),
-            height: job.rig.cam().height(),
-            sequence: 0,
-        },
-        store: CStore {
-            mapped,
-            len: u32::try_from(h.map_len).map_err(|_| FailureCode::HalMapTooLarge)?,
-            io: h.io,
-        },
-        prior: h.prior,
-        io: h.io,
-    };
-    let (o, report) = run_job(devices, &job, map_ram, ws)?;
-    Ok(VtsmOutcome::from_outcome(&o, &report))
-}
-
-/// The devices of one run, over the callbacks.
-struct Devices<'m> {
-    frames: CFrames,
-    store: CStore<'m>,
-    prior: PriorEstimate,
-    io: VtsmIo,
-}
-
-/// The one use of [`Runner::run`]: the job with the pair left in the
-/// camera's frame memory ([`InStore`]) and read window by window.
-fn run_job(
-    d: Devices<'_>,
-    job: &Job,
-    map_ram: &mut [u8],
-    ws: Workspace<'_>,
-) -> Result<(Outcome, RelocReport), FailureCode> {
     let cfg = RunnerConfig {
         attempts: DEVICE_ATTEMPTS,
         product_attempts: PRODUCT_ATTEMPTS,
@@ -1232,15 +1413,104 @@ fn run_job(
         capture_timeout_ticks: u64::MAX,
         image_size: (job.rig.cam().width(), job.rig.cam().height()),
     };
-    let mut runner = Runner::new(
-        d.frames,
-        CClock(d.io),
-        d.store,
-        CPrior(d.prior),
-        CTelemetry(d.io),
+    let runner = Runner::new(
+        CFrames {
+            io: h.io,
+            read_window,
+            width: job.rig.cam().width(),
+            height: job.rig.cam().height(),
+            sequence: 0,
+        },
+        CClock(h.io),
+        CStore {
+            mapped,
+            len: u32::try_from(h.map_len).map_err(|_| FailureCode::HalMapTooLarge)?,
+            io: h.io,
+        },
+        CPrior(h.prior),
+        CTelemetry(h.io),
         cfg,
     );
-    runner.run(job, map_ram, InStore, ws, None)
+    // SAFETY: `storage` passed `open`.
+    let live = unsafe { live(storage) };
+    // SAFETY: `live` is inside the storage's header area, aligned, and not
+    // in use (state idle: no session borrows it); the writes put valid
+    // values in place without reading the old bytes.
+    unsafe {
+        core::ptr::addr_of_mut!((*live).runner).write(runner);
+        core::ptr::addr_of_mut!((*live).slot).write(None);
+    }
+    // SAFETY: both fields were just written and stay in place, untouched
+    // by anything but the session, until `vtsm_engine_outcome` reads the
+    // session out (the caller keeps the storage valid and unmodified).
+    let (runner, slot) = unsafe {
+        (
+            &mut *core::ptr::addr_of_mut!((*live).runner),
+            &mut *core::ptr::addr_of_mut!((*live).slot),
+        )
+    };
+    match runner.start(&job, map_ram, slot, InStore, ws, None) {
+        Ok(session) => {
+            // SAFETY: the session's field of `live`, not borrowed by it.
+            unsafe {
+                core::ptr::addr_of_mut!((*live).session).write(core::mem::MaybeUninit::new(session))
+            };
+            // SAFETY: `storage` passed `open`.
+            unsafe { set_state(storage, STATE_RUNNING) };
+            Ok(limits)
+        }
+        Err(code) => {
+            // SAFETY: the failed start holds no borrow of the runner any more.
+            unsafe { (*core::ptr::addr_of_mut!((*live).runner)).send_failure_log() };
+            Err(code)
+        }
+    }
+}
+
+/// The session of the relocalization under way in `storage`.
+///
+/// # Safety
+/// That of [`vtsm_engine_step`].
+unsafe fn session(storage: *mut u8) -> Result<*mut CSession, FailureCode> {
+    // SAFETY: forwarded from this function's contract.
+    let h = unsafe { open(storage) }?;
+    if h.state != STATE_RUNNING {
+        return Err(FailureCode::FfiEngineState);
+    }
+    // SAFETY: `storage` passed `open`; state running: `start` wrote the
+    // session.
+    Ok(unsafe { core::ptr::addr_of_mut!((*live(storage)).session) }.cast::<CSession>())
+}
+
+/// [`vtsm_engine_step`] with `Result`s.
+///
+/// # Safety
+/// That of [`vtsm_engine_step`].
+unsafe fn step(storage: *mut u8, max_units: u32) -> Result<StepStatus, FailureCode> {
+    // SAFETY: forwarded from this function's contract.
+    let s = unsafe { session(storage) }?;
+    if max_units == 0 {
+        return Err(FailureCode::ConfigParamOutOfRange);
+    }
+    // SAFETY: the session `start` wrote, initialised and in place; this call
+    // has exclusive use of the storage (not reentrant).
+    Ok(unsafe { &mut *s }.step(max_units))
+}
+
+/// [`vtsm_engine_outcome`] with `Result`s.
+///
+/// # Safety
+/// That of [`vtsm_engine_outcome`].
+unsafe fn finish(storage: *mut u8) -> Result<VtsmOutcome, FailureCode> {
+    // SAFETY: forwarded from this function's contract.
+    let s = unsafe { session(storage) }?;
+    // SAFETY: the session `start` wrote, read out once: the state goes to
+    // idle before it is used, so no later call reads it again.
+    let s = unsafe { s.read() };
+    // SAFETY: `storage` passed `open`.
+    unsafe { set_state(storage, STATE_IDLE) };
+    let (o, report) = s.finish();
+    Ok(VtsmOutcome::from_outcome(&o, &report))
 }
 
 // ---------------------------------------------------------------------------
