@@ -1,6 +1,6 @@
 //! The simulator's file-format and command-line tests: images, meshes
 //! (OBJ, PLY), calibrations (OpenCV, ROS, Kalibr, FileStorage), JSON, the
-//! `vtsm` CLI, `vtsm bench`, result pages and the OpenCV rectification oracle.
+//! `vtsm` CLI, sharded `vtsm eval` campaigns, `vtsm bench`, result pages and the OpenCV rectification oracle.
 //!
 //! One test binary with one module per former file (one link instead of
 //! ten). Run one module with a filter: `cargo test -p vtsm-sim --test integration -- io_cli::`.
@@ -8,6 +8,7 @@
 
 mod bench_cli;
 mod common;
+mod eval_shards;
 mod io_calib_opencv;
 mod io_calib_yaml;
 mod io_cli;

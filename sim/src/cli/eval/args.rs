@@ -102,9 +102,36 @@ pub enum MaskArg {
     All,
 }
 
+/// `vtsm eval` subcommands.
+#[derive(Debug, Clone, clap::Subcommand)]
+pub enum EvalCommand {
+    /// Join the parts of a campaign run with `--shard K/N` into the outputs
+    /// of a single run (table, trials.csv, summary.json, figures).
+    Merge(MergeArgs),
+}
+
+/// Arguments of `vtsm eval merge`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct MergeArgs {
+    /// Output directory (refused if it exists and is not empty, unless
+    /// `--force`).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Replace existing outputs in `--out`.
+    #[arg(long)]
+    pub force: bool,
+    /// The parts' result directories, every shard of one campaign once.
+    #[arg(required = true, value_name = "PART")]
+    pub parts: Vec<PathBuf>,
+}
+
 /// Arguments of `vtsm eval`.
 #[derive(Debug, Clone, clap::Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
 pub struct Args {
+    /// `merge`: join the parts of a sharded campaign.
+    #[command(subcommand)]
+    pub command: Option<EvalCommand>,
     /// Suite (not with `--replot`, which reads it).
     #[arg(
         long,
@@ -189,6 +216,11 @@ pub struct Args {
     /// (`--force` to replace them).
     #[arg(long, value_name = "DIR", conflicts_with = "suite")]
     pub replot: Option<PathBuf>,
+    /// Run only shard K of N of the campaign's trials (campaign index `i`,
+    /// `group × trials + k`, runs in shard `i mod N + 1`) and write a part
+    /// (the outputs of those trials and a `part.json`) for `vtsm eval merge`.
+    #[arg(long, value_name = "K/N", value_parser = super::shard::Shard::parse)]
+    pub shard: Option<super::shard::Shard>,
 }
 
 impl Args {
@@ -216,6 +248,8 @@ impl Args {
             mask: MaskArg::Paper,
             wind: 0.0,
             replot: None,
+            shard: None,
+            command: None,
         }
     }
 }
@@ -280,5 +314,6 @@ pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
         return Err(Error::msg("--wind must be a strength in 0..=1"));
     }
     cfg.wind = args.wind;
+    cfg.shard = args.shard;
     Ok(cfg)
 }

@@ -92,6 +92,8 @@ pub struct SuiteConfig {
     pub mask_all: bool,
     /// Wind strength between mapping and the live pairs (`--wind`, 0 = none).
     pub wind: f32,
+    /// Run only this shard of the campaign's trials (`--shard K/N`).
+    pub shard: Option<super::shard::Shard>,
 }
 
 impl SuiteConfig {
@@ -116,6 +118,7 @@ impl SuiteConfig {
             light_model: LightModel::Full,
             mask_all: false,
             wind: 0.0,
+            shard: None,
         }
     }
 }

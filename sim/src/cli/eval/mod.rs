@@ -74,7 +74,8 @@
 //! [`protocol`] (captures, seeds, priors), [`depot`] and [`maps`] (what is
 //! built once), [`group`], [`frames`] and [`trial`] (one trial), [`mod@run`]
 //! (a whole run), [`tables`], [`figures`] and [`plot`] (what is reported),
-//! [`replot`] (the figures of a recorded run drawn again from its trials).
+//! [`replot`] (the figures of a recorded run drawn again from its trials),
+//! [`shard`] (a campaign split into parts, `--shard K/N`, and their merge).
 
 pub mod args;
 pub mod config;
@@ -88,6 +89,7 @@ pub mod plot;
 pub mod protocol;
 pub mod replot;
 pub mod run;
+pub mod shard;
 pub mod suites;
 pub mod tables;
 pub mod trial;
@@ -133,6 +135,12 @@ fn default_out(suite: Suite) -> PathBuf {
 
 /// Run the command; returns the exit code.
 pub fn run(args: &Args) -> Result<u8> {
+    if let Some(args::EvalCommand::Merge(m)) = &args.command {
+        let command = std::env::args().collect::<Vec<_>>().join(" ");
+        shard::merge(&m.out, &m.parts, m.force, &command)?;
+        println!("wrote {}", m.out.display());
+        return Ok(0);
+    }
     if let Some(dir) = &args.replot {
         for p in replot::replot(dir, args.force)? {
             println!("wrote {}", p.display());
@@ -143,7 +151,7 @@ pub fn run(args: &Args) -> Result<u8> {
     let out = args.out.clone().unwrap_or_else(|| default_out(cfg.suite));
     std::fs::create_dir_all(&out)
         .map_err(|e| Error::file(&out, format!("cannot create directory: {e}")))?;
-    for name in ["table.md", "trials.csv", "summary.json"] {
+    for name in ["table.md", "trials.csv", "summary.json", shard::PART_FILE] {
         crate::io::check_output(&out.join(name), args.force)?;
     }
     let command = std::env::args().collect::<Vec<_>>().join(" ");
@@ -158,6 +166,9 @@ pub fn run(args: &Args) -> Result<u8> {
         rayon::current_num_threads()
     );
     write_run(&out, &run, args.force)?;
+    if let Some(s) = cfg.shard {
+        shard::write_part(&out, &run, s, args.force)?;
+    }
     println!("wrote {}", out.display());
     Ok(0)
 }

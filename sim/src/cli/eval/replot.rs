@@ -45,7 +45,7 @@ pub fn write_figures(dir: &Path, figs: &[Figure], force: bool) -> Result<Vec<Pat
 
 /// The suite, profile, trials, seed, terrains and time differences of a
 /// recorded run.
-fn recorded_config(path: &Path) -> Result<SuiteConfig> {
+pub(crate) fn recorded_config(path: &Path) -> Result<SuiteConfig> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
     let json: serde_json::Value =

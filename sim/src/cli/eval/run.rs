@@ -23,6 +23,11 @@ pub struct SuiteRun {
     pub meta: RunMeta,
     /// One outcome per trial, in group then trial order.
     pub outcomes: Vec<TrialOutcome>,
+    /// The campaign index of each outcome (`group × trials + k`): every
+    /// index of the campaign, or those of its `--shard`.
+    pub indices: Vec<usize>,
+    /// Trials of the whole campaign (groups × trials per group).
+    pub total: usize,
     /// One summary per group.
     pub groups: Vec<GroupSummary>,
     /// Extra Markdown (per-suite breakdowns) printed after the table.
@@ -53,7 +58,17 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
     let groups = with_baseline_groups(def.groups(cfg, &depot, &maps), cfg.baseline);
     let setup_s = t_setup.elapsed().as_secs_f64();
     let t_trials = Instant::now();
-    let outcomes = run_trials(cfg, &groups, &depot, &maps);
+    let total = groups.len() * cfg.trials;
+    let indices: Vec<usize> = (0..total)
+        .filter(|&i| cfg.shard.is_none_or(|s| s.holds(i)))
+        .collect();
+    if indices.is_empty() {
+        return Err(Error::msg(format!(
+            "shard {} holds no trial of the campaign's {total}",
+            cfg.shard.map(|s| s.to_string()).unwrap_or_default()
+        )));
+    }
+    let outcomes = run_trials(cfg, &groups, &indices, &depot, &maps);
     let trials_s = t_trials.elapsed().as_secs_f64();
     let summary = eval::summarize(&outcomes);
     let meta = run_meta(cfg, def, &depot, command);
@@ -66,6 +81,8 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
     Ok(SuiteRun {
         meta,
         outcomes,
+        indices,
+        total,
         groups: summary,
         notes,
         plots,
@@ -74,15 +91,23 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
     })
 }
 
-/// Every trial of every group, in parallel, in group then trial order.
+/// The trials of the campaign indices `indices` (index `group × trials + k`
+/// is trial `k` of group `group`), in parallel, in that order. A trial's
+/// capture and seed depend only on `k`, the trial count and the seed, never
+/// on which other trials run.
 fn run_trials(
     cfg: &SuiteConfig,
     groups: &[Group],
+    indices: &[usize],
     depot: &Depot,
     maps: &[MapEntry],
 ) -> Vec<TrialOutcome> {
-    let specs: Vec<Spec> = (0..groups.len())
-        .flat_map(|g| (0..cfg.trials).map(move |k| Spec { group: g, k }))
+    let specs: Vec<Spec> = indices
+        .iter()
+        .map(|&i| Spec {
+            group: i / cfg.trials,
+            k: i % cfg.trials,
+        })
         .collect();
     let shared = Shared {
         cfg,
