@@ -112,3 +112,63 @@ fn sharded_campaign_merges_to_the_single_run() {
     refused("missing", &[&p1], &p1, "miss 1 of the campaign's 3");
     refused("seeds", &[&p1, &other], &other, "seed 2 differs");
 }
+
+/// A part records each finished trial as it finishes (`part.d/<index>.json`);
+/// a shard killed before its outputs are written, rerun into the same
+/// directory, takes the recorded trials as done (here trial 0, whose
+/// recorded time is marked) and runs the rest (trial 2, whose record was
+/// lost with the kill); a rerun with another seed is refused.
+///
+/// Verifies: VTSM-CLI-046
+#[test]
+fn a_rerun_shard_skips_the_recorded_trials() {
+    let root = dir("eval_shards", "resume");
+    let part = root.join("p1");
+    campaign(&part, &["--shard", "1/2"]);
+    let first = without_time(&part.join("trials.csv"));
+    let journal = part.join("part.d");
+    assert!(journal.join("0.json").exists() && journal.join("2.json").exists());
+    // The kill: the outputs and trial 2's record never written.
+    for e in std::fs::read_dir(&part).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_file() {
+            std::fs::remove_file(p).unwrap();
+        }
+    }
+    std::fs::remove_file(journal.join("2.json")).unwrap();
+    let rec = journal.join("0.json");
+    let mut t: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&rec).unwrap()).unwrap();
+    t["errors_bits"][4] = serde_json::json!(123.0f64.to_bits());
+    std::fs::write(&rec, t.to_string()).unwrap();
+
+    let o = vtsm(&[
+        "eval",
+        "--suite",
+        "paper",
+        "--trials",
+        "3",
+        "--terrains",
+        "flagstone",
+        "--hours",
+        "0",
+        "--quiet",
+        "--shard",
+        "1/2",
+        "--seed",
+        "2",
+        "--out",
+        s(&part),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{o:?}");
+    assert!(String::from_utf8_lossy(&o.stderr).contains("another campaign"));
+
+    campaign(&part, &["--shard", "1/2"]);
+    assert_eq!(without_time(&part.join("trials.csv")), first);
+    let csv = std::fs::read_to_string(part.join("trials.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().collect();
+    let t = rows[0].split(',').position(|h| h == "time_s").unwrap();
+    assert_eq!(rows[1].split(',').nth(t), Some("123.0000"), "{csv}");
+    assert_ne!(rows[2].split(',').nth(t), Some("123.0000"), "{csv}");
+    assert!(journal.join("2.json").exists());
+}

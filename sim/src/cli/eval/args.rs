@@ -219,6 +219,8 @@ pub struct Args {
     /// Run only shard K of N of the campaign's trials (campaign index `i`,
     /// `group × trials + k`, runs in shard `i mod N + 1`) and write a part
     /// (the outputs of those trials and a `part.json`) for `vtsm eval merge`.
+    /// Each finished trial is recorded in `part.d/`; rerun into the same
+    /// `--out`, a killed shard runs only the trials not recorded.
     #[arg(long, value_name = "K/N", value_parser = super::shard::Shard::parse)]
     pub shard: Option<super::shard::Shard>,
 }

@@ -155,7 +155,8 @@ pub fn run(args: &Args) -> Result<u8> {
         crate::io::check_output(&out.join(name), args.force)?;
     }
     let command = std::env::args().collect::<Vec<_>>().join(" ");
-    let run = run_suite(&cfg, &command)?;
+    let journal = cfg.shard.map(|_| shard::Journal::new(&out));
+    let run = run::run_suite_journaled(&cfg, &command, journal.as_ref())?;
     print!("{}", eval::markdown_table(&run.meta, &run.groups));
     print!("{}", run.notes);
     println!(
@@ -166,8 +167,12 @@ pub fn run(args: &Args) -> Result<u8> {
         rayon::current_num_threads()
     );
     write_run(&out, &run, args.force)?;
-    if let Some(s) = cfg.shard {
-        shard::write_part(&out, &run, s, args.force)?;
+    match cfg.shard {
+        Some(s) => shard::write_part(&out, &run, s, args.force)?,
+        // A whole run replacing a part (`--force`) is no longer a part.
+        None => {
+            let _ = std::fs::remove_file(out.join(shard::PART_FILE));
+        }
     }
     println!("wrote {}", out.display());
     Ok(0)

@@ -47,6 +47,20 @@ pub struct SuiteRun {
 /// Empty terrain/hour/step lists. Per-trial problems (a map that cannot be
 /// encoded, a rejected request) are recorded as failed trials, not errors.
 pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
+    run_suite_journaled(cfg, command, None)
+}
+
+/// [`run_suite`] keeping each finished trial in `journal` (a part's
+/// [`Journal`](super::shard::Journal)): trials it already holds are not run
+/// again.
+///
+/// # Errors
+/// As [`run_suite`], or a journal of another campaign.
+pub fn run_suite_journaled(
+    cfg: &SuiteConfig,
+    command: &str,
+    journal: Option<&super::shard::Journal>,
+) -> Result<SuiteRun> {
     let def = cfg.suite.def();
     if cfg.terrains.is_empty() || cfg.hours.is_empty() || cfg.trials == 0 {
         return Err(Error::msg("a suite needs terrains, hours and trials"));
@@ -68,10 +82,30 @@ pub fn run_suite(cfg: &SuiteConfig, command: &str) -> Result<SuiteRun> {
             cfg.shard.map(|s| s.to_string()).unwrap_or_default()
         )));
     }
-    let outcomes = run_trials(cfg, &groups, &indices, &depot, &maps);
+    let meta = run_meta(cfg, def, &depot, command);
+    let outcomes = match journal {
+        None => run_trials(cfg, &groups, &indices, &depot, &maps, |_, _| {}),
+        Some(j) => {
+            let done = j.open(&meta)?;
+            let todo: Vec<usize> = indices
+                .iter()
+                .copied()
+                .filter(|i| !done.contains_key(i))
+                .collect();
+            let fresh = run_trials(cfg, &groups, &todo, &depot, &maps, |i, o| j.record(i, o));
+            let mut fresh = todo.into_iter().zip(fresh);
+            let mut all = Vec::with_capacity(indices.len());
+            for i in &indices {
+                match done.get(i) {
+                    Some(o) => all.push(o.clone()),
+                    None => all.extend(fresh.next().map(|(_, o)| o)),
+                }
+            }
+            all
+        }
+    };
     let trials_s = t_trials.elapsed().as_secs_f64();
     let summary = eval::summarize(&outcomes);
-    let meta = run_meta(cfg, def, &depot, command);
     let plots = figures::all(cfg, &outcomes);
     let mut notes = def.notes(&outcomes);
     notes.push_str(&integrity_table(&outcomes));
@@ -101,6 +135,7 @@ fn run_trials(
     indices: &[usize],
     depot: &Depot,
     maps: &[MapEntry],
+    finished: impl Fn(usize, &TrialOutcome) + Sync,
 ) -> Vec<TrialOutcome> {
     let specs: Vec<Spec> = indices
         .iter()
@@ -115,7 +150,15 @@ fn run_trials(
         depot,
         maps,
     };
-    eval::run_parallel(&specs, |s| run_trial(&shared, s), cfg.progress)
+    eval::run_parallel(
+        &specs,
+        |s| {
+            let o = run_trial(&shared, s);
+            finished(s.group * cfg.trials + s.k, &o);
+            o
+        },
+        cfg.progress,
+    )
 }
 
 /// The reproducibility record of a run.

@@ -14,6 +14,10 @@
 //! that the parts belong together and cover every index exactly once, puts
 //! the trials back in campaign order and writes the table, `trials.csv`,
 //! `summary.json` and figures a single-process run writes.
+//!
+//! While a part runs, each finished trial is recorded at once in its
+//! [`Journal`] (`part.d/`), so a killed shard rerun into the same directory
+//! runs only the trials not recorded.
 
 use super::config::{Method, SuiteConfig};
 use super::run::SuiteRun;
@@ -298,6 +302,93 @@ pub fn write_part(dir: &Path, run: &SuiteRun, shard: Shard, force: bool) -> Resu
     let text = serde_json::to_string_pretty(&rec)
         .map_err(|e| Error::msg(format!("cannot encode JSON: {e}")))?;
     eval::write_new(&dir.join(PART_FILE), &text, force)
+}
+
+/// Directory of a part's finished trials, one `<index>.json`
+/// ([`PartTrial`]) each, beside `campaign.json` (the run's meta without the
+/// command).
+pub const JOURNAL_DIR: &str = "part.d";
+
+/// The finished trials of a `--shard` run, each written atomically (a
+/// temporary file and a rename) as it finishes; a rerun of the shard into the
+/// same directory takes them as done, so a killed shard loses at most the
+/// trials in flight.
+pub struct Journal {
+    dir: PathBuf,
+}
+
+impl Journal {
+    /// The journal of the part written into `out`.
+    pub fn new(out: &Path) -> Self {
+        Self {
+            dir: out.join(JOURNAL_DIR),
+        }
+    }
+
+    fn campaign(meta: &RunMeta) -> serde_json::Value {
+        let mut v = serde_json::to_value(meta).unwrap_or_default();
+        if let Some(m) = v.as_object_mut() {
+            m.remove("command");
+        }
+        v
+    }
+
+    /// Create the journal for the campaign of `meta`, or open the one there:
+    /// the trials it holds, by campaign index.
+    ///
+    /// # Errors
+    /// A journal of another campaign (suite, seed, settings, revision...), a
+    /// malformed record, or an I/O failure.
+    pub fn open(&self, meta: &RunMeta) -> Result<std::collections::BTreeMap<usize, TrialOutcome>> {
+        let head = self.dir.join("campaign.json");
+        let want = Self::campaign(meta);
+        let mut done = std::collections::BTreeMap::new();
+        if head.exists() {
+            let text = std::fs::read_to_string(&head)
+                .map_err(|e| Error::file(&head, format!("cannot read: {e}")))?;
+            let have: serde_json::Value = serde_json::from_str(&text)
+                .map_err(|e| Error::file(&head, format!("invalid JSON: {e}")))?;
+            if have != want {
+                return Err(Error::file(
+                    &self.dir,
+                    "holds trials of another campaign; remove it or use another --out",
+                ));
+            }
+            let entries = std::fs::read_dir(&self.dir)
+                .map_err(|e| Error::file(&self.dir, format!("cannot read: {e}")))?;
+            for e in entries.flatten() {
+                let path = e.path();
+                if path.extension().is_none_or(|x| x != "json") || path == head {
+                    continue;
+                }
+                let text = std::fs::read_to_string(&path)
+                    .map_err(|e| Error::file(&path, format!("cannot read: {e}")))?;
+                let t: PartTrial = serde_json::from_str(&text)
+                    .map_err(|e| Error::file(&path, format!("invalid trial record: {e}")))?;
+                let o = t.outcome().map_err(|e| Error::file(&path, e))?;
+                done.insert(t.index, o);
+            }
+        } else {
+            std::fs::create_dir_all(&self.dir)
+                .map_err(|e| Error::file(&self.dir, format!("cannot create directory: {e}")))?;
+            let text = serde_json::to_string_pretty(&want)
+                .map_err(|e| Error::msg(format!("cannot encode JSON: {e}")))?;
+            eval::write_new(&head, &text, true)?;
+        }
+        Ok(done)
+    }
+
+    /// Record finished trial `index` (a failure to write is reported on
+    /// stderr; the trial is then run again by a rerun).
+    pub fn record(&self, index: usize, o: &TrialOutcome) {
+        let path = self.dir.join(format!("{index}.json"));
+        let written = serde_json::to_string(&PartTrial::new(index, o))
+            .map_err(|e| Error::msg(format!("cannot encode JSON: {e}")))
+            .and_then(|text| eval::write_new(&path, &text, true));
+        if let Err(e) = written {
+            eprintln!("vtsm: warning: trial {index} not recorded: {e}");
+        }
+    }
 }
 
 /// A part as read back: its record and the run's meta.
