@@ -59,13 +59,13 @@ fn sharded_campaign_merges_to_the_single_run() {
         root.join("p2_seed2"),
     );
     campaign(&full, &[]);
-    campaign(&p1, &["--shard", "1/2"]);
-    campaign(&p2, &["--shard", "2/2"]);
-    campaign(&other, &["--shard", "2/2", "--seed", "2"]);
+    campaign(&p1, &["--shard", "0/2"]);
+    campaign(&p2, &["--shard", "1/2"]);
+    campaign(&other, &["--shard", "1/2", "--seed", "2"]);
 
     let part: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(p1.join("part.json")).unwrap()).unwrap();
-    assert_eq!(part["shard"], "1/2");
+    assert_eq!(part["shard"], "0/2");
     assert_eq!(part["total"], 3);
     assert_eq!(part["indices"], serde_json::json!([0, 2]));
     assert_eq!(part["suite"], "paper");
@@ -124,7 +124,7 @@ fn sharded_campaign_merges_to_the_single_run() {
 fn a_rerun_shard_skips_the_recorded_trials() {
     let root = dir("eval_shards", "resume");
     let part = root.join("p1");
-    campaign(&part, &["--shard", "1/2"]);
+    campaign(&part, &["--shard", "0/2"]);
     let first = without_time(&part.join("trials.csv"));
     let journal = part.join("part.d");
     assert!(journal.join("0.json").exists() && journal.join("2.json").exists());
@@ -154,7 +154,7 @@ fn a_rerun_shard_skips_the_recorded_trials() {
         "0",
         "--quiet",
         "--shard",
-        "1/2",
+        "0/2",
         "--seed",
         "2",
         "--out",
@@ -163,7 +163,7 @@ fn a_rerun_shard_skips_the_recorded_trials() {
     assert_eq!(o.status.code(), Some(2), "{o:?}");
     assert!(String::from_utf8_lossy(&o.stderr).contains("another campaign"));
 
-    campaign(&part, &["--shard", "1/2"]);
+    campaign(&part, &["--shard", "0/2"]);
     assert_eq!(without_time(&part.join("trials.csv")), first);
     let csv = std::fs::read_to_string(part.join("trials.csv")).unwrap();
     let rows: Vec<&str> = csv.lines().collect();

@@ -217,7 +217,7 @@ pub struct Args {
     #[arg(long, value_name = "DIR", conflicts_with = "suite")]
     pub replot: Option<PathBuf>,
     /// Run only shard K of N of the campaign's trials (campaign index `i`,
-    /// `group × trials + k`, runs in shard `i mod N + 1`) and write a part
+    /// `group × trials + k`, runs in shard `i mod N`; K from 0 to N − 1, as a Slurm array task id) and write a part
     /// (the outputs of those trials and a `part.json`) for `vtsm eval merge`.
     /// Each finished trial is recorded in `part.d/`; rerun into the same
     /// `--out`, a killed shard runs only the trials not recorded.

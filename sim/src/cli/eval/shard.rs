@@ -3,7 +3,7 @@
 //!
 //! The campaign's trials are numbered in its fixed order, index
 //! `group × trials + k` for trial `k` of group `group`; shard `K` of `N` holds
-//! the indices `i` with `i mod N = K − 1`. A trial's capture and seed depend
+//! the indices `i` with `i mod N = K`. A trial's capture and seed depend
 //! only on `k`, the trial count and the campaign seed, so a trial gives the
 //! same outcome in whichever part it runs.
 //!
@@ -36,26 +36,27 @@ use std::path::{Path, PathBuf};
 /// Name of a part's record in its result directory.
 pub const PART_FILE: &str = "part.json";
 
-/// Shard `k` of `n` (1-based): the campaign indices `i` with `i mod n = k − 1`.
+/// Shard `k` of `n` (0-based, as a Slurm array task id): the campaign
+/// indices `i` with `i mod n = k`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Shard {
-    /// This shard, 1..=n.
+    /// This shard, 0..n.
     pub k: usize,
     /// Number of shards.
     pub n: usize,
 }
 
 impl Shard {
-    /// Parse `K/N` with `1 ≤ K ≤ N`.
+    /// Parse `K/N` with `0 ≤ K < N`.
     ///
     /// # Errors
     /// Anything else, with what is accepted.
     pub fn parse(s: &str) -> std::result::Result<Self, String> {
-        let bad = || format!("`{s}` is not a shard K/N with 1 <= K <= N");
+        let bad = || format!("`{s}` is not a shard K/N with 0 <= K < N");
         let (k, n) = s.split_once('/').ok_or_else(bad)?;
         let k: usize = k.trim().parse().map_err(|_| bad())?;
         let n: usize = n.trim().parse().map_err(|_| bad())?;
-        if k == 0 || k > n {
+        if k >= n {
             return Err(bad());
         }
         Ok(Self { k, n })
@@ -63,7 +64,7 @@ impl Shard {
 
     /// Whether campaign index `i` belongs to this shard.
     pub fn holds(self, i: usize) -> bool {
-        i % self.n == self.k - 1
+        i % self.n == self.k
     }
 }
 
@@ -590,11 +591,11 @@ mod tests {
 
     #[test]
     fn shards_split_the_indices() {
-        let s = Shard::parse("2/3").unwrap();
-        assert_eq!(s.to_string(), "2/3");
+        let s = Shard::parse("1/3").unwrap();
+        assert_eq!(s.to_string(), "1/3");
         let held: Vec<usize> = (0..7).filter(|&i| s.holds(i)).collect();
         assert_eq!(held, [1, 4]);
-        for bad in ["0/3", "4/3", "3", "a/b", "1/0"] {
+        for bad in ["3/3", "4/3", "3", "a/b", "0/0", "1/0"] {
             assert!(Shard::parse(bad).is_err(), "{bad}");
         }
     }
