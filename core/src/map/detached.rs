@@ -65,6 +65,14 @@ impl CheckedMap {
         if bytes.as_ptr() as usize != self.addr || bytes.len() != self.len {
             return None;
         }
+        self.view_over(bytes)
+    }
+
+    /// This check's layout over `bytes`, whatever they hold: the one
+    /// construction of a view from a check already made ([`Self::attach`]
+    /// after its address test; `MapView::with_changed_bytes` for upset
+    /// campaigns). The accessors stay bounds-checked.
+    pub(super) fn view_over<'b>(&self, bytes: &'b [u8]) -> Option<MapView<'b>> {
         let tex = self
             .layout
             .sec

@@ -405,34 +405,7 @@ impl<'a> MapView<'a> {
         if bytes.len() != self.bytes.len() {
             return None;
         }
-        let tex = self
-            .layout
-            .sec
-            .get(SEC_TEXTURE)
-            .copied()
-            .unwrap_or_default();
-        let texture = GrayView::new(
-            bytes.get(tex.off..tex.off.checked_add(tex.len)?)?,
-            self.texture.width(),
-            self.texture.height(),
-            self.texture.width(),
-        )
-        .ok()?;
-        Some(MapView {
-            bytes,
-            layout: self.layout,
-            vertex_count: self.vertex_count,
-            triangle_count: self.triangle_count,
-            tile_count: self.tile_count,
-            mask_vertex_count: self.mask_vertex_count,
-            tiles_x: self.tiles_x,
-            tiles_y: self.tiles_y,
-            tile_size_m: self.tile_size_m,
-            min: self.min,
-            max: self.max,
-            origin: self.origin,
-            texture,
-        })
+        self.detach().view_over(bytes)
     }
 
     /// The texture's texels, row-major with stride = width (`width · height` bytes).
