@@ -11,7 +11,6 @@ pub mod columns;
 
 use crate::error::{Error, Result};
 use columns::TrialColumns;
-use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -121,35 +120,14 @@ pub struct RunMeta {
     pub command: String,
 }
 
-/// Run `run` on every spec in parallel across cores, with a progress bar on
-/// stderr when `progress` is set. Results come back in spec order, whatever the
-/// scheduling, so outputs are reproducible.
-pub fn run_parallel<T, F>(specs: &[T], run: F, progress: bool) -> Vec<TrialOutcome>
+/// Run `run` on every spec in parallel across cores. Results come back in
+/// spec order, whatever the scheduling, so outputs are reproducible.
+pub fn run_parallel<T, F>(specs: &[T], run: F) -> Vec<TrialOutcome>
 where
     T: Sync,
     F: Fn(&T) -> TrialOutcome + Sync,
 {
-    let bar = if progress {
-        let b = ProgressBar::new(specs.len() as u64);
-        if let Ok(style) = ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:40}] {pos}/{len} trials ({eta} left)",
-        ) {
-            b.set_style(style.progress_chars("=> "));
-        }
-        b
-    } else {
-        ProgressBar::hidden()
-    };
-    let out: Vec<TrialOutcome> = specs
-        .par_iter()
-        .map(|s| {
-            let o = run(s);
-            bar.inc(1);
-            o
-        })
-        .collect();
-    bar.finish_and_clear();
-    out
+    specs.par_iter().map(&run).collect()
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -558,7 +536,7 @@ mod tests {
     #[test]
     fn parallel_runner_keeps_spec_order() {
         let specs: Vec<usize> = (0..50).collect();
-        let out = run_parallel(&specs, |&i| outcome("g", i, i % 2 == 0, i as f64), false);
+        let out = run_parallel(&specs, |&i| outcome("g", i, i % 2 == 0, i as f64));
         assert!(out.iter().enumerate().all(|(i, o)| o.trial == i));
     }
 

@@ -20,6 +20,7 @@ pub mod job;
 pub mod locate;
 pub mod mapping;
 pub mod panel;
+pub mod progress;
 pub mod rectify;
 pub mod render;
 pub mod scene;

@@ -3,7 +3,11 @@
 //! short labels written with a built-in 5×7 bitmap font, saved as PNG.
 
 use crate::error::{Error, Result};
+use crate::locate;
 use std::path::Path;
+use vtsm_core::geom::{Camera, Pose};
+use vtsm_core::map::MapView;
+use vtsm_core::rng::Rng;
 
 /// An RGB canvas.
 #[derive(Debug, Clone, PartialEq)]
@@ -180,6 +184,145 @@ fn glyph(c: char) -> Option<[u8; 7]> {
         '%' => [0x18, 0x19, 0x02, 0x04, 0x08, 0x13, 0x03],
         _ => return None,
     })
+}
+
+/// The template of the map around `p_world` as seen from `pose`, if in view.
+fn template(
+    map: &MapView,
+    cam: &Camera,
+    pose: &Pose,
+    p_world: &vtsm_core::geom::Vec3,
+    l: usize,
+) -> Option<(Vec<u8>, Vec<u8>)> {
+    let uv = cam.project(&pose.inverse().transform_point(p_world))?;
+    let t = locate::render_template(map, cam, pose, uv, l)?;
+    Some((t.intensity, t.mask))
+}
+
+/// The Fig. 6b-like panel of a relocalization (`vtsm demo`'s `panel.png`,
+/// `vtsm eval --suite dataset --panels`): the real left image with the
+/// template locations, then per sampled mask point: the template at the
+/// prior, the real image around the point's true location, and the
+/// template at the final pose. Every pose is the core's left camera in the
+/// map's local frame; `truth` places the points (the final pose when no
+/// truth is known), `seed` picks them.
+#[allow(clippy::too_many_arguments)]
+pub fn result_panel(
+    map: &MapView,
+    cam: &Camera,
+    left: &[u8],
+    prior: &Pose,
+    fin: &Pose,
+    truth: &Pose,
+    template_px: u16,
+    seed: u64,
+) -> Canvas {
+    const K: usize = 6;
+    let l = usize::from(template_px);
+    let cell = 150usize;
+    let pad = 12usize;
+    let (w, h) = (cam.width() as usize, cam.height() as usize);
+    let img_w = K * (cell + pad) - pad;
+    let img_h = img_w * h / w;
+    let label_h = 26;
+    let width = img_w + 2 * pad;
+    let height = pad + label_h + img_h + 3 * (label_h + cell) + 2 * pad;
+    let mut c = Canvas::new(width, height, [24, 24, 28]);
+    let white = [235, 235, 235];
+    c.text(
+        pad as i64,
+        pad as i64,
+        "REAL LEFT IMAGE WITH SAMPLED POINTS",
+        2,
+        white,
+    );
+    let y_img = (pad + label_h) as i64;
+    c.blit_gray(left, w, h, None, pad as i64, y_img, img_w, img_h);
+
+    // Mask vertices in view (with a template's margin) at the true pose.
+    let mut rng = Rng::new(seed).fork(0x50414E454C);
+    let mut points = Vec::new();
+    let n = map.mask_vertex_count();
+    for _ in 0..(64 * K) {
+        if points.len() == K || n == 0 {
+            break;
+        }
+        let Some(p) = map.mask_vertex(rng.below(n)).and_then(|i| map.vertex(i)) else {
+            continue;
+        };
+        let Some([u, v]) = cam.project(&truth.inverse().transform_point(&p)) else {
+            continue;
+        };
+        if cam.contains(u, v, l as f32)
+            && points
+                .iter()
+                .all(|(_, q): &(vtsm_core::geom::Vec3, [f32; 2])| {
+                    (q[0] - u).hypot(q[1] - v) > l as f32
+                })
+        {
+            points.push((p, [u, v]));
+        }
+    }
+    let colors = [
+        [230, 80, 60],
+        [80, 200, 90],
+        [70, 140, 240],
+        [240, 200, 50],
+        [200, 90, 220],
+        [60, 210, 210],
+    ];
+    let rows = [
+        ("SYNTHETIC AT PRIOR (RANDOM START)", 0),
+        ("REAL IMAGE", 1),
+        ("SYNTHETIC AT FINAL POSE", 2),
+    ];
+    for (title, r) in rows {
+        let y = y_img + (img_h + pad + r * (label_h + cell)) as i64;
+        c.text(pad as i64, y + 4, title, 2, white);
+    }
+    for (k, (p, [u, v])) in points.iter().enumerate() {
+        let color = colors[k % colors.len()];
+        let (sx, sy) = (img_w as f32 / w as f32, img_h as f32 / h as f32);
+        let bx = pad as i64 + ((u - l as f32 / 2.0) * sx) as i64;
+        let by = y_img + ((v - l as f32 / 2.0) * sy) as i64;
+        c.rect(
+            bx,
+            by,
+            (l as f32 * sx) as i64,
+            (l as f32 * sy) as i64,
+            2,
+            color,
+        );
+        let x = (pad + k * (cell + pad)) as i64;
+        let row_y = |r: usize| y_img + (img_h + pad + r * (label_h + cell) + label_h) as i64;
+        if let Some((t, m)) = template(map, cam, prior, p, l) {
+            c.blit_gray(&t, l, l, Some(&m), x, row_y(0), cell, cell);
+        }
+        let crop: Vec<u8> = (0..l * l)
+            .map(|i| {
+                let xx =
+                    (*u as i64 - l as i64 / 2 + (i % l) as i64).clamp(0, w as i64 - 1) as usize;
+                let yy =
+                    (*v as i64 - l as i64 / 2 + (i / l) as i64).clamp(0, h as i64 - 1) as usize;
+                left[yy * w + xx]
+            })
+            .collect();
+        c.blit_gray(&crop, l, l, None, x, row_y(1), cell, cell);
+        if let Some((t, m)) = template(map, cam, fin, p, l) {
+            c.blit_gray(&t, l, l, Some(&m), x, row_y(2), cell, cell);
+        }
+        for r in 0..3 {
+            c.rect(
+                x - 2,
+                row_y(r) - 2,
+                cell as i64 + 4,
+                cell as i64 + 4,
+                2,
+                color,
+            );
+        }
+    }
+    c
 }
 
 #[cfg(test)]

@@ -23,7 +23,6 @@ use crate::error::{Error, Result, EXIT_RELOC_FAILED};
 use crate::io;
 use crate::job::{self, Pair};
 pub use crate::job::{PairResult, PairSpec};
-use indicatif::{ProgressBar, ProgressStyle};
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -150,17 +149,7 @@ pub fn run_batch(
         io::check_output(out, spec.force)?;
     }
     let entries = read_entries(pairs)?;
-    let bar = if progress {
-        let b = ProgressBar::new(entries.len() as u64);
-        if let Ok(style) = ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:40}] {pos}/{len} pairs ({eta} left)",
-        ) {
-            b.set_style(style.progress_chars("=> "));
-        }
-        b
-    } else {
-        ProgressBar::hidden()
-    };
+    let bar = crate::progress::Progress::new(entries.len() as u64, 0, "pairs", progress);
     let jobs: Vec<std::result::Result<Pair, String>> = entries
         .iter()
         .map(|e| {
@@ -186,9 +175,9 @@ pub fn run_batch(
                 let _ = so.flush();
             });
         }
-        bar.inc(1);
+        bar.inc();
     })?;
-    bar.finish_and_clear();
+    bar.finish();
     let results = summary
         .pairs
         .iter()

@@ -41,15 +41,27 @@ pub enum GroupColumns {
         /// The forward path (else the wave path).
         forward: bool,
     },
+    /// The stereo pairs of a data set on disk (`dataset`).
+    Dataset {
+        /// The pair's index in the data set (its `views/` directories in
+        /// name order).
+        pair: u32,
+        /// Translation uncertainty t̃₀ the engine runs with, metres.
+        t0_m: f32,
+        /// Rotation uncertainty r̃₀ the engine runs with, degrees.
+        r0_deg: f32,
+    },
 }
 
 impl GroupColumns {
-    /// The time difference between mapping and capture, hours.
-    pub fn hours(&self) -> f32 {
+    /// The time difference between mapping and capture, hours (`None` for
+    /// a data set's pairs, whose light is their own).
+    pub fn hours(&self) -> Option<f32> {
         match *self {
             Self::Prior { hours, .. }
             | Self::WrongPlace { hours, .. }
-            | Self::Step { hours, .. } => hours,
+            | Self::Step { hours, .. } => Some(hours),
+            Self::Dataset { .. } => None,
         }
     }
 
@@ -80,6 +92,11 @@ impl GroupColumns {
                 ("hours", f64::from(hours)),
                 ("step", step as f64),
                 ("forward", f64::from(u8::from(forward))),
+            ]),
+            Self::Dataset { pair, t0_m, r0_deg } => out.extend([
+                ("pair", f64::from(pair)),
+                ("t0_m", f64::from(t0_m)),
+                ("r0_deg", f64::from(r0_deg)),
             ]),
         }
     }
@@ -240,7 +257,7 @@ impl TrialColumns {
 
     /// The time difference of the trial's group, hours (`None` if unset).
     pub fn hours(&self) -> Option<f32> {
-        self.group.as_ref().map(GroupColumns::hours)
+        self.group.as_ref().and_then(GroupColumns::hours)
     }
 
     /// Whether the frames came from another depot.

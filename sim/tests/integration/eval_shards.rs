@@ -172,3 +172,108 @@ fn a_rerun_shard_skips_the_recorded_trials() {
     assert_ne!(rows[2].split(',').nth(t), Some("123.0000"), "{csv}");
     assert!(journal.join("2.json").exists());
 }
+
+/// The trial records (`<index>.json`) in a part's journal, by name, with
+/// their content.
+fn records(journal: &Path) -> std::collections::BTreeMap<String, String> {
+    std::fs::read_dir(journal)
+        .map(|d| {
+            d.flatten()
+                .map(|e| e.path())
+                .filter(|p| {
+                    p.extension().is_some_and(|x| x == "json")
+                        && p.file_name().is_some_and(|n| n != "campaign.json")
+                })
+                .map(|p| {
+                    let name = p.file_name().unwrap().to_string_lossy().into_owned();
+                    (name, std::fs::read_to_string(&p).unwrap())
+                })
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// A shard killed for real (SIGKILL while trials run, one worker thread)
+/// and rerun into the same directory: the rerun reports the trials done
+/// before on stderr, runs only the others (the records written before the
+/// kill are unchanged, their recorded times kept), and its `trials.csv`
+/// equals, but for `time_s`, the campaign run whole in one process.
+///
+/// Verifies: VTSM-CLI-046, VTSM-CLI-048
+#[test]
+fn a_killed_shard_rerun_completes_with_the_same_rows() {
+    let root = dir("eval_shards", "kill");
+    let (part, whole) = (root.join("part"), root.join("whole"));
+    let args = |out: &Path| -> Vec<String> {
+        [
+            "eval",
+            "--suite",
+            "paper",
+            "--profile",
+            "test",
+            "--trials",
+            "8",
+            "--terrains",
+            "flagstone",
+            "--hours",
+            "0",
+            "--shard",
+            "0/1",
+            "--out",
+            s(out),
+        ]
+        .map(str::to_string)
+        .to_vec()
+    };
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_vtsm"))
+        .args(args(&part))
+        .env("RAYON_NUM_THREADS", "1")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let journal = part.join("part.d");
+    let t0 = std::time::Instant::now();
+    while records(&journal).len() < 2 {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the shard ended before the kill"
+        );
+        assert!(t0.elapsed().as_secs() < 600, "no trial recorded in 600 s");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let before = records(&journal);
+    assert!(
+        (2..8).contains(&before.len()),
+        "{} of 8 trials recorded at the kill",
+        before.len()
+    );
+    assert!(
+        !part.join("trials.csv").exists(),
+        "outputs written before the kill"
+    );
+
+    let o = vtsm(&args(&part).iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(o.status.code(), Some(0), "{o:?}");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains(&format!("8/8 trials ({} done before)", before.len())),
+        "{err}"
+    );
+    let after = records(&journal);
+    assert_eq!(after.len(), 8);
+    for (name, text) in &before {
+        assert_eq!(&after[name], text, "record {name} was run again");
+    }
+    let mut single = args(&whole);
+    single.retain(|a| a != "--shard" && a != "0/1");
+    single.push("--quiet".into());
+    let o = vtsm(&single.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(o.status.code(), Some(0), "{o:?}");
+    assert_eq!(
+        without_time(&part.join("trials.csv")),
+        without_time(&whole.join("trials.csv"))
+    );
+}

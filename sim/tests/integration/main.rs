@@ -8,6 +8,7 @@
 
 mod bench_cli;
 mod common;
+mod eval_dataset;
 mod eval_shards;
 mod io_calib_opencv;
 mod io_calib_yaml;

@@ -223,6 +223,16 @@ pub struct Args {
     /// `--out`, a killed shard runs only the trials not recorded.
     #[arg(long, value_name = "K/N", value_parser = super::shard::Shard::parse)]
     pub shard: Option<super::shard::Shard>,
+    /// The data set of `--suite dataset`: a directory in the layout of
+    /// `fsw-docs/interfaces/files.md` (a map, and one directory per stereo
+    /// pair under `views/`).
+    #[arg(long, value_name = "DIR")]
+    pub data: Option<PathBuf>,
+    /// `--suite dataset`: also write a result panel per pair (as `vtsm
+    /// demo`'s `panel.png`, from the pair's first trial) into `--out`'s
+    /// `panels/`.
+    #[arg(long)]
+    pub panels: bool,
 }
 
 impl Args {
@@ -251,6 +261,8 @@ impl Args {
             wind: 0.0,
             replot: None,
             shard: None,
+            data: None,
+            panels: false,
             command: None,
         }
     }
@@ -317,5 +329,39 @@ pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
     }
     cfg.wind = args.wind;
     cfg.shard = args.shard;
+    dataset_args(args, &mut cfg)?;
     Ok(cfg)
+}
+
+/// `--data` and `--panels`, which belong to `--suite dataset` alone, and the
+/// simulator's settings, which do not apply to it.
+fn dataset_args(args: &Args, cfg: &mut SuiteConfig) -> Result<()> {
+    if cfg.suite != Suite::Dataset {
+        if args.data.is_some() || args.panels {
+            return Err(Error::msg("--data and --panels go with --suite dataset"));
+        }
+        return Ok(());
+    }
+    let data = args
+        .data
+        .clone()
+        .ok_or_else(|| Error::msg("--suite dataset needs --data DIR"))?;
+    let simulated = [
+        ("--terrains", args.terrains.is_some()),
+        ("--hours", args.hours.is_some()),
+        ("--steps", args.steps.is_some()),
+        ("--origin", args.origin.is_some()),
+        ("--physical", args.physical),
+        ("--light-model", args.light_model != LightModelArg::Full),
+        ("--mask", args.mask != MaskArg::Paper),
+        ("--wind", args.wind != 0.0),
+    ];
+    if let Some((flag, _)) = simulated.iter().find(|f| f.1) {
+        return Err(Error::msg(format!(
+            "{flag} sets up the simulated depot; a data set brings its own pairs"
+        )));
+    }
+    // `--panels` is set by the command once `--out` is resolved.
+    cfg.data = Some(data);
+    Ok(())
 }

@@ -40,6 +40,8 @@ pub enum Suite {
     Stepsize,
     /// Inputs that do not show the map from the prior.
     Wrongplace,
+    /// The stereo pairs of a data set on disk (`--data DIR`), real or not.
+    Dataset,
 }
 
 impl Suite {
@@ -94,6 +96,11 @@ pub struct SuiteConfig {
     pub wind: f32,
     /// Run only this shard of the campaign's trials (`--shard K/N`).
     pub shard: Option<super::shard::Shard>,
+    /// The data set directory (`dataset` only, `--data`).
+    pub data: Option<std::path::PathBuf>,
+    /// Where to write a result panel per pair (`dataset` only, `--panels`):
+    /// the run's `panels/` directory.
+    pub panels: Option<std::path::PathBuf>,
 }
 
 impl SuiteConfig {
@@ -119,6 +126,8 @@ impl SuiteConfig {
             mask_all: false,
             wind: 0.0,
             shard: None,
+            data: None,
+            panels: None,
         }
     }
 }

@@ -7,7 +7,11 @@ use crate::terrain::TerrainKind;
 
 /// Every figure of a run of `cfg`'s suite: the error CDF, then the suite's.
 pub fn all(cfg: &SuiteConfig, outcomes: &[TrialOutcome]) -> Vec<Figure> {
-    let styled = styles(&cfg.terrains, outcomes);
+    let styled = if cfg.suite == super::config::Suite::Dataset {
+        pair_styles(outcomes)
+    } else {
+        styles(&cfg.terrains, outcomes)
+    };
     let mut figs = vec![error_cdf(cfg, &styled, outcomes)];
     figs.extend(cfg.suite.def().figures(cfg, &styled, outcomes));
     figs
@@ -48,6 +52,35 @@ pub fn styles(terrains: &[TerrainKind], outcomes: &[TrialOutcome]) -> Vec<(Strin
         })
         .collect()
 }
+
+/// The style of each group of a data set's run, in order of first
+/// appearance: colour (then line style, past the palette) per pair; the
+/// baseline's group of a pair in the pair's style, thin or hollow.
+pub fn pair_styles(outcomes: &[TrialOutcome]) -> Vec<(String, Style)> {
+    let mut pairs: Vec<&str> = Vec::new();
+    let mut out: Vec<(String, Style)> = Vec::new();
+    for o in outcomes {
+        if out.iter().any(|(g, _)| *g == o.group) {
+            continue;
+        }
+        let pair = o.group.split(" · ").next().unwrap_or(&o.group);
+        let i = pairs.iter().position(|p| *p == pair).unwrap_or_else(|| {
+            pairs.push(pair);
+            pairs.len() - 1
+        });
+        let style = Style::new(i % PALETTE_LEN, i / PALETTE_LEN);
+        let style = if o.method == "vtsm" {
+            style
+        } else {
+            style.as_baseline()
+        };
+        out.push((o.group.clone(), style));
+    }
+    out
+}
+
+/// Colours of the figures' palette.
+const PALETTE_LEN: usize = super::plot::PALETTE_LEN;
 
 /// The distribution of the final translation error of every group (its
 /// successful trials), one step CDF per group.

@@ -80,6 +80,7 @@
 pub mod args;
 pub mod config;
 pub mod covariance;
+pub mod dataset;
 pub mod depot;
 pub mod figures;
 pub mod frames;
@@ -147,8 +148,12 @@ pub fn run(args: &Args) -> Result<u8> {
         }
         return Ok(0);
     }
-    let cfg = config_from_args(args)?;
+    let mut cfg = config_from_args(args)?;
     let out = args.out.clone().unwrap_or_else(|| default_out(cfg.suite));
+    if args.panels {
+        cfg.panels = Some(out.join("panels"));
+    }
+    let created = !out.exists();
     std::fs::create_dir_all(&out)
         .map_err(|e| Error::file(&out, format!("cannot create directory: {e}")))?;
     for name in ["table.md", "trials.csv", "summary.json", shard::PART_FILE] {
@@ -156,11 +161,25 @@ pub fn run(args: &Args) -> Result<u8> {
     }
     let command = std::env::args().collect::<Vec<_>>().join(" ");
     let journal = cfg.shard.map(|_| shard::Journal::new(&out));
-    let run = run::run_suite_journaled(&cfg, &command, journal.as_ref())?;
+    let run = match run::run_suite_journaled(&cfg, &command, journal.as_ref()) {
+        Ok(r) => r,
+        Err(e) => {
+            // A run refused before any trial leaves no empty directory behind.
+            if created {
+                let _ = std::fs::remove_dir(&out);
+            }
+            return Err(e);
+        }
+    };
     print!("{}", eval::markdown_table(&run.meta, &run.groups));
     print!("{}", run.notes);
     println!(
-        "setup (scenes, lightings, maps) {:.1} s; {} trials in {:.1} s wall on {} threads",
+        "setup ({}) {:.1} s; {} trials in {:.1} s wall on {} threads",
+        if cfg.suite == Suite::Dataset {
+            "data set checks, map"
+        } else {
+            "scenes, lightings, maps"
+        },
         run.setup_s,
         run.outcomes.len(),
         run.trials_s,

@@ -26,7 +26,10 @@ const PLOT_W: u32 = 680;
 
 /// Okabe–Ito colours (told apart with the common colour-vision
 /// deficiencies), one per terrain.
-const PALETTE: [RGBColor; 6] = [
+/// Number of colours of the palette (groups past it change line style).
+pub const PALETTE_LEN: usize = 6;
+
+const PALETTE: [RGBColor; PALETTE_LEN] = [
     RGBColor(0, 114, 178),
     RGBColor(230, 159, 0),
     RGBColor(0, 158, 115),

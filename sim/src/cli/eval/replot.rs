@@ -56,10 +56,11 @@ pub(crate) fn recorded_config(path: &Path) -> Result<SuiteConfig> {
         .as_str()
         .and_then(Suite::parse)
         .ok_or_else(|| bad("suite"))?;
-    let profile = meta["profile"]
-        .as_str()
-        .and_then(Profile::parse)
-        .ok_or_else(|| bad("profile"))?;
+    // A data set's images are its own: its runs record no simulated profile.
+    let profile = match meta["profile"].as_str() {
+        Some(super::dataset::DATA_PROFILE) if suite == Suite::Dataset => Profile::Test,
+        p => p.and_then(Profile::parse).ok_or_else(|| bad("profile"))?,
+    };
     let trials = meta["trials"].as_u64().ok_or_else(|| bad("trials"))? as usize;
     let seed = meta["seed"].as_u64().ok_or_else(|| bad("seed"))?;
     let mut cfg = SuiteConfig::new(suite, profile, trials, seed);

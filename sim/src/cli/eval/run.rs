@@ -61,6 +61,9 @@ pub fn run_suite_journaled(
     command: &str,
     journal: Option<&super::shard::Journal>,
 ) -> Result<SuiteRun> {
+    if cfg.suite == super::config::Suite::Dataset {
+        return super::dataset::run(cfg, command, journal);
+    }
     let def = cfg.suite.def();
     if cfg.terrains.is_empty() || cfg.hours.is_empty() || cfg.trials == 0 {
         return Err(Error::msg("a suite needs terrains, hours and trials"));
@@ -73,6 +76,27 @@ pub fn run_suite_journaled(
     let setup_s = t_setup.elapsed().as_secs_f64();
     let t_trials = Instant::now();
     let total = groups.len() * cfg.trials;
+    let indices = campaign_indices(cfg, total)?;
+    let meta = run_meta(cfg, def, &depot, command);
+    let outcomes = run_journaled(&indices, &meta, journal, cfg.progress, |todo, finished| {
+        run_trials(cfg, &groups, todo, &depot, &maps, finished)
+    })?;
+    let trials_s = t_trials.elapsed().as_secs_f64();
+    Ok(finish(
+        cfg,
+        meta,
+        outcomes,
+        (indices, total),
+        (setup_s, trials_s),
+    ))
+}
+
+/// The campaign indices of `total` trials that this run holds: all, or
+/// those of its `--shard`.
+///
+/// # Errors
+/// A shard that holds none of them.
+pub(super) fn campaign_indices(cfg: &SuiteConfig, total: usize) -> Result<Vec<usize>> {
     let indices: Vec<usize> = (0..total)
         .filter(|&i| cfg.shard.is_none_or(|s| s.holds(i)))
         .collect();
@@ -82,37 +106,79 @@ pub fn run_suite_journaled(
             cfg.shard.map(|s| s.to_string()).unwrap_or_default()
         )));
     }
-    let meta = run_meta(cfg, def, &depot, command);
-    let outcomes = match journal {
-        None => run_trials(cfg, &groups, &indices, &depot, &maps, |_, _| {}),
-        Some(j) => {
-            let done = j.open(&meta)?;
-            let todo: Vec<usize> = indices
-                .iter()
-                .copied()
-                .filter(|i| !done.contains_key(i))
-                .collect();
-            let fresh = run_trials(cfg, &groups, &todo, &depot, &maps, |i, o| j.record(i, o));
-            let mut fresh = todo.into_iter().zip(fresh);
-            let mut all = Vec::with_capacity(indices.len());
-            for i in &indices {
-                match done.get(i) {
-                    Some(o) => all.push(o.clone()),
-                    None => all.extend(fresh.next().map(|(_, o)| o)),
-                }
-            }
-            all
-        }
+    Ok(indices)
+}
+
+/// The outcomes of the campaign indices `indices`, in that order: those
+/// `journal` already holds read back, the others run by `run` (given the
+/// indices to run and a callback for each finished one), each recorded in
+/// `journal` as it finishes; with `progress`, the trials done of
+/// `indices`, the rate and the time left on stderr
+/// ([`crate::progress::Progress`]).
+///
+/// # Errors
+/// A journal of another campaign.
+pub(super) fn run_journaled<R>(
+    indices: &[usize],
+    meta: &RunMeta,
+    journal: Option<&super::shard::Journal>,
+    progress: bool,
+    run: R,
+) -> Result<Vec<TrialOutcome>>
+where
+    R: FnOnce(&[usize], &(dyn Fn(usize, &TrialOutcome) + Sync)) -> Vec<TrialOutcome>,
+{
+    let done = match journal {
+        Some(j) => j.open(meta)?,
+        None => std::collections::BTreeMap::new(),
     };
-    let trials_s = t_trials.elapsed().as_secs_f64();
+    let todo: Vec<usize> = indices
+        .iter()
+        .copied()
+        .filter(|i| !done.contains_key(i))
+        .collect();
+    let bar = crate::progress::Progress::new(
+        indices.len() as u64,
+        (indices.len() - todo.len()) as u64,
+        "trials",
+        progress,
+    );
+    let fresh = run(&todo, &|i, o| {
+        if let Some(j) = journal {
+            j.record(i, o);
+        }
+        bar.inc();
+    });
+    bar.finish();
+    let mut fresh = todo.into_iter().zip(fresh);
+    let mut all = Vec::with_capacity(indices.len());
+    for i in indices {
+        match done.get(i) {
+            Some(o) => all.push(o.clone()),
+            None => all.extend(fresh.next().map(|(_, o)| o)),
+        }
+    }
+    Ok(all)
+}
+
+/// The finished run of `outcomes` (the campaign indices `indices` of
+/// `total`): the summary, the figures, the suite's notes, the integrity
+/// table and the baseline's side-by-side table.
+pub(super) fn finish(
+    cfg: &SuiteConfig,
+    meta: RunMeta,
+    outcomes: Vec<TrialOutcome>,
+    (indices, total): (Vec<usize>, usize),
+    (setup_s, trials_s): (f64, f64),
+) -> SuiteRun {
     let summary = eval::summarize(&outcomes);
     let plots = figures::all(cfg, &outcomes);
-    let mut notes = def.notes(&outcomes);
+    let mut notes = cfg.suite.def().notes(&outcomes);
     notes.push_str(&integrity_table(&outcomes));
     if let Some(m) = cfg.baseline {
         notes = side_by_side(&summary, m) + &notes;
     }
-    Ok(SuiteRun {
+    SuiteRun {
         meta,
         outcomes,
         indices,
@@ -122,7 +188,7 @@ pub fn run_suite_journaled(
         plots,
         setup_s,
         trials_s,
-    })
+    }
 }
 
 /// The trials of the campaign indices `indices` (index `group × trials + k`
@@ -135,7 +201,7 @@ fn run_trials(
     indices: &[usize],
     depot: &Depot,
     maps: &[MapEntry],
-    finished: impl Fn(usize, &TrialOutcome) + Sync,
+    finished: &(dyn Fn(usize, &TrialOutcome) + Sync),
 ) -> Vec<TrialOutcome> {
     let specs: Vec<Spec> = indices
         .iter()
@@ -150,15 +216,11 @@ fn run_trials(
         depot,
         maps,
     };
-    eval::run_parallel(
-        &specs,
-        |s| {
-            let o = run_trial(&shared, s);
-            finished(s.group * cfg.trials + s.k, &o);
-            o
-        },
-        cfg.progress,
-    )
+    eval::run_parallel(&specs, |s| {
+        let o = run_trial(&shared, s);
+        finished(s.group * cfg.trials + s.k, &o);
+        o
+    })
 }
 
 /// The reproducibility record of a run.

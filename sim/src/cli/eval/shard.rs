@@ -21,8 +21,7 @@
 
 use super::config::{Method, SuiteConfig};
 use super::run::SuiteRun;
-use super::tables::{integrity_table, side_by_side};
-use super::{figures, replot, write_run};
+use super::{replot, write_run};
 use crate::error::{Error, Result};
 use crate::eval::columns::{
     CaptureColumns, CovarianceColumns, EngineColumns, FeatureColumns, GroupColumns, TrialColumns,
@@ -183,6 +182,12 @@ fn columns_from(entries: &[(String, u64)]) -> std::result::Result<TrialColumns, 
         Some(GroupColumns::WrongPlace {
             hours: f32_("hours")?,
             other_depot: flag("wrong_place")?,
+        })
+    } else if has("pair") {
+        Some(GroupColumns::Dataset {
+            pair: v("pair")? as u32,
+            t0_m: f32_("t0_m")?,
+            r0_deg: f32_("r0_deg")?,
         })
     } else if has("step") {
         Some(GroupColumns::Step {
@@ -557,27 +562,18 @@ pub fn merge(out: &Path, dirs: &[PathBuf], force: bool, command: &str) -> Result
     {
         return Err(Error::file(out, "exists and is not empty; pass --force"));
     }
-    let def = cfg.suite.def();
-    let groups = eval::summarize(&outcomes);
-    let mut notes = def.notes(&outcomes);
-    notes.push_str(&integrity_table(&outcomes));
-    if let Some(m) = cfg.baseline {
-        notes = side_by_side(&groups, m) + &notes;
-    }
-    let run = SuiteRun {
-        meta: RunMeta {
-            command: command.to_string(),
-            ..first.meta.clone()
-        },
-        plots: figures::all(&cfg, &outcomes),
-        indices: (0..outcomes.len()).collect(),
-        total: outcomes.len(),
-        outcomes,
-        groups,
-        notes,
-        setup_s: 0.0,
-        trials_s: 0.0,
+    let meta = RunMeta {
+        command: command.to_string(),
+        ..first.meta.clone()
     };
+    let total = outcomes.len();
+    let run = super::run::finish(
+        &cfg,
+        meta,
+        outcomes,
+        ((0..total).collect(), total),
+        (0.0, 0.0),
+    );
     std::fs::create_dir_all(out)
         .map_err(|e| Error::file(out, format!("cannot create directory: {e}")))?;
     print!("{}", eval::markdown_table(&run.meta, &run.groups));

@@ -42,9 +42,11 @@ pub struct Shared<'a> {
 }
 
 /// Where the errors are measured: the truth, in the offset (user) frame
-/// under `--origin`, estimates coming back from the map's local frame.
-struct ErrorFrame {
-    truth: Pose,
+/// under `--origin` or for a data set's pair, estimates coming back from the
+/// map's local frame; no truth (a data set's pair without `truth.json`):
+/// every error is NaN and no covariance is checked.
+pub(super) struct ErrorFrame {
+    truth: Option<Pose>,
     truth_user: Option<crate::frame::UserPose>,
     map_origin: [f64; 3],
 }
@@ -54,36 +56,62 @@ impl ErrorFrame {
         let truth_user =
             origin.map(|o| crate::frame::offset(&crate::frame::to_user(&truth, [0.0; 3]), o));
         Self {
-            truth,
+            truth: Some(truth),
             truth_user,
             map_origin,
         }
     }
 
-    /// Translation (m) and rotation (rad) error of `est`.
-    fn error(&self, est: &Pose) -> (f64, f64) {
-        match &self.truth_user {
-            None => {
-                let (t, r) = est.error_to(&self.truth);
+    /// The truth `truth` in the user frame of a map whose origin is
+    /// `map_origin`, and `local` the same pose in the map's local frame (for
+    /// the covariance check); without a truth, no errors.
+    pub(super) fn user(
+        truth: Option<(crate::frame::UserPose, Pose)>,
+        map_origin: [f64; 3],
+    ) -> Self {
+        Self {
+            truth: truth.as_ref().map(|t| t.1),
+            truth_user: truth.map(|t| t.0),
+            map_origin,
+        }
+    }
+
+    /// Translation (m) and rotation (rad) error of `est` (NaN without a truth).
+    pub(super) fn error(&self, est: &Pose) -> (f64, f64) {
+        match (&self.truth_user, &self.truth) {
+            (Some(tu), _) => {
+                crate::frame::error_to(&crate::frame::to_user(est, self.map_origin), tu)
+            }
+            (None, Some(t)) => {
+                let (t, r) = est.error_to(t);
                 (f64::from(t), f64::from(r))
             }
-            Some(tu) => crate::frame::error_to(&crate::frame::to_user(est, self.map_origin), tu),
+            (None, None) => (f64::NAN, f64::NAN),
         }
+    }
+
+    /// The covariance check of `est` against the truth, if there is one.
+    fn covariance(
+        &self,
+        est: &Pose,
+        c: &vtsm_core::pose::Covariance,
+    ) -> Option<crate::eval::columns::CovarianceColumns> {
+        self.truth.as_ref().map(|t| covariance_check(est, t, c))
     }
 }
 
 /// The images, rig and prior the relocalizer sees, and the rectifier that
 /// turns its estimate back to the physical camera (physical frames only).
-struct Inputs {
-    rig: StereoRig,
-    left: Vec<u8>,
-    right: Vec<u8>,
-    prior: Pose,
-    rectifier: Option<Rectifier>,
+pub(super) struct Inputs {
+    pub(super) rig: StereoRig,
+    pub(super) left: Vec<u8>,
+    pub(super) right: Vec<u8>,
+    pub(super) prior: Pose,
+    pub(super) rectifier: Option<Rectifier>,
 }
 
 impl Inputs {
-    fn as_physical(&self, est: &Pose) -> Pose {
+    pub(super) fn as_physical(&self, est: &Pose) -> Pose {
         self.rectifier.as_ref().map_or(*est, |r| r.to_physical(est))
     }
 }
@@ -153,7 +181,9 @@ pub fn run_trial(sh: &Shared<'_>, s: &Spec) -> TrialOutcome {
     let req = request(cfg, g, view, &inputs, seed);
     match g.method {
         Method::Features => run_features(&mut o, &req, &inputs, &frame),
-        Method::Vtsm => run_vtsm(&mut o, cfg, &req, &inputs, &frame),
+        Method::Vtsm => {
+            run_vtsm(&mut o, cfg, &req, &inputs, &frame);
+        }
     }
     o
 }
@@ -222,7 +252,7 @@ fn inputs(cfg: &SuiteConfig, live: LiveFrames, prior: Pose) -> Result<Inputs, St
 
 /// The relocalization request of a trial of group `g`: the profile's
 /// parameters with the group's seeds K (and small parameters).
-fn request<'a>(
+pub(super) fn request<'a>(
     cfg: &SuiteConfig,
     g: &Group,
     map: MapView<'a>,
@@ -244,7 +274,12 @@ fn request<'a>(
 }
 
 /// The local-feature baseline on the same request.
-fn run_features(o: &mut TrialOutcome, req: &Request<'_>, inputs: &Inputs, frame: &ErrorFrame) {
+pub(super) fn run_features(
+    o: &mut TrialOutcome,
+    req: &Request<'_>,
+    inputs: &Inputs,
+    frame: &ErrorFrame,
+) {
     let fp = crate::features::FeatureParams::for_width(inputs.rig.cam().width());
     match crate::features::relocalize_features(req, &fp) {
         Ok(r) => {
@@ -267,19 +302,21 @@ fn run_features(o: &mut TrialOutcome, req: &Request<'_>, inputs: &Inputs, frame:
     }
 }
 
-/// The paper's method: the core's engine through the runner.
-fn run_vtsm(
+/// The paper's method: the core's engine through the runner; the final
+/// estimate of the core's (rectified) left camera and the template size ℓ,
+/// unless the request was refused.
+pub(super) fn run_vtsm(
     o: &mut TrialOutcome,
     cfg: &SuiteConfig,
     req: &Request<'_>,
     inputs: &Inputs,
     frame: &ErrorFrame,
-) {
+) -> Option<(Pose, u16)> {
     let r = match locate::relocalize(req, RunOptions::default()) {
         Ok(r) => r,
         Err(e) => {
             o.failure = Some(format!("error: {e}"));
-            return;
+            return None;
         }
     };
     let out = &r.outcome;
@@ -299,7 +336,7 @@ fn run_vtsm(
         .quality
         .covariance
         .as_ref()
-        .map(|c| covariance_check(&est, &frame.truth, c));
+        .and_then(|c| frame.covariance(&est, c));
     // Which upset checks ran, only when asked for.
     if cfg.verify.any() {
         let v = crate::cli::relocalize::verified(out, cfg.verify);
@@ -308,6 +345,7 @@ fn run_vtsm(
             recheck_map: v.recheck_map,
         });
     }
+    Some((out.pose, r.template_px))
 }
 
 /// The engine's work counters, so a slow trial can be told apart from a

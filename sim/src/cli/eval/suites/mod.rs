@@ -17,6 +17,7 @@ use rayon::prelude::*;
 use vtsm_core::config::PriorUncertainty;
 
 mod baseline;
+mod dataset;
 mod paper;
 mod stepsize;
 mod uncertainty50;
@@ -106,6 +107,7 @@ impl Suite {
             Self::Uncertainty50 => &uncertainty50::Uncertainty50,
             Self::Stepsize => &stepsize::Stepsize,
             Self::Wrongplace => &wrongplace::Wrongplace,
+            Self::Dataset => &dataset::Dataset,
         }
     }
 }
