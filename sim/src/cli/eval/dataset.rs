@@ -36,7 +36,7 @@
 use super::config::{Method, SuiteConfig};
 use super::group::{with_baseline_groups, Group};
 use super::protocol::trial_seed;
-use super::run::{campaign_indices, finish, run_journaled, SuiteRun};
+use super::run::{run_campaign, SuiteRun};
 use super::trial::{self, ErrorFrame};
 use crate::error::{Error, Result};
 use crate::eval::columns::{GroupColumns, TrialColumns};
@@ -600,9 +600,6 @@ pub fn run(
         .collect::<Result<Vec<_>>>()?;
     let groups = with_baseline_groups(groups(&set, &inputs), cfg.baseline);
     let setup_s = t_setup.elapsed().as_secs_f64();
-    let t_trials = Instant::now();
-    let total = groups.len() * cfg.trials;
-    let indices = campaign_indices(cfg, total)?;
     let meta = run_meta(cfg, &set, &inputs, fingerprint, command);
     let sh = Shared {
         cfg,
@@ -611,19 +608,7 @@ pub fn run(
         groups: &groups,
         map,
     };
-    let outcomes = run_journaled(&indices, &meta, journal, cfg.progress, |todo, finished| {
-        eval::run_parallel(todo, |&i| {
-            let o = run_trial(&sh, i / cfg.trials, i % cfg.trials);
-            finished(i, &o);
-            o
-        })
-    })?;
-    let trials_s = t_trials.elapsed().as_secs_f64();
-    Ok(finish(
-        cfg,
-        meta,
-        outcomes,
-        (indices, total),
-        (setup_s, trials_s),
-    ))
+    run_campaign(cfg, meta, groups.len(), journal, setup_s, |g, k| {
+        run_trial(&sh, g, k)
+    })
 }

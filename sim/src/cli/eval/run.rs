@@ -4,8 +4,7 @@
 use super::config::{Method, SuiteConfig};
 use super::depot::Depot;
 use super::figures;
-use super::group::{with_baseline_groups, Group};
-use super::maps::MapEntry;
+use super::group::with_baseline_groups;
 use super::plot::Figure;
 use super::protocol::{MAP_VIEW_RANGE_M, PRIOR_MAX_DEG, TILE_M};
 use super::suites::SuiteDef;
@@ -74,12 +73,44 @@ pub fn run_suite_journaled(
     let maps = def.maps(cfg, &depot);
     let groups = with_baseline_groups(def.groups(cfg, &depot, &maps), cfg.baseline);
     let setup_s = t_setup.elapsed().as_secs_f64();
-    let t_trials = Instant::now();
-    let total = groups.len() * cfg.trials;
-    let indices = campaign_indices(cfg, total)?;
     let meta = run_meta(cfg, def, &depot, command);
+    let shared = Shared {
+        cfg,
+        groups: &groups,
+        depot: &depot,
+        maps: &maps,
+    };
+    run_campaign(cfg, meta, groups.len(), journal, setup_s, |group, k| {
+        run_trial(&shared, &Spec { group, k })
+    })
+}
+
+/// Run the campaign of `groups` groups of `cfg.trials` trials described by
+/// `meta`: the indices of `cfg.shard` ([`campaign_indices`]), those in
+/// `journal` read back, the others run in parallel by `trial(group, k)`
+/// (in campaign order whatever the scheduling), then [`finish`]ed.
+/// A trial's capture and seed depend only on `k`, the trial count and the
+/// seed, never on which other trials run.
+///
+/// # Errors
+/// A shard that holds no trial, or a journal of another campaign.
+pub(super) fn run_campaign(
+    cfg: &SuiteConfig,
+    meta: RunMeta,
+    groups: usize,
+    journal: Option<&super::shard::Journal>,
+    setup_s: f64,
+    trial: impl Fn(usize, usize) -> TrialOutcome + Sync,
+) -> Result<SuiteRun> {
+    let t_trials = Instant::now();
+    let total = groups * cfg.trials;
+    let indices = campaign_indices(cfg, total)?;
     let outcomes = run_journaled(&indices, &meta, journal, cfg.progress, |todo, finished| {
-        run_trials(cfg, &groups, todo, &depot, &maps, finished)
+        eval::run_parallel(todo, |&i| {
+            let o = trial(i / cfg.trials, i % cfg.trials);
+            finished(i, &o);
+            o
+        })
     })?;
     let trials_s = t_trials.elapsed().as_secs_f64();
     Ok(finish(
@@ -96,7 +127,7 @@ pub fn run_suite_journaled(
 ///
 /// # Errors
 /// A shard that holds none of them.
-pub(super) fn campaign_indices(cfg: &SuiteConfig, total: usize) -> Result<Vec<usize>> {
+fn campaign_indices(cfg: &SuiteConfig, total: usize) -> Result<Vec<usize>> {
     let indices: Vec<usize> = (0..total)
         .filter(|&i| cfg.shard.is_none_or(|s| s.holds(i)))
         .collect();
@@ -118,7 +149,7 @@ pub(super) fn campaign_indices(cfg: &SuiteConfig, total: usize) -> Result<Vec<us
 ///
 /// # Errors
 /// A journal of another campaign.
-pub(super) fn run_journaled<R>(
+fn run_journaled<R>(
     indices: &[usize],
     meta: &RunMeta,
     journal: Option<&super::shard::Journal>,
@@ -189,38 +220,6 @@ pub(super) fn finish(
         setup_s,
         trials_s,
     }
-}
-
-/// The trials of the campaign indices `indices` (index `group × trials + k`
-/// is trial `k` of group `group`), in parallel, in that order. A trial's
-/// capture and seed depend only on `k`, the trial count and the seed, never
-/// on which other trials run.
-fn run_trials(
-    cfg: &SuiteConfig,
-    groups: &[Group],
-    indices: &[usize],
-    depot: &Depot,
-    maps: &[MapEntry],
-    finished: &(dyn Fn(usize, &TrialOutcome) + Sync),
-) -> Vec<TrialOutcome> {
-    let specs: Vec<Spec> = indices
-        .iter()
-        .map(|&i| Spec {
-            group: i / cfg.trials,
-            k: i % cfg.trials,
-        })
-        .collect();
-    let shared = Shared {
-        cfg,
-        groups,
-        depot,
-        maps,
-    };
-    eval::run_parallel(&specs, |s| {
-        let o = run_trial(&shared, s);
-        finished(s.group * cfg.trials + s.k, &o);
-        o
-    })
 }
 
 /// The reproducibility record of a run.
