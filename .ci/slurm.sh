@@ -15,15 +15,18 @@
 # Environment: VTSM (default target/debug/vtsm, built with the test profile
 # as the flight-path step builds it), VTSM_SLURM_TIMEOUT (seconds for the
 # jobs, default 600), VTSM_SLURM_KEEP=1 keeps the temporary directory.
+# The campaign (default: paper suite, test profile, flagstone and cfa6 at
+# Δ0 h and Δ3 h, 3 trials per group = 12 trials, 3 shards, seed 5) can be
+# changed for a larger measurement: VTSM_SLURM_TRIALS, VTSM_SLURM_SHARDS,
+# VTSM_SLURM_SEED, VTSM_SLURM_EXTRA (further `vtsm eval` arguments).
 set -u
 cd "$(dirname "$0")/.."
 root=$PWD
 timeout_s=${VTSM_SLURM_TIMEOUT:-600}
-# The campaign: 2 terrains x 2 lightings = 4 groups x 3 trials = 12 trials, 3 shards.
-trials=3
-extra="--terrains flagstone,cfa6 --hours 0,3"
-shards=3
-seed=5
+trials=${VTSM_SLURM_TRIALS:-3}
+extra=${VTSM_SLURM_EXTRA---terrains flagstone,cfa6 --hours 0,3}
+shards=${VTSM_SLURM_SHARDS:-3}
+seed=${VTSM_SLURM_SEED:-5}
 
 tmp=
 pids=()
@@ -196,6 +199,40 @@ without_time() {
         { s = ""; sep = ""; for (i = 1; i <= NF; i++) if (i != t) { s = s sep $i; sep = "," } print s }' "$1"
 }
 
+# Seconds since the epoch time $1, to 0.1 s.
+elapsed() {
+    awk -v a="$1" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }'
+}
+
+# Per array task: start and end (from the job output, seconds after
+# submission), run time, peak memory. Then the scheduling cost: the delay
+# from submission to the first tasks' start, and from a task's end to the
+# start of the task that takes its CPU (tasks in order of start, CPUs freed
+# in order of end); and the array's wall time against the tasks' run time
+# spread over the node's CPUs.
+timeline() {
+    local k f start end rss cpus
+    cpus=$(sinfo -h -N -o '%c' | head -n 1)
+    for ((k = 0; k < shards; k++)); do
+        f=$(ls "$tmp"/parts/log/eval-*_"$k".out 2>/dev/null | head -n 1)
+        [ -n "$f" ] || continue
+        start=$(sed -n 's/^vtsm-eval: shard .* start //p' "$f")
+        end=$(sed -n 's/^vtsm-eval: shard .* end //p' "$f")
+        rss=$(sed -n 's/.*Maximum resident set size (kbytes): //p' "$tmp/parts/log/time-$k.txt" 2>/dev/null)
+        echo "$k $start $end ${rss:-0}"
+    done | awk -v s="$submitted" -v cpus="$cpus" '
+        function sort(a, n,   i, j, t) { for (i = 2; i <= n; i++) for (j = i; j > 1 && a[j - 1] > a[j]; j--) { t = a[j]; a[j] = a[j - 1]; a[j - 1] = t } }
+        { n++; st[n] = $2 - s; en[n] = $3 - s; run += en[n] - st[n]; if (en[n] > last) last = en[n]
+          if ($4 > rss) rss = $4
+          printf "slurm: task %s: start %.1f s, end %.1f s, %.1f s, max RSS %d KB\n", $1, st[n], en[n], en[n] - st[n], $4 }
+        END {
+            if (!n) exit
+            sort(st, n); sort(en, n)
+            for (i = 1; i <= n; i++) { g = (i <= cpus) ? st[i] : st[i] - en[i - cpus]; gap += g; if (g > gmax) gmax = g }
+            printf "slurm: %d tasks on %d CPUs: delay to start %.2f s per task (mean; max %.2f s) after submission or a CPU freed; array wall %.1f s, run time %.1f s / %d CPUs = %.1f s; max RSS %d KB\n",
+                n, cpus, gap / n, gmax, last, run, cpus, run / cpus, rss }'
+}
+
 job_state() {
     scontrol -o show job "$1" 2>/dev/null | tr ' ' '\n' | sed -n 's/^JobState=//p' | sort | uniq -c | xargs
 }
@@ -217,14 +254,16 @@ write_conf
 start_daemons
 say "node $(sinfo -h -N -o '%N %c CPUs %t')"
 
-# The same campaign in one process.
-t0=$SECONDS
+# The same campaign in one process (all CPUs), with its peak memory.
+t0=$(date +%s.%N)
 # shellcheck disable=SC2086 # extra is a word list
-"$VTSM" eval --suite paper --profile test --trials $trials --seed $seed $extra --quiet \
+/usr/bin/time -f 'max RSS %M KB' -o "$tmp/log/single-time.log" \
+    "$VTSM" eval --suite paper --profile test --trials "$trials" --seed "$seed" $extra --quiet \
     --out "$tmp/single" >"$tmp/log/single.log" 2>&1 || fail "single-process run failed: $(tail -n 5 "$tmp/log/single.log")"
-say "single process: $((SECONDS - t0)) s"
+say "single process: $(elapsed "$t0") s wall, $(cat "$tmp/log/single-time.log"); $(grep '^setup' "$tmp/log/single.log")"
 
 t0=$SECONDS
+submitted=$(date +%s.%N)
 ids=$(VTSM=$VTSM VTSM_PARTS=$tmp/parts VTSM_SHARDS=$shards VTSM_TRIALS=$trials VTSM_SEED=$seed \
     VTSM_EXTRA=$extra VTSM_OUT=$tmp/merged fsw-docs/eval/cluster/submit.sh 2>&1) \
     || fail "submit.sh failed: $ids"
@@ -236,10 +275,11 @@ while [ -n "$(squeue -h -j "$array,$merge" 2>/dev/null)" ]; do
     [ $((SECONDS - t0)) -lt "$timeout_s" ] || fail "jobs not finished after $timeout_s s"
     sleep 1
 done
-say "array and merge: $((SECONDS - t0)) s"
+say "array and merge: $(elapsed "$submitted") s wall from submission"
 a=$(job_state "$array"); m=$(job_state "$merge")
 [ "$a" = "$shards COMPLETED" ] || fail "array tasks: $a (want $shards COMPLETED)"
 [ "$m" = "1 COMPLETED" ] || fail "merge job: $m"
+timeline
 [ -f "$tmp/merged/trials.csv" ] || fail "no merged trials.csv"
 if ! diff <(without_time "$tmp/single/trials.csv") <(without_time "$tmp/merged/trials.csv") >"$tmp/log/diff.log"; then
     head -n 20 "$tmp/log/diff.log"
