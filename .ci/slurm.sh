@@ -20,7 +20,7 @@
 # changed for a larger measurement: VTSM_SLURM_TRIALS, VTSM_SLURM_SHARDS,
 # VTSM_SLURM_SEED, VTSM_SLURM_EXTRA (further `vtsm eval` arguments).
 set -u
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/.." || exit 1
 root=$PWD
 timeout_s=${VTSM_SLURM_TIMEOUT:-600}
 trials=${VTSM_SLURM_TRIALS:-3}
@@ -214,7 +214,7 @@ timeline() {
     local k f start end rss cpus
     cpus=$(sinfo -h -N -o '%c' | head -n 1)
     for ((k = 0; k < shards; k++)); do
-        f=$(ls "$tmp"/parts/log/eval-*_"$k".out 2>/dev/null | head -n 1)
+        f=$(find "$tmp/parts/log" -name "eval-${array}_$k.out")
         [ -n "$f" ] || continue
         start=$(sed -n 's/^vtsm-eval: shard .* start //p' "$f")
         end=$(sed -n 's/^vtsm-eval: shard .* end //p' "$f")
@@ -273,7 +273,7 @@ submit_and_wait() {
         || fail "submit.sh failed: $ids"
     array=$(sed -n 's/^array //p' <<<"$ids")
     merge=$(sed -n 's/^merge //p' <<<"$ids")
-    [ -n "$array" ] && [ -n "$merge" ] || fail "submit.sh printed no job ids: $ids"
+    if [ -z "$array" ] || [ -z "$merge" ]; then fail "submit.sh printed no job ids: $ids"; fi
     say "array job $array ($shards tasks), merge job $merge"
     while [ -n "$(squeue -h -j "$array,$merge" 2>/dev/null)" ]; do
         [ $((SECONDS - t0)) -lt "$timeout_s" ] || fail "jobs not finished after $timeout_s s"
@@ -313,3 +313,17 @@ for ((k = 0; k < shards; k++)); do
         || fail "task $k of the rerun ran a complete part again"
 done
 say "rerun (array job $array after $first_array): complete parts kept, part 1 resumed from $want of ${#recs[@]} recorded trials"
+
+# A resubmission of some tasks only, without VTSM_SHARDS: N cannot be taken
+# from the array (its task count is 1), so the task must refuse to run.
+t0=$SECONDS
+one=$(env -u VTSM_SHARDS VTSM="$VTSM" VTSM_PARTS="$tmp/parts" sbatch --parsable --array=1 \
+    --output="$tmp/parts/log/eval-%A_%a.out" fsw-docs/eval/cluster/vtsm-eval.sbatch) || fail "sbatch --array=1 failed"
+one=${one%%;*}
+while [ -n "$(squeue -h -j "$one" 2>/dev/null)" ]; do
+    [ $((SECONDS - t0)) -lt 60 ] || fail "job $one not finished after 60 s"
+    sleep 1
+done
+[ "$(job_state "$one")" = "1 FAILED" ] || fail "array task 1 alone ran without VTSM_SHARDS: $(job_state "$one")"
+grep -q 'set VTSM_SHARDS=N' "$tmp/parts/log/eval-${one}_1.out" || fail "job $one: no message naming VTSM_SHARDS"
+say "an array of task 1 alone without VTSM_SHARDS is refused: $(grep -h 'vtsm-eval.sbatch:' "$tmp/parts/log/eval-${one}_1.out")"
