@@ -3,7 +3,11 @@
 # stopped after it: the recipe fsw-docs/eval/cluster (vtsm-eval.sbatch as a
 # 3-task array, merge.sbatch after it, both submitted by submit.sh) runs a
 # test-profile campaign, and the merged trials.csv must equal a
-# single-process run's in every column but time_s.
+# single-process run's in every column but time_s. Then part 1 is made a
+# killed task's (part.json and half of its journal removed) and the same
+# submission must keep the other parts, resume part 1 and merge the same
+# trials again; and task 1 submitted alone without VTSM_SHARDS must be
+# refused. A failure prints the daemons' logs and the jobs' outputs.
 #
 # Installs Debian's munge, slurmctld, slurmd and slurm-client when missing.
 # Everything else lives in a temporary directory: slurm.conf, the munge key
@@ -298,6 +302,7 @@ timeline
 # part.json and half of its journal records (a task killed after writing its
 # tables, before its part.json); submitting again with the same settings
 # leaves the complete parts alone and runs only part 1's missing trials.
+[ "$shards" -ge 2 ] || { say "one shard: no rerun check"; exit 0; }
 p=$tmp/parts/part-1
 mapfile -t recs < <(find "$p/part.d" -name '[0-9]*.json' | sort)
 [ ${#recs[@]} -ge 2 ] || fail "part 1 journal holds ${#recs[@]} trials"
