@@ -117,7 +117,7 @@
 //! let ws = Workspace::new(TEST_WORKSPACE, &mut bytes, &mut words, &mut runs)?;
 //!
 //! let job = Job { rig, params: testkit::test_params(), seed: 7,
-//!                 limits: DriveLimits::UNLIMITED, verify: VerifyChecks::ALL };
+//!                 limits: DriveLimits::UNLIMITED, verify: VerifyChecks::ALL, accuracy: None };
 //! let (outcome, report) = runner.run(&job, &mut [], RamPair::new(&mut l, &mut r), ws, None)?;
 //!
 //! assert!(outcome.failure.is_none(), "{:?}", outcome.failure);

@@ -43,7 +43,7 @@ use vtsm_core::frame::{FrameSource, StereoPair};
 use vtsm_core::geom::StereoRig;
 use vtsm_core::image::GrayView;
 use vtsm_core::map::{CheckedMap, MapView};
-use vtsm_core::reloc::{Engine, Outcome, Setup, Stage, StepResult, Workspace};
+use vtsm_core::reloc::{Accuracy, Engine, Outcome, Setup, Stage, StepResult, Workspace};
 use vtsm_core::FailureCode;
 
 /// Cap on attempts of one device operation.
@@ -785,6 +785,9 @@ pub struct Job {
     pub limits: DriveLimits,
     /// The engine's upset checks.
     pub verify: VerifyChecks,
+    /// The accuracy the caller needs: the rounds end as soon as the stated
+    /// uncertainty meets it (`None`: every pose update of `params.n_iter`).
+    pub accuracy: Option<Accuracy>,
 }
 
 /// What a [`PairSource`] hands the runner after the capture: the engine's
@@ -1003,18 +1006,20 @@ impl<C: FrameStore> PairSource<C> for InStore {
     }
 }
 
-/// Build the engine of `setup` with the upset checks `verify` over `ws`; a
-/// rejected setup is logged at `start`.
+/// Build the engine of `setup` with the upset checks and the accuracy of
+/// `job` over `ws`; a rejected setup is logged at `start`.
 fn build<'a, 'w, F: FrameSource>(
     setup: Setup<'a, F>,
-    verify: VerifyChecks,
+    job: &Job,
     ws: Workspace<'w>,
     log: &mut FailureLog,
     start: u64,
 ) -> Result<Engine<'a, 'w, F>, FailureCode> {
-    setup
-        .with_upset_checks(verify.repeat_solve, verify.recheck_map)
-        .build(ws)
+    let setup = setup.with_upset_checks(job.verify.repeat_solve, job.verify.recheck_map);
+    let options = setup.options().with_accuracy(job.accuracy);
+    options
+        .and_then(|o| setup.with_options(o))
+        .and_then(|s| s.build(ws))
         .inspect_err(|&c| log.record(c, start, 0))
 }
 
@@ -1384,7 +1389,7 @@ where
             &prior.world_from_left,
             job.seed,
         );
-        let engine = build(setup, job.verify, ws, log, start)?;
+        let engine = build(setup, &job, ws, log, start)?;
         if let Some(o) = observe.as_mut() {
             o(StageEvent::Start);
         }

@@ -61,6 +61,9 @@ pub struct Spec {
     pub map: MapSpec,
     /// Upset checks asked for.
     pub verify: VerifyChecks,
+    /// The accuracy the caller needs (`--accuracy`): the rounds end once the
+    /// stated uncertainty meets it.
+    pub accuracy: Option<vtsm_core::reloc::Accuracy>,
     /// Overwrite existing output files.
     pub force: bool,
 }
@@ -200,6 +203,9 @@ pub struct Inputs {
     pub seed: u64,
     /// Upset checks asked for.
     pub verify: VerifyChecks,
+    /// The accuracy the caller needs (`None` from [`load_inputs`]; a job
+    /// sets its [`Spec::accuracy`]).
+    pub accuracy: Option<vtsm_core::reloc::Accuracy>,
     /// The rectifier of a physical pair; the images above are already rectified.
     pub physical: Option<Rectifier>,
     /// The map's origin in the user frame ([`MapView::origin`]).
@@ -246,6 +252,7 @@ pub fn load_inputs(
         uncertainty,
         seed: pair.seed,
         verify,
+        accuracy: None,
         physical,
         origin,
     })
@@ -305,7 +312,8 @@ pub fn run_engine(map: MapView<'_>, inputs: &Inputs) -> Result<Ran> {
     )
     .with_uncertainty(inputs.uncertainty)
     .with_seed(inputs.seed)
-    .with_verify(inputs.verify);
+    .with_verify(inputs.verify)
+    .with_accuracy(inputs.accuracy);
     let report = locate::relocalize(&req, RunOptions::default())?;
     let mut outcome = Outcome {
         origin: inputs.origin,
@@ -416,7 +424,10 @@ pub fn run_pair(
         }
         None => calib,
     };
-    let inputs = load_inputs(&map, calib, pair, spec.verify)?;
+    let inputs = Inputs {
+        accuracy: spec.accuracy,
+        ..load_inputs(&map, calib, pair, spec.verify)?
+    };
     let ran = run_engine(map, &inputs)?;
     let result = outcome_result(&ran.outcome);
     if let Some(out) = &pair.out {

@@ -112,6 +112,9 @@ pub struct Request<'a> {
     pub seed: u64,
     /// The engine's upset checks ([`Job::verify`](vtsm_hal::runner::Job::verify)).
     pub verify: VerifyChecks,
+    /// The accuracy the caller needs ([`Job::accuracy`](vtsm_hal::runner::Job::accuracy)):
+    /// the rounds end once the stated uncertainty meets it.
+    pub accuracy: Option<vtsm_core::reloc::Accuracy>,
 }
 
 impl<'a> Request<'a> {
@@ -136,6 +139,7 @@ impl<'a> Request<'a> {
             params: params_for_width(rig.cam().width()),
             seed: 0,
             verify: VerifyChecks::OFF,
+            accuracy: None,
         }
     }
 
@@ -152,6 +156,12 @@ impl<'a> Request<'a> {
     /// The same request with these upset checks.
     pub fn with_verify(self, verify: VerifyChecks) -> Self {
         Self { verify, ..self }
+    }
+
+    /// The same request ending its rounds once the stated uncertainty meets
+    /// `accuracy` (`None`: every pose update).
+    pub fn with_accuracy(self, accuracy: Option<vtsm_core::reloc::Accuracy>) -> Self {
+        Self { accuracy, ..self }
     }
 
     /// The same request with the prior's stated uncertainty.
@@ -407,6 +417,7 @@ pub fn run(req: &Request<'_>, opts: RunOptions<'_>) -> Result<DeviceRun> {
         seed: req.seed,
         limits,
         verify: req.verify,
+        accuracy: req.accuracy,
     };
     // RAM for the map only when it must be read from storage (bytes, not
     // memory-mapped); a checked view is used where it is.

@@ -67,7 +67,7 @@ pub use workspace::{
 
 pub use crate::pose::{Candidate, Correspondence};
 pub use options::{
-    first_fix_sigma_scale, footprint_scale, Budget, Focus, Gates, Options, Verify,
+    first_fix_sigma_scale, footprint_scale, Accuracy, Budget, Focus, Gates, Options, Verify,
     DEFAULT_FIRST_FIX_ROUNDS, DEFAULT_FOCUS_RADIUS_M, DEFAULT_FOCUS_VOTES, DEFAULT_PRIOR_FACTOR,
     MAX_FIRST_FIX_SIGMA_SCALE,
 };

@@ -45,6 +45,43 @@ pub struct Options {
     pub(super) verify: Verify,
     pub(super) focus: Focus,
     pub(super) final_gradient_only: bool,
+    pub(super) accuracy: Option<Accuracy>,
+}
+
+/// The accuracy a caller needs: the run ends after the first pose update
+/// (of the `n_iter` it may make) whose refined estimate states a 1-σ
+/// uncertainty at or below both bounds in every axis (the largest
+/// translation and rotation standard deviations of its covariance,
+/// [`crate::pose::Covariance`]), instead of always running `n_iter` updates.
+/// The covariance is that of the final refinement, whose 95 % ellipsoid
+/// holds the true error about 95 % of the time on the simulated depots
+/// (`fsw-docs/eval/covariance.md`); the check costs one refinement per pose
+/// update, counted in [`Stats::accuracy_checks`](super::Stats::accuracy_checks).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Accuracy {
+    /// Largest 1-σ translation uncertainty accepted, metres, in (0, 1].
+    pub sigma_t_m: f32,
+    /// Largest 1-σ rotation uncertainty accepted, degrees, in (0, 10].
+    pub sigma_r_deg: f32,
+}
+
+impl Accuracy {
+    /// Whether both bounds are in range.
+    pub fn validate(&self) -> bool {
+        let t = self.sigma_t_m;
+        let r = self.sigma_r_deg;
+        t.is_finite() && t > 0.0 && t <= 1.0 && r.is_finite() && r > 0.0 && r <= 10.0
+    }
+
+    /// Whether the covariance `c` states at most this uncertainty.
+    pub fn met_by(&self, c: &crate::pose::Covariance) -> bool {
+        let st = c.sigma_t_m();
+        let sr = c.sigma_r_rad();
+        let r_max = self.sigma_r_deg.to_radians();
+        st.iter().all(|&v| v.is_finite() && v <= self.sigma_t_m)
+            && sr.iter().all(|&v| v.is_finite() && v <= r_max)
+    }
 }
 
 /// Focus: before the first pose update, from a prior more uncertain than
@@ -258,6 +295,7 @@ impl Options {
             verify: Verify::off(params),
             focus: Focus::for_params(params),
             final_gradient_only: true,
+            accuracy: None,
         }
     }
 
@@ -335,6 +373,25 @@ impl Options {
     /// consensus needs their yield (`fsw-docs/eval/lighting.md`).
     pub const fn final_gradient_only(&self) -> bool {
         self.final_gradient_only
+    }
+
+    /// The accuracy the caller needs, when it stated one: the rounds end as
+    /// soon as it is met ([`Accuracy`]); `None` (the default) runs the
+    /// `n_iter` pose updates.
+    pub const fn accuracy(&self) -> Option<Accuracy> {
+        self.accuracy
+    }
+
+    /// With the accuracy the caller needs (`None`: run every pose update).
+    ///
+    /// # Errors
+    /// [`FailureCode::ConfigParamOutOfRange`] for a bound out of range
+    /// ([`Accuracy::validate`]).
+    pub fn with_accuracy(self, accuracy: Option<Accuracy>) -> Result<Self, FailureCode> {
+        if accuracy.is_some_and(|a| !a.validate()) {
+            return Err(FailureCode::ConfigParamOutOfRange);
+        }
+        Ok(Self { accuracy, ..self })
     }
 
     /// With at least `min_inliers` inliers for an accepted GetTransform.
@@ -462,7 +519,8 @@ impl Options {
             && sigma_scale_ok(self.first_fix_sigma_scale)
             && self.gates.validate()
             && self.verify.validate()
-            && self.focus.validate(params);
+            && self.focus.validate(params)
+            && self.accuracy.is_none_or(|a| a.validate());
         if ok {
             Ok(())
         } else {

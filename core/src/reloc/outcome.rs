@@ -69,6 +69,13 @@ pub struct Stats {
     pub gradient_rounds: u16,
     /// Final refinement counters (all zero when it did not run).
     pub refine: crate::pose::RefineStats,
+    /// Pose updates not made because the stated uncertainty met the
+    /// caller's [`Accuracy`](super::Accuracy) first (`n_iter` minus the
+    /// updates made; 0 without one).
+    pub rounds_saved: u16,
+    /// Refinements run to check the caller's [`Accuracy`](super::Accuracy)
+    /// after a pose update (0 without one).
+    pub accuracy_checks: u16,
     /// Work units spent on [`Verify::repeat_solve`](super::Verify::repeat_solve) (its solve start and
     /// RANSAC chunks); 0 when it did not run.
     pub verify_units: u32,

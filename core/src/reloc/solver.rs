@@ -334,4 +334,86 @@ mod tests {
         );
         assert!(err_on < 0.7 * err_off, "{err_on} vs {err_off}");
     }
+
+    /// Verifies: VTSM-RELOC-042
+    #[test]
+    fn a_stated_accuracy_ends_the_rounds_once_the_covariance_meets_it() {
+        let rig = StereoRig::new(
+            crate::geom::Camera::from_hfov(1368, 912, 77.0).unwrap(),
+            0.4,
+        )
+        .unwrap();
+        let p = Params {
+            n_corr: 60,
+            n_iter: 4,
+            refine_iter: 10,
+            convergence_m: 0.0,
+            ..Params::paper()
+        };
+        for seed in 0..8u64 {
+            let truth = Pose::new(
+                UnitQuaternion::from_euler_angles(0.05 * seed as f32, -0.2, 1.0),
+                Vec3::new(2.0, -1.0, 0.5),
+            );
+            let run = |acc: Option<super::super::Accuracy>| {
+                let solver = RansacSolver::from_params(&p)
+                    .with_refinement(&rig, RefineConfig::from_params(&p));
+                let o = super::super::Options::for_params(&p)
+                    .with_accuracy(acc)
+                    .unwrap();
+                let scene = StereoScene { rig, truth };
+                let mut r =
+                    super::super::Relocalizer::new(scene, solver, &p, &o, &truth, seed).unwrap();
+                r.run_to_completion(0)
+            };
+            let full = run(None);
+            assert_eq!(full.failure, None);
+            assert_eq!(full.stats.successes, 4);
+            assert_eq!(
+                (full.stats.rounds_saved, full.stats.accuracy_checks),
+                (0, 0)
+            );
+            let c = full.quality.covariance.unwrap();
+            // Loose: met after the first pose update.
+            let loose = run(Some(super::super::Accuracy {
+                sigma_t_m: 1.0,
+                sigma_r_deg: 10.0,
+            }));
+            assert_eq!(loose.failure, None);
+            assert_eq!(loose.stats.successes, 1);
+            assert_eq!(loose.stats.rounds_saved, 3);
+            assert_eq!(loose.stats.accuracy_checks, 1);
+            assert!(loose.stats.attempts < full.stats.attempts);
+            let lc = loose.quality.covariance.unwrap();
+            assert!(lc.sigma_t_m().iter().all(|&s| s <= 1.0));
+            // Unreachable: every update checked, nothing saved, the same run.
+            let tight = run(Some(super::super::Accuracy {
+                sigma_t_m: 1e-9,
+                sigma_r_deg: 1e-9,
+            }));
+            assert_eq!(tight.stats.rounds_saved, 0);
+            assert_eq!(tight.stats.accuracy_checks, 3);
+            assert_eq!(tight.pose, full.pose);
+            assert_eq!(tight.quality.covariance.unwrap(), c);
+            assert_eq!(tight.stats.attempts, full.stats.attempts);
+        }
+        // Out of range is refused.
+        let o = super::super::Options::for_params(&p);
+        for (t, r) in [
+            (0.0, 0.1),
+            (0.005, 0.0),
+            (2.0, 0.1),
+            (0.005, 11.0),
+            (f32::NAN, 0.1),
+        ] {
+            let a = super::super::Accuracy {
+                sigma_t_m: t,
+                sigma_r_deg: r,
+            };
+            assert_eq!(
+                o.with_accuracy(Some(a)),
+                Err(FailureCode::ConfigParamOutOfRange)
+            );
+        }
+    }
 }

@@ -1066,6 +1066,8 @@ unsafe fn create(
             seed: cfg.seed,
             limits: DriveLimits::UNLIMITED,
             verify,
+            // Not in the C configuration yet: every pose update runs.
+            accuracy: None,
         },
         prior,
         map: cfg.map,

@@ -38,6 +38,10 @@ pub struct Args {
     /// `--verify [repeat,map]`: the engine's upset checks.
     #[command(flatten)]
     pub verify: super::VerifyArg,
+    /// `--accuracy T_MM,R_DEG`: end the rounds once the stated uncertainty
+    /// meets it.
+    #[command(flatten)]
+    pub accuracy: super::AccuracyArg,
     /// Output directory (default: the first free `vtsm-demo/run-N`).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -115,7 +119,8 @@ pub fn run(args: &Args) -> Result<u8> {
     let map = MapView::new_checked(&map_bytes)?;
     let req = Request::new(map, &pair.left, &pair.right, rig, prior)
         .with_seed(args.seed)
-        .with_verify(args.verify.checks());
+        .with_verify(args.verify.checks())
+        .with_accuracy(args.accuracy.accuracy);
     let report = locate::relocalize(&req, RunOptions::default())?;
     let o = &report.outcome;
     let (t0_m, r0) = prior.error_to(&truth);

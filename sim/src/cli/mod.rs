@@ -46,6 +46,42 @@ impl VerifyArg {
     }
 }
 
+/// `--accuracy T_MM,R_DEG` of `vtsm relocalize`, `demo` and `eval`: the
+/// accuracy the caller needs ([`vtsm_core::reloc::Accuracy`]).
+#[derive(Debug, Clone, Copy, Default, clap::Args)]
+pub struct AccuracyArg {
+    /// End the rounds as soon as the refined estimate states a 1-σ
+    /// uncertainty of at most T_MM millimetres and R_DEG degrees in every
+    /// axis (e.g. `5,0.1`), instead of always making N_iter pose updates;
+    /// `result.json` (`eval`: `trials.csv`) counts the updates saved
+    /// (`rounds_saved`).
+    #[arg(long = "accuracy", value_name = "T_MM,R_DEG", value_parser = parse_accuracy)]
+    pub accuracy: Option<vtsm_core::reloc::Accuracy>,
+}
+
+/// Parse the value of `--accuracy`: `T_MM,R_DEG`, 1-σ translation in
+/// millimetres (0, 1000] and rotation in degrees (0, 10].
+///
+/// # Errors
+/// Anything else, with what is accepted.
+pub fn parse_accuracy(s: &str) -> std::result::Result<vtsm_core::reloc::Accuracy, String> {
+    let bad = || {
+        format!("`{s}` is not T_MM,R_DEG (1-σ millimetres in (0, 1000], degrees in (0, 10]), e.g. 5,0.1")
+    };
+    let (t, r) = s.split_once(',').ok_or_else(bad)?;
+    let t: f32 = t.trim().parse().map_err(|_| bad())?;
+    let r: f32 = r.trim().parse().map_err(|_| bad())?;
+    let a = vtsm_core::reloc::Accuracy {
+        sigma_t_m: t / 1000.0,
+        sigma_r_deg: r,
+    };
+    if a.validate() {
+        Ok(a)
+    } else {
+        Err(bad())
+    }
+}
+
 /// Parse the value of `--verify`: a comma-separated list of `repeat` (repeat
 /// the final solve from a second random stream and compare) and `map`
 /// (re-check the map product before a success is returned).

@@ -64,6 +64,10 @@ pub struct Args {
     /// `--verify [repeat,map]`: the engine's upset checks.
     #[command(flatten)]
     pub verify: super::VerifyArg,
+    /// `--accuracy T_MM,R_DEG`: end the rounds once the stated uncertainty
+    /// meets it.
+    #[command(flatten)]
+    pub accuracy: super::AccuracyArg,
     /// Where to write result.json; without it the result is printed to stdout.
     #[arg(long, value_name = "result.json")]
     pub out: Option<PathBuf>,
@@ -123,6 +127,7 @@ impl Args {
                 tile_size_m: self.tile_size_m,
             },
             verify: self.verify.checks(),
+            accuracy: self.accuracy.accuracy,
             force: self.force,
         })
     }
@@ -179,7 +184,10 @@ pub fn with_inputs<R>(
     let calib = job::read_calibration(&spec.calib, spec.interp)?;
     let bytes = job::load_map(&spec.map)?;
     let map = job::check_map(&bytes, &spec.map)?;
-    let inputs = job::load_inputs(&map, &calib, &pair, spec.verify)?;
+    let inputs = Inputs {
+        accuracy: spec.accuracy,
+        ..job::load_inputs(&map, &calib, &pair, spec.verify)?
+    };
     f(map, &inputs)
 }
 

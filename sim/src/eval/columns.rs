@@ -145,6 +145,15 @@ pub struct EngineColumns {
     pub prior_dr_deg: f32,
 }
 
+/// What a caller's accuracy (`--accuracy`) saved.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct AccuracyColumns {
+    /// Pose updates not made because the accuracy was met first.
+    pub rounds_saved: u16,
+    /// Refinements run to check the accuracy.
+    pub accuracy_checks: u16,
+}
+
 /// How the reported covariance covers the true error.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CovarianceColumns {
@@ -193,6 +202,8 @@ pub struct TrialColumns {
     pub engine: Option<EngineColumns>,
     /// Set when the engine reported a covariance.
     pub covariance: Option<CovarianceColumns>,
+    /// Set by a VTSM relocalization given an accuracy (`--accuracy`).
+    pub accuracy: Option<AccuracyColumns>,
     /// Set when upset checks were asked for.
     pub verify: Option<VerifyColumns>,
     /// Set by the feature baseline.
@@ -235,6 +246,12 @@ impl TrialColumns {
                 ("cov_d2_r", c.d2_r),
                 ("sigma_t_mm", c.sigma_t_mm),
                 ("sigma_r_deg", c.sigma_r_deg),
+            ]);
+        }
+        if let Some(a) = &self.accuracy {
+            out.extend([
+                ("rounds_saved", f64::from(a.rounds_saved)),
+                ("accuracy_checks", f64::from(a.accuracy_checks)),
             ]);
         }
         if let Some(v) = &self.verify {

@@ -316,6 +316,8 @@ pub struct ResultFile {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct WorkStats {
+    /// Refinements run to check the caller's accuracy (`--accuracy`).
+    pub accuracy_checks: u64,
     /// Correspondence attempts (one template synthesized and matched).
     pub attempts: u64,
     /// Correspondences collected.
@@ -348,6 +350,9 @@ pub struct WorkStats {
     pub reused: u64,
     /// Rounds.
     pub rounds: u64,
+    /// Pose updates not made because the caller's accuracy (`--accuracy`)
+    /// was met first.
+    pub rounds_saved: u64,
     /// Sampled points occluded.
     pub samples_occluded: u64,
     /// Sampled points out of view.
@@ -373,6 +378,7 @@ impl From<&vtsm_core::reloc::Stats> for WorkStats {
         let p = &s.pipeline;
         let sum = |v: &[u32]| v.iter().map(|&m| u64::from(m)).sum();
         Self {
+            accuracy_checks: s.accuracy_checks.into(),
             attempts: s.attempts.into(),
             correspondences: s.correspondences.into(),
             focused_rounds: s.focused_rounds.into(),
@@ -389,6 +395,7 @@ impl From<&vtsm_core::reloc::Stats> for WorkStats {
             reseeds: s.reseeds.into(),
             reused: s.reused.into(),
             rounds: s.rounds.into(),
+            rounds_saved: s.rounds_saved.into(),
             samples_occluded: p.occluded.into(),
             samples_out_of_view: p.out_of_view.into(),
             seeds_tried: s.seeds_tried.into(),

@@ -63,6 +63,7 @@ fn args(dir: &Path, prior: &str, out: Option<PathBuf>) -> Args {
         pairs: None,
         seed: SEED,
         verify: Default::default(),
+        accuracy: Default::default(),
         out,
         force: false,
         tile_size_m: DEFAULT_TILE_SIZE_M,

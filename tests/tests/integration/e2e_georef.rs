@@ -77,6 +77,7 @@ fn args(dir: &Path, prior: &str, origin: Option<&str>) -> Args {
         pairs: None,
         seed: SEED,
         verify: Default::default(),
+        accuracy: Default::default(),
         out: None,
         force: false,
         tile_size_m: DEFAULT_TILE_SIZE_M,

@@ -39,6 +39,7 @@ fn args(dir: &Path) -> Args {
         pairs: None,
         seed: SEED,
         verify: Default::default(),
+        accuracy: Default::default(),
         out: None,
         force: false,
         tile_size_m: DEFAULT_TILE_SIZE_M,

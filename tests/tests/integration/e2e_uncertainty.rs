@@ -76,6 +76,7 @@ fn args(dir: &Path, prior: Option<&str>, out: Option<PathBuf>) -> Args {
         interp: vtsm_sim::rectify::Interp::Lanczos4,
         origin: None,
         verify: Default::default(),
+        accuracy: Default::default(),
     }
 }
 

@@ -31,6 +31,41 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         }
     }
 
+    /// Whether the estimate after this pose update meets the caller's
+    /// [`Accuracy`](crate::reloc::Accuracy): the anchor refined on this
+    /// solve's inliers, as [`Self::refine_final`] does, states a 1-σ
+    /// uncertainty within it. Then that refinement is kept as the final one
+    /// (covariance, reprojection RMS, refined pose); otherwise nothing of it
+    /// is kept and the rounds go on as without an accuracy. No accuracy, or
+    /// no pairs: false, without a refinement.
+    pub(super) fn accuracy_met(&mut self, now: u64) -> bool {
+        let Some(acc) = self.opts.accuracy else {
+            return false;
+        };
+        let n = self.pairs.len();
+        if n == 0 {
+            return false;
+        }
+        self.stats.accuracy_checks = self.stats.accuracy_checks.saturating_add(1);
+        let mask = crate::fmt::present(self.inlier_mask.get(..n));
+        match self.solver.refine(&self.pairs, mask, &self.anchor) {
+            Some(Ok(r)) if r.stats.accepted && acc.met_by(&r.covariance) => {
+                self.stats.refine = r.stats;
+                self.quality.covariance = Some(r.covariance);
+                self.quality.reproj_rms_px = r.rms_px;
+                if pose_is_valid(&r.pose) {
+                    self.anchor = r.pose;
+                }
+                true
+            }
+            Some(Err(code)) => {
+                self.log.record(code, now, self.round);
+                false
+            }
+            _ => false,
+        }
+    }
+
     /// The last unit of a run whose search succeeded: the integrity gates,
     /// then the map re-check, then success.
     pub(super) fn accept(&mut self, now: u64) {

@@ -77,8 +77,18 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             self.r_rad *= self.params.gamma;
         }
         let enough = self.stats.successes >= u16::from(self.params.n_iter);
-        if enough || update_m < self.params.convergence_m {
-            self.refine_final(now);
+        let converged = update_m < self.params.convergence_m;
+        // The caller's accuracy met before the last update: its refinement
+        // is the final one.
+        let known = !(enough || converged) && self.accuracy_met(now);
+        if known {
+            let saved = u16::from(self.params.n_iter).saturating_sub(self.stats.successes);
+            self.stats.rounds_saved = saved;
+        }
+        if enough || converged || known {
+            if !known {
+                self.refine_final(now);
+            }
             if self.opts.verify.repeat_solve && !self.pairs.is_empty() {
                 self.phase = Phase::Verify;
             } else {

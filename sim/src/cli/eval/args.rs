@@ -181,6 +181,10 @@ pub struct Args {
     /// `--verify [repeat,map]`: the engine's upset checks.
     #[command(flatten)]
     pub verify: super::super::VerifyArg,
+    /// `--accuracy T_MM,R_DEG`: every VTSM trial ends its rounds once the
+    /// stated uncertainty meets it.
+    #[command(flatten)]
+    pub accuracy: super::super::AccuracyArg,
     /// Live pairs in the physical form of `vtsm scene export --physical`
     /// (distorted, slightly rotated cameras, OpenCV calibration), rectified on
     /// the host as `vtsm relocalize` does; errors are those of the physical
@@ -254,6 +258,7 @@ impl Args {
             quiet: true,
             origin: None,
             verify: super::super::VerifyArg::default(),
+            accuracy: super::super::AccuracyArg::default(),
             physical: false,
             interp: Interp::Lanczos4,
             light_model: LightModelArg::Full,
@@ -320,6 +325,7 @@ pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
         .map(crate::frame::parse_origin)
         .transpose()?;
     cfg.verify = args.verify.checks();
+    cfg.accuracy = args.accuracy.accuracy;
     cfg.physical = args.physical;
     cfg.interp = args.interp;
     cfg.light_model = args.light_model.into();

@@ -83,6 +83,8 @@ pub struct SuiteConfig {
     pub origin: Option<[f64; 3]>,
     /// Upset checks of every VTSM trial (`--verify`).
     pub verify: VerifyChecks,
+    /// The accuracy every VTSM trial is asked for (`--accuracy`).
+    pub accuracy: Option<vtsm_core::reloc::Accuracy>,
     /// Live pairs in the physical form, rectified on the host (`--physical`).
     pub physical: bool,
     /// Kernel of that rectification (`--interp`).
@@ -120,6 +122,7 @@ impl SuiteConfig {
             progress: false,
             origin: None,
             verify: VerifyChecks::OFF,
+            accuracy: None,
             physical: false,
             interp: Interp::default(),
             light_model: LightModel::Full,

@@ -558,6 +558,9 @@ fn run_meta(
                 "repeat_solve": cfg.verify.repeat_solve,
                 "recheck_map": cfg.verify.recheck_map,
             },
+            "accuracy": cfg.accuracy.map(|a| serde_json::json!({
+                "sigma_t_m": a.sigma_t_m, "sigma_r_deg": a.sigma_r_deg,
+            })),
             "features": cfg.baseline.map(|_| {
                 per_width(&|w| format!("{:?}", crate::features::FeatureParams::for_width(w)))
             }),

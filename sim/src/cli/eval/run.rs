@@ -257,6 +257,9 @@ fn run_meta(cfg: &SuiteConfig, def: &dyn SuiteDef, depot: &Depot, command: &str)
                 "repeat_solve": cfg.verify.repeat_solve,
                 "recheck_map": cfg.verify.recheck_map,
             },
+            "accuracy": cfg.accuracy.map(|a| serde_json::json!({
+                "sigma_t_m": a.sigma_t_m, "sigma_r_deg": a.sigma_r_deg,
+            })),
             "features": cfg.baseline.map(|_| {
                 format!("{:?}", crate::features::FeatureParams::for_width(width))
             }),

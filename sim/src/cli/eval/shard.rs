@@ -24,8 +24,8 @@ use super::run::SuiteRun;
 use super::{replot, write_run};
 use crate::error::{Error, Result};
 use crate::eval::columns::{
-    CaptureColumns, CovarianceColumns, EngineColumns, FeatureColumns, GroupColumns, TrialColumns,
-    VerifyColumns, ViewColumns,
+    AccuracyColumns, CaptureColumns, CovarianceColumns, EngineColumns, FeatureColumns,
+    GroupColumns, TrialColumns, VerifyColumns, ViewColumns,
 };
 use crate::eval::{self, RunMeta, TrialOutcome};
 use serde::{Deserialize, Serialize};
@@ -234,6 +234,12 @@ fn columns_from(entries: &[(String, u64)]) -> std::result::Result<TrialColumns, 
             d2_r: v("cov_d2_r")?,
             sigma_t_mm: v("sigma_t_mm")?,
             sigma_r_deg: v("sigma_r_deg")?,
+        });
+    }
+    if has("rounds_saved") {
+        c.accuracy = Some(AccuracyColumns {
+            rounds_saved: v("rounds_saved")? as u16,
+            accuracy_checks: v("accuracy_checks")? as u16,
         });
     }
     if has("verify_repeat_solve") {

@@ -271,6 +271,7 @@ pub(super) fn request<'a>(
         .with_params(params)
         .with_seed(seed)
         .with_verify(cfg.verify)
+        .with_accuracy(cfg.accuracy)
 }
 
 /// The local-feature baseline on the same request.
@@ -337,6 +338,13 @@ pub(super) fn run_vtsm(
         .covariance
         .as_ref()
         .and_then(|c| frame.covariance(&est, c));
+    // What the caller's accuracy saved, only when one was asked for.
+    if cfg.accuracy.is_some() {
+        o.columns.accuracy = Some(crate::eval::columns::AccuracyColumns {
+            rounds_saved: out.stats.rounds_saved,
+            accuracy_checks: out.stats.accuracy_checks,
+        });
+    }
     // Which upset checks ran, only when asked for.
     if cfg.verify.any() {
         let v = crate::cli::relocalize::verified(out, cfg.verify);
