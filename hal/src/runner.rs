@@ -1389,7 +1389,7 @@ where
             &prior.world_from_left,
             job.seed,
         );
-        let engine = build(setup, &job, ws, log, start)?;
+        let engine = build(setup, job, ws, log, start)?;
         if let Some(o) = observe.as_mut() {
             o(StageEvent::Start);
         }

@@ -81,6 +81,12 @@ int bad_input_tests(uint8_t *storage, size_t storage_len) {
     expect("create: template_px 1000", create_with(storage, storage_len, &c), VTSM_CONFIG_PARAM_OUT_OF_RANGE);
     c = good; c.verify_recheck_map = 2;
     expect("create: verify flag 2", create_with(storage, storage_len, &c), VTSM_CONFIG_PARAM_OUT_OF_RANGE);
+    c = good; c.accuracy_sigma_t_m = 0.005f; /* rotation bound left 0 */
+    expect("create: accuracy half given", create_with(storage, storage_len, &c), VTSM_CONFIG_PARAM_OUT_OF_RANGE);
+    c = good; c.accuracy_sigma_t_m = -0.005f; c.accuracy_sigma_r_deg = 0.1f;
+    expect("create: accuracy negative", create_with(storage, storage_len, &c), VTSM_CONFIG_PARAM_OUT_OF_RANGE);
+    c = good; c.accuracy_sigma_t_m = NAN; c.accuracy_sigma_r_deg = 0.1f;
+    expect("create: accuracy NaN", create_with(storage, storage_len, &c), VTSM_CONFIG_PARAM_OUT_OF_RANGE);
     expect("params: unknown profile", vtsm_params_for_profile(42u, &c.params), VTSM_CONFIG_PARAM_OUT_OF_RANGE);
     expect("params: out NULL", vtsm_params_for_profile(VTSM_PROFILE_TEST, NULL), VTSM_FFI_NULL_POINTER);
     expect("storage size: params NULL is 0", vtsm_storage_size(NULL) == 0 ? VTSM_OK : 1, VTSM_OK);

@@ -186,6 +186,22 @@ int main(void) {
            periods, vtsm_failure_name(rc));
     if (stepped != digest) failed++;
 
+    /* The caller's accuracy: a loose one (2 cm, 0.5 degrees) ends the rounds
+     * after the first pose update whose refined estimate states it. */
+    VtsmConfig loose = cfg;
+    loose.accuracy_sigma_t_m = 0.02f;
+    loose.accuracy_sigma_r_deg = 0.5f;
+    VtsmOutcome early;
+    rc = vtsm_engine_create(storage, sizeof storage, &loose, &engine);
+    if (rc == VTSM_OK) rc = vtsm_engine_run(engine, &limits, &early);
+    printf("VTSM-C-ACCURACY %s: %s, %u pose updates, %u saved, attempts %lu (all updates: %lu)\n",
+           vtsm_failure_name(rc), vtsm_failure_name(early.failure), (unsigned)early.stats.successes,
+           (unsigned)early.stats.rounds_saved, (unsigned long)early.stats.attempts,
+           (unsigned long)out.stats.attempts);
+    if (rc != VTSM_OK || early.failure != VTSM_OK || early.stats.rounds_saved == 0 ||
+        early.stats.attempts >= out.stats.attempts || out.stats.rounds_saved != 0)
+        failed++;
+
     failed += bad_input_tests(storage, sizeof storage);
 
     uint64_t cpp_digest = 0;

@@ -462,6 +462,14 @@ typedef struct VtsmConfig {
     uint8_t verify_repeat_solve;
     // Re-check the map product before a success is returned (0 or 1).
     uint8_t verify_recheck_map;
+    // The accuracy the caller needs, 1-σ translation in metres (0, 1]:
+    // the rounds end once the refined estimate states at most this and
+    // [`VtsmConfig::accuracy_sigma_r_deg`] in every axis
+    // (`VtsmStats::rounds_saved`). Both 0: every pose update runs.
+    float accuracy_sigma_t_m;
+    // The accuracy the caller needs, 1-σ rotation in degrees (0, 10]; both 0:
+    // none.
+    float accuracy_sigma_r_deg;
     // The devices.
     struct VtsmIo io;
 } VtsmConfig;
@@ -507,6 +515,8 @@ typedef struct VtsmStats {
     uint16_t reseeds;
     // Seeds evaluated in multi-seed mode.
     uint16_t seeds_tried;
+    // Pose updates not made because the caller's accuracy was met first.
+    uint16_t rounds_saved;
     // Engine step calls made by the runner.
     uint32_t steps;
     // Clock ticks from the first engine step to the last.

@@ -55,7 +55,7 @@ use vtsm_core::image::Rect;
 use vtsm_core::map::MapView;
 use vtsm_core::nalgebra::{Quaternion, UnitQuaternion};
 use vtsm_core::ncc::Run;
-use vtsm_core::reloc::{MatchPolicy, Outcome, Workspace, WorkspaceSizes};
+use vtsm_core::reloc::{Accuracy, MatchPolicy, Outcome, Workspace, WorkspaceSizes};
 use vtsm_core::FailureCode;
 use vtsm_hal::prior::{Covariance, PriorEstimate};
 use vtsm_hal::runner::{
@@ -274,6 +274,23 @@ pub struct VtsmParams {
     pub reuse: u8,
 }
 
+/// The accuracy of a configuration: none when both bounds are 0, else both
+/// in range ([`Accuracy::validate`]).
+fn accuracy_of(sigma_t_m: f32, sigma_r_deg: f32) -> Result<Option<Accuracy>, FailureCode> {
+    if sigma_t_m == 0.0 && sigma_r_deg == 0.0 {
+        return Ok(None);
+    }
+    let a = Accuracy {
+        sigma_t_m,
+        sigma_r_deg,
+    };
+    if a.validate() {
+        Ok(Some(a))
+    } else {
+        Err(FailureCode::ConfigParamOutOfRange)
+    }
+}
+
 fn flag(v: u8) -> Result<bool, FailureCode> {
     match v {
         0 => Ok(false),
@@ -419,6 +436,14 @@ pub struct VtsmConfig {
     pub verify_repeat_solve: u8,
     /// Re-check the map product before a success is returned (0 or 1).
     pub verify_recheck_map: u8,
+    /// The accuracy the caller needs, 1-σ translation in metres (0, 1]:
+    /// the rounds end once the refined estimate states at most this and
+    /// [`VtsmConfig::accuracy_sigma_r_deg`] in every axis
+    /// (`VtsmStats::rounds_saved`). Both 0: every pose update runs.
+    pub accuracy_sigma_t_m: f32,
+    /// The accuracy the caller needs, 1-σ rotation in degrees (0, 10]; both 0:
+    /// none.
+    pub accuracy_sigma_r_deg: f32,
     /// The devices.
     pub io: VtsmIo,
 }
@@ -468,6 +493,8 @@ pub struct VtsmStats {
     pub reseeds: u16,
     /// Seeds evaluated in multi-seed mode.
     pub seeds_tried: u16,
+    /// Pose updates not made because the caller's accuracy was met first.
+    pub rounds_saved: u16,
     /// Engine step calls made by the runner.
     pub steps: u32,
     /// Clock ticks from the first engine step to the last.
@@ -530,6 +557,7 @@ impl VtsmOutcome {
                 stalls: 0,
                 reseeds: 0,
                 seeds_tried: 0,
+                rounds_saved: 0,
                 steps: 0,
                 elapsed_ticks: 0,
             },
@@ -567,6 +595,7 @@ impl VtsmOutcome {
                 stalls: s.stalls,
                 reseeds: s.reseeds,
                 seeds_tried: s.seeds_tried,
+                rounds_saved: s.rounds_saved,
                 steps: report.drive.steps,
                 elapsed_ticks: report.drive.elapsed_ticks,
             },
@@ -1027,6 +1056,7 @@ unsafe fn create(
         repeat_solve: flag(cfg.verify_repeat_solve)?,
         recheck_map: flag(cfg.verify_recheck_map)?,
     };
+    let accuracy = accuracy_of(cfg.accuracy_sigma_t_m, cfg.accuracy_sigma_r_deg)?;
     if cfg.map_len == 0 || u32::try_from(cfg.map_len).is_err() {
         return Err(FailureCode::HalMapTooLarge);
     }
@@ -1066,8 +1096,7 @@ unsafe fn create(
             seed: cfg.seed,
             limits: DriveLimits::UNLIMITED,
             verify,
-            // Not in the C configuration yet: every pose update runs.
-            accuracy: None,
+            accuracy,
         },
         prior,
         map: cfg.map,
