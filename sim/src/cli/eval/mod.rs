@@ -161,7 +161,11 @@ pub fn run(args: &Args) -> Result<u8> {
     }
     let command = std::env::args().collect::<Vec<_>>().join(" ");
     let journal = cfg.shard.map(|_| shard::Journal::new(&out));
-    let run = match run::run_suite_journaled(&cfg, &command, journal.as_ref()) {
+    let ran = match cfg.suite {
+        Suite::Dataset => dataset::run(&cfg, &command, journal.as_ref()),
+        _ => run::run_suite_journaled(&cfg, &command, journal.as_ref()),
+    };
+    let run = match ran {
         Ok(r) => r,
         Err(e) => {
             // A run refused before any trial leaves no empty directory behind.

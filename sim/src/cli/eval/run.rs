@@ -61,7 +61,9 @@ pub fn run_suite_journaled(
     journal: Option<&super::shard::Journal>,
 ) -> Result<SuiteRun> {
     if cfg.suite == super::config::Suite::Dataset {
-        return super::dataset::run(cfg, command, journal);
+        return Err(Error::msg(
+            "the dataset suite runs from its data set (cli::eval::dataset::run)",
+        ));
     }
     let def = cfg.suite.def();
     if cfg.terrains.is_empty() || cfg.hours.is_empty() || cfg.trials == 0 {
