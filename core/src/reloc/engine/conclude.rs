@@ -12,22 +12,32 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
     /// fails is logged and the RANSAC pose stays. (A multi-seed winner that
     /// ends the run has no pairs left: nothing to refine.)
     pub(super) fn refine_final(&mut self, now: u64) {
-        let n = self.pairs.len();
-        if n == 0 {
-            return;
-        }
-        let mask = crate::fmt::present(self.inlier_mask.get(..n));
-        match self.solver.refine(&self.pairs, mask, &self.anchor) {
-            Some(Ok(r)) => {
-                self.stats.refine = r.stats;
-                self.quality.covariance = Some(r.covariance);
-                self.quality.reproj_rms_px = r.rms_px;
-                if r.stats.accepted && pose_is_valid(&r.pose) {
-                    self.anchor = r.pose;
-                }
-            }
+        match self.refine_anchor() {
+            Some(Ok(r)) => self.keep_refinement(&r, r.stats.accepted),
             Some(Err(code)) => self.log.record(code, now, self.round),
             None => {}
+        }
+    }
+
+    /// The anchor refined on this solve's inliers (pairs and mask are those
+    /// of the last solve); `None` without pairs or without a refinement.
+    fn refine_anchor(&mut self) -> Option<Result<crate::pose::Refined, FailureCode>> {
+        let n = self.pairs.len();
+        if n == 0 {
+            return None;
+        }
+        let mask = crate::fmt::present(self.inlier_mask.get(..n));
+        self.solver.refine(&self.pairs, mask, &self.anchor)
+    }
+
+    /// Make `r` the final refinement: its counters, covariance and
+    /// reprojection RMS, and its pose as the anchor when `use_pose` and valid.
+    fn keep_refinement(&mut self, r: &crate::pose::Refined, use_pose: bool) {
+        self.stats.refine = r.stats;
+        self.quality.covariance = Some(r.covariance);
+        self.quality.reproj_rms_px = r.rms_px;
+        if use_pose && pose_is_valid(&r.pose) {
+            self.anchor = r.pose;
         }
     }
 
@@ -42,20 +52,13 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         let Some(acc) = self.opts.accuracy else {
             return false;
         };
-        let n = self.pairs.len();
-        if n == 0 {
+        if self.pairs.is_empty() {
             return false;
         }
         self.stats.accuracy_checks = self.stats.accuracy_checks.saturating_add(1);
-        let mask = crate::fmt::present(self.inlier_mask.get(..n));
-        match self.solver.refine(&self.pairs, mask, &self.anchor) {
+        match self.refine_anchor() {
             Some(Ok(r)) if r.stats.accepted && acc.met_by(&r.covariance) => {
-                self.stats.refine = r.stats;
-                self.quality.covariance = Some(r.covariance);
-                self.quality.reproj_rms_px = r.rms_px;
-                if pose_is_valid(&r.pose) {
-                    self.anchor = r.pose;
-                }
+                self.keep_refinement(&r, true);
                 true
             }
             Some(Err(code)) => {
