@@ -36,7 +36,7 @@
 use super::config::{Method, SuiteConfig};
 use super::group::{with_baseline_groups, Group};
 use super::protocol::trial_seed;
-use super::run::{run_campaign, SuiteRun};
+use super::run::{accuracy_json, run_campaign, verify_json, SuiteRun};
 use super::trial::{self, ErrorFrame};
 use crate::error::{Error, Result};
 use crate::eval::columns::{GroupColumns, TrialColumns};
@@ -554,13 +554,8 @@ fn run_meta(
             "relocalization": per_width(&|w| format!("{:?}", locate::params_for_width(w))),
             "rectify_interp": cfg.interp.name(),
             "baseline": cfg.baseline.map(Method::name),
-            "verify": {
-                "repeat_solve": cfg.verify.repeat_solve,
-                "recheck_map": cfg.verify.recheck_map,
-            },
-            "accuracy": cfg.accuracy.map(|a| serde_json::json!({
-                "sigma_t_m": a.sigma_t_m, "sigma_r_deg": a.sigma_r_deg,
-            })),
+            "verify": verify_json(cfg),
+            "accuracy": accuracy_json(cfg),
             "features": cfg.baseline.map(|_| {
                 per_width(&|w| format!("{:?}", crate::features::FeatureParams::for_width(w)))
             }),

@@ -224,6 +224,23 @@ pub(super) fn finish(
     }
 }
 
+/// The upset checks of a run's VTSM trials, as its record states them.
+pub(super) fn verify_json(cfg: &SuiteConfig) -> serde_json::Value {
+    serde_json::json!({
+        "repeat_solve": cfg.verify.repeat_solve,
+        "recheck_map": cfg.verify.recheck_map,
+    })
+}
+
+/// The accuracy asked of a run's VTSM trials (`--accuracy`), as its record
+/// states it (`null`: none).
+pub(super) fn accuracy_json(cfg: &SuiteConfig) -> serde_json::Value {
+    cfg.accuracy.map_or(
+        serde_json::Value::Null,
+        |a| serde_json::json!({ "sigma_t_m": a.sigma_t_m, "sigma_r_deg": a.sigma_r_deg }),
+    )
+}
+
 /// The reproducibility record of a run.
 fn run_meta(cfg: &SuiteConfig, def: &dyn SuiteDef, depot: &Depot, command: &str) -> RunMeta {
     let width = depot.scenes[0].camera().width();
@@ -255,13 +272,8 @@ fn run_meta(cfg: &SuiteConfig, def: &dyn SuiteDef, depot: &Depot, command: &str)
             "rectify_interp": if cfg.physical { Some(cfg.interp.name()) } else { None },
             "baseline": cfg.baseline.map(Method::name),
             "origin": cfg.origin,
-            "verify": {
-                "repeat_solve": cfg.verify.repeat_solve,
-                "recheck_map": cfg.verify.recheck_map,
-            },
-            "accuracy": cfg.accuracy.map(|a| serde_json::json!({
-                "sigma_t_m": a.sigma_t_m, "sigma_r_deg": a.sigma_r_deg,
-            })),
+            "verify": verify_json(cfg),
+            "accuracy": accuracy_json(cfg),
             "features": cfg.baseline.map(|_| {
                 format!("{:?}", crate::features::FeatureParams::for_width(width))
             }),
