@@ -56,7 +56,7 @@ pub mod workspace;
 
 #[cfg(feature = "upset-injection")]
 pub use engine::UpsetRegion;
-pub use engine::{Relocalizer, StepResult};
+pub use engine::{work_ticket, Commit, Epoch, Relocalizer, StepResult, Ticket, Worked};
 pub use pipeline::Pipeline;
 pub use policy::{MatchPolicy, Variant};
 pub use setup::{Engine, Setup};

@@ -32,6 +32,25 @@ pub struct PipelineStats {
     pub triangulations: u32,
 }
 
+impl PipelineStats {
+    /// Add the counters of `other` (another attempt's work) to these.
+    pub fn add(&mut self, other: &PipelineStats) {
+        self.renders = self.renders.saturating_add(other.renders);
+        self.render_pixels = self.render_pixels.saturating_add(other.render_pixels);
+        for (a, b) in self.matches.iter_mut().zip(other.matches) {
+            *a = a.saturating_add(b);
+        }
+        for (a, b) in self.accepted.iter_mut().zip(other.accepted) {
+            *a = a.saturating_add(b);
+        }
+        self.ncc_positions = self.ncc_positions.saturating_add(other.ncc_positions);
+        self.ncc_macs = self.ncc_macs.saturating_add(other.ncc_macs);
+        self.out_of_view = self.out_of_view.saturating_add(other.out_of_view);
+        self.occluded = self.occluded.saturating_add(other.occluded);
+        self.triangulations = self.triangulations.saturating_add(other.triangulations);
+    }
+}
+
 /// Work counters of one run.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Stats {

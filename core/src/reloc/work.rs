@@ -122,6 +122,11 @@ pub struct StageStep {
 /// work as [`Attempt::attempt`] and give the same result, bit for bit, and
 /// end an attempt within [`MAX_ATTEMPT_STAGES`] stages. The default runs the
 /// whole attempt in `begin`.
+///
+/// Its result and its `stats` must depend only on `ctx` and `rng`, never on
+/// the attempts before it: then attempts handed out as tickets
+/// ([`super::Relocalizer::ticket`]) can run on several instances (workers)
+/// and the outcome is the one of a single instance.
 pub trait Attempt {
     /// Try to produce one correspondence from `ctx.world_from_viewpoint`.
     ///

@@ -2,37 +2,26 @@
 //! the round's centre (RandomizeViewpoint, SamplePoint, Synthesize, Match, Valid,
 //! Stereo in the pipeline), Focus on agreeing pairs, and the start of each round.
 
-use super::{Phase, Relocalizer, STREAM_ATTEMPT};
+use super::{Phase, Relocalizer};
 use crate::failure::FailureCode;
 use crate::geom::{Pose, Vec3};
-use crate::reloc::viewpoint::{pick_candidate, randomize};
-use crate::reloc::{Attempt, AttemptContext, Correspondence, Solver, Stage, StageStep};
+use crate::reloc::{Attempt, Correspondence, Solver, Stage, StageStep};
 
 impl<A: Attempt, S: Solver> Relocalizer<A, S> {
     /// The first stage of a new attempt: its viewpoint and random stream,
     /// counted as one work unit.
     pub(super) fn begin_attempt(&mut self, now: u64) -> Stage {
-        let index = self.stats.attempts;
-        let mut rng = self.root.fork(STREAM_ATTEMPT).fork(u64::from(index));
-        let planar = self.stats.successes == 0;
-        let center = if self.params.mechanisms.distribute && !self.seeding {
-            pick_candidate(&self.candidates, &mut rng).unwrap_or(self.center)
-        } else {
-            self.center
-        };
-        let ctx = AttemptContext {
-            world_from_viewpoint: randomize(&center, self.t_m, self.r_rad, planar, &mut rng),
-            t_m: self.t_m,
-            r_rad: self.r_rad,
-            gradient_only: self.final_round(),
-            index,
-            round: self.round,
-        };
+        let (ctx, mut rng) = self.draw_attempt(self.stats.attempts);
+        self.count_attempt();
+        let step = self.attempt.begin(&ctx, &mut rng, &mut self.stats.pipeline);
+        self.attempt_stage_done(step, now)
+    }
+
+    /// Count the attempt that begins now (its own work unit), whoever runs it.
+    pub(super) fn count_attempt(&mut self) {
         self.stats.attempts = self.stats.attempts.saturating_add(1);
         self.stats.work_units = self.stats.work_units.saturating_add(1);
         self.round_attempts = self.round_attempts.saturating_add(1);
-        let step = self.attempt.begin(&ctx, &mut rng, &mut self.stats.pipeline);
-        self.attempt_stage_done(step, now)
     }
 
     /// After a stage of an attempt: wait for the next stage, or take the

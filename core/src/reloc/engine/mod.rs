@@ -34,7 +34,9 @@ mod collect;
 mod conclude;
 mod rounds;
 mod solve;
+mod tickets;
 use solve::Pass;
+pub use tickets::{work_ticket, Commit, Epoch, Ticket, Worked};
 #[cfg(test)]
 mod tests;
 #[cfg(feature = "upset-injection")]

@@ -141,6 +141,34 @@ impl<'a, 'w, F: FrameSource> Pipeline<'a, 'w, F> {
     }
 }
 
+impl<'a, F: FrameSource + Clone> Pipeline<'a, '_, F> {
+    /// A second pipeline over the same map, frames, rig, parameters and
+    /// policy, with its own workspace `ws`: a worker that runs attempts handed
+    /// out as tickets ([`super::work_ticket`]) with the same results as this
+    /// one. No attempt is under way in it.
+    ///
+    /// # Errors
+    /// [`FailureCode::ConfigCapacityTooSmall`] if `ws` was carved for smaller
+    /// sizes than this pipeline's workspace.
+    pub fn twin<'v>(&self, ws: Workspace<'v>) -> Result<Pipeline<'a, 'v, F>, FailureCode> {
+        if !ws.sizes().covers(&self.ws.sizes()) {
+            return Err(FailureCode::ConfigCapacityTooSmall);
+        }
+        Ok(Pipeline {
+            map: self.map,
+            frames: self.frames.clone(),
+            rig: self.rig,
+            template_px: self.template_px,
+            search_px: self.search_px,
+            epsilon_px: self.epsilon_px,
+            policy: self.policy,
+            ws,
+            pending: Pending::None,
+            gradient_only: false,
+        })
+    }
+}
+
 /// Template origins of one attempt: the ℓ×ℓ windows of the virtual left and
 /// right images (the left one rendered by Synthesize, the right one at the
 /// attempt's first accepted left match), and the virtual right camera's pose.

@@ -5,6 +5,7 @@ mod focus;
 mod integrity;
 mod mechanisms;
 mod stops;
+mod tickets;
 
 use super::*;
 use crate::config::{Mechanisms, DEFAULT_T0_M, MAX_T0_M};
