@@ -13,6 +13,7 @@
 //! | [`prior`] | [`PosePrior`], [`PriorEstimate`], [`Covariance`], [`PriorUncertainty`] |
 //! | [`telemetry`] | [`Telemetry`], the frame format, [`FramedTelemetry`] over `embedded_io::Write` |
 //! | [`runner`] | bounded capture / map read with retries, the step driver |
+//! | [`pool`] | [`AttemptPool`]: workers for a relocalization's attempts, same outcome for any number |
 //!
 //! ## Start here
 //!
@@ -142,6 +143,7 @@ pub mod camera;
 pub mod clock;
 pub mod error;
 pub mod frames;
+pub mod pool;
 pub mod prior;
 pub mod runner;
 pub mod store;
@@ -151,6 +153,7 @@ pub use camera::{FrameInfo, StereoCamera};
 pub use clock::Clock;
 pub use error::{failure_code, Device, Error, ErrorKind, ErrorType};
 pub use frames::{FrameStore, StoreFrames};
+pub use pool::AttemptPool;
 pub use prior::{Covariance, PosePrior, PriorEstimate, PriorUncertainty};
 pub use store::MapStore;
 pub use telemetry::{FramedTelemetry, Telemetry};

@@ -31,6 +31,7 @@ use crate::camera::{FrameInfo, StereoCamera};
 use crate::clock::Clock;
 use crate::error::{failure_code, Device, Error, ErrorKind};
 use crate::frames::{FrameStore, StoreFrames, WindowReport};
+use crate::pool::AttemptPool;
 use crate::prior::{PosePrior, PriorEstimate, PriorUncertainty};
 use crate::store::MapStore;
 use crate::telemetry::{
@@ -43,7 +44,7 @@ use vtsm_core::frame::{FrameSource, StereoPair};
 use vtsm_core::geom::StereoRig;
 use vtsm_core::image::GrayView;
 use vtsm_core::map::{CheckedMap, MapView};
-use vtsm_core::reloc::{Accuracy, Engine, Outcome, Setup, Stage, StepResult, Workspace};
+use vtsm_core::reloc::{Accuracy, Commit, Engine, Outcome, Setup, Stage, StepResult, Workspace};
 use vtsm_core::FailureCode;
 
 /// Cap on attempts of one device operation.
@@ -1171,6 +1172,78 @@ where
     /// and from then on without doing any work; else
     /// [`StepStatus::Continue`].
     pub fn step(&mut self, max_units: u32) -> StepStatus {
+        // Lent to the step's work and given back after it.
+        let mut observe = self.observe.take();
+        let status = self.step_with(|engine, now| match observe.as_mut() {
+            None => matches!(engine.step_n(now, max_units.max(1)), StepResult::Done(_)),
+            Some(observe) => {
+                let (stage, r) = engine.step_stage(now);
+                let done = matches!(r, StepResult::Done(_));
+                if let Some(s) = stage {
+                    observe(StageEvent::Ran(s));
+                }
+                done
+            }
+        });
+        self.observe = observe;
+        status
+    }
+
+    /// One step call as [`Session::step`], with the attempts run by `pool`'s
+    /// workers ([`crate::pool`]): up to `max_units` (≥ 1) units, each either
+    /// an attempt taken back from the pool in attempt order (the pool kept
+    /// full of the next tickets) or a unit of other work done here. The
+    /// outcome is bit-identical to [`Session::step`]'s (without an
+    /// observer, which this does not call). Tickets may still be in flight
+    /// when it returns; the next call takes them back. Once it returns
+    /// [`StepStatus::Done`], cancel what is left in the pool.
+    pub fn step_pooled<P: AttemptPool + ?Sized>(
+        &mut self,
+        max_units: u32,
+        pool: &mut P,
+    ) -> StepStatus {
+        self.step_with(|engine, now| {
+            for _ in 0..max_units.max(1) {
+                if engine.outcome().is_some() {
+                    break;
+                }
+                if !engine.collecting() {
+                    pool.cancel();
+                    let _ = engine.step(now);
+                    continue;
+                }
+                let mut next = engine.stats().attempts.saturating_add(pool.in_flight());
+                while pool.in_flight() < pool.capacity().max(1) {
+                    let Some(t) = engine.ticket(next) else {
+                        break;
+                    };
+                    pool.submit(t);
+                    next = next.saturating_add(1);
+                }
+                match pool.next() {
+                    Some(w) => {
+                        if engine.commit(&w, now) != (Commit::Taken { keep: true }) {
+                            pool.cancel();
+                        }
+                    }
+                    // No ticket could be handed out (the work budget):
+                    // the engine's own unit ends the run.
+                    None => {
+                        let _ = engine.step(now);
+                    }
+                }
+            }
+            engine.outcome().is_some()
+        })
+    }
+
+    /// The step call around `work` (engine work at the step's time; true
+    /// once the engine has its outcome): the limits, the hook, the step
+    /// count and the clock read.
+    fn step_with<W>(&mut self, work: W) -> StepStatus
+    where
+        W: FnOnce(&mut Engine<'r, 'w, Src::Frames<'r>>, u64) -> bool,
+    {
         if self.ended {
             return StepStatus::Done;
         }
@@ -1181,20 +1254,7 @@ where
         self.report.drive.steps = self.report.drive.steps.saturating_add(1);
         let now = self.now;
         Src::before_step(&mut self.hook, &mut self.engine, now);
-        let done = match self.observe.as_mut() {
-            None => matches!(
-                self.engine.step_n(now, max_units.max(1)),
-                StepResult::Done(_)
-            ),
-            Some(observe) => {
-                let (stage, r) = self.engine.step_stage(now);
-                let done = matches!(r, StepResult::Done(_));
-                if let Some(s) = stage {
-                    observe(StageEvent::Ran(s));
-                }
-                done
-            }
-        };
+        let done = work(&mut self.engine, now);
         self.now = time_or_zero(self.clock, self.log).max(now);
         if done {
             self.report.drive.done = true;
@@ -1227,6 +1287,12 @@ where
                 .record(FailureCode::RelocBudgetExhausted, self.now, drive.steps);
         }
         self.ended = true;
+    }
+
+    /// The engine, to build worker pipelines for an [`AttemptPool`]
+    /// ([`vtsm_core::reloc::Engine::worker`]) and read its counters.
+    pub fn engine(&self) -> &Engine<'r, 'w, Src::Frames<'r>> {
+        &self.engine
     }
 
     /// The drive so far (steps called, and once ended the elapsed ticks and

@@ -64,6 +64,9 @@ pub struct Spec {
     /// The accuracy the caller needs (`--accuracy`): the rounds end once the
     /// stated uncertainty meets it.
     pub accuracy: Option<vtsm_core::reloc::Accuracy>,
+    /// Threads each pair's attempts run on (`--threads`; pairs run one
+    /// after another). Same outcome for every number.
+    pub threads: usize,
     /// Overwrite existing output files.
     pub force: bool,
 }
@@ -206,6 +209,9 @@ pub struct Inputs {
     /// The accuracy the caller needs (`None` from [`load_inputs`]; a job
     /// sets its [`Spec::accuracy`]).
     pub accuracy: Option<vtsm_core::reloc::Accuracy>,
+    /// Threads the attempts run on (1 from [`load_inputs`]; a job sets its
+    /// [`Spec::threads`]).
+    pub threads: usize,
     /// The rectifier of a physical pair; the images above are already rectified.
     pub physical: Option<Rectifier>,
     /// The map's origin in the user frame ([`MapView::origin`]).
@@ -253,6 +259,7 @@ pub fn load_inputs(
         seed: pair.seed,
         verify,
         accuracy: None,
+        threads: 1,
         physical,
         origin,
     })
@@ -313,7 +320,8 @@ pub fn run_engine(map: MapView<'_>, inputs: &Inputs) -> Result<Ran> {
     .with_uncertainty(inputs.uncertainty)
     .with_seed(inputs.seed)
     .with_verify(inputs.verify)
-    .with_accuracy(inputs.accuracy);
+    .with_accuracy(inputs.accuracy)
+    .with_threads(inputs.threads);
     let report = locate::relocalize(&req, RunOptions::default())?;
     let mut outcome = Outcome {
         origin: inputs.origin,
@@ -426,6 +434,7 @@ pub fn run_pair(
     };
     let inputs = Inputs {
         accuracy: spec.accuracy,
+        threads: spec.threads,
         ..load_inputs(&map, calib, pair, spec.verify)?
     };
     let ran = run_engine(map, &inputs)?;

@@ -25,5 +25,6 @@ pub mod rectify;
 pub mod render;
 pub mod scene;
 pub mod terrain;
+pub mod workers;
 
 pub use error::{Error, Result};

@@ -21,6 +21,7 @@ use crate::devices::{
     RecordingSink,
 };
 use crate::error::{Error, Result};
+use crate::workers::ThreadPool;
 use std::time::{Duration, Instant};
 use vtsm_core::config::{Params, PriorUncertainty};
 use vtsm_core::failure::FailureLog;
@@ -34,8 +35,9 @@ use vtsm_core::reloc::{MatchPolicy, Outcome, Workspace, WorkspaceSizes};
 use vtsm_core::FailureCode;
 use vtsm_hal::runner::{
     Between, DriveLimits, InStore, Job, RamPair, RelocReport, Runner, RunnerConfig, StageEvent,
-    VerifyChecks,
+    StepStatus, VerifyChecks,
 };
+use vtsm_hal::AttemptPool;
 use vtsm_hal::{Covariance, FramedTelemetry, PriorEstimate};
 
 /// The parameters used for an image width: the paper's, with ℓ and the
@@ -115,13 +117,16 @@ pub struct Request<'a> {
     /// The accuracy the caller needs ([`Job::accuracy`](vtsm_hal::runner::Job::accuracy)):
     /// the rounds end once the stated uncertainty meets it.
     pub accuracy: Option<vtsm_core::reloc::Accuracy>,
+    /// Threads the attempts run on ([`crate::workers`]); 1: the runner's
+    /// own pipeline in the caller's thread. Same outcome for every number.
+    pub threads: usize,
 }
 
 impl<'a> Request<'a> {
     /// The request of `map`, the pair `left`/`right` seen by `rig` and the
     /// prior `prior`, with the parameters for the rig's image width
-    /// ([`params_for_width`]), seed 0, no upset check and no stated prior
-    /// uncertainty.
+    /// ([`params_for_width`]), seed 0, no upset check, no stated prior
+    /// uncertainty and one thread.
     pub fn new(
         map: impl Into<MapIn<'a>>,
         left: &'a [u8],
@@ -140,6 +145,16 @@ impl<'a> Request<'a> {
             seed: 0,
             verify: VerifyChecks::OFF,
             accuracy: None,
+            threads: 1,
+        }
+    }
+
+    /// The same request with its attempts on `threads` threads (at least
+    /// 1); the outcome is the same for every number.
+    pub fn with_threads(self, threads: usize) -> Self {
+        Self {
+            threads: threads.max(1),
+            ..self
         }
     }
 
@@ -447,7 +462,11 @@ pub fn run(req: &Request<'_>, opts: RunOptions<'_>) -> Result<DeviceRun> {
                 between,
             };
             start = Instant::now();
-            runner.run(&job, &mut map, pair, ws, observe)
+            if req.threads > 1 && pair.between.is_none() && observe.is_none() {
+                run_threaded(&mut runner, &job, &mut map, pair, ws, req.threads)
+            } else {
+                runner.run(&job, &mut map, pair, ws, observe)
+            }
         }
         PairPath::Store {
             window_faults,
@@ -470,6 +489,52 @@ pub fn run(req: &Request<'_>, opts: RunOptions<'_>) -> Result<DeviceRun> {
     ))
 }
 
+/// [`Runner::run`] with the attempts on `threads` threads
+/// ([`crate::workers::ThreadPool`]): the same start, steps of the job's
+/// limits ([`vtsm_hal::runner::Session::step_pooled`]) and finish, so the
+/// outcome is the one of a single thread. Each thread's pipeline has its own
+/// workspace of the engine's sizes, allocated here.
+fn run_threaded(
+    runner: &mut SimRunner<'_>,
+    job: &Job,
+    map: &mut [u8],
+    pair: RamPair<'_, '_>,
+    ws: Workspace<'_>,
+    threads: usize,
+) -> std::result::Result<(Outcome, RelocReport), FailureCode> {
+    let sizes = ws.sizes();
+    let mut stores: Vec<HeapStorage> = (0..threads).map(|_| HeapStorage::new(sizes)).collect();
+    let mut slot = None;
+    let started = runner.start(job, map, &mut slot, pair, ws, None);
+    let mut session = match started {
+        Ok(s) => s,
+        Err(code) => {
+            drop(started);
+            runner.send_failure_log();
+            return Err(code);
+        }
+    };
+    let mut workers = Vec::with_capacity(threads);
+    for s in &mut stores {
+        let ws = s
+            .workspace()
+            .map_err(|_| FailureCode::ConfigCapacityTooSmall)?;
+        workers.push(session.engine().worker(ws)?);
+    }
+    std::thread::scope(|scope| {
+        let mut pool = ThreadPool::start(scope, workers);
+        // Bounded: the session counts its step calls against
+        // `job.limits.max_steps` and is done at the limit.
+        for _ in 0..=job.limits.max_steps {
+            if session.step_pooled(job.limits.units_per_step, &mut pool) == StepStatus::Done {
+                break;
+            }
+        }
+        pool.cancel();
+    });
+    Ok(session.finish())
+}
+
 /// The engine's caller-owned storage on the host heap, of the sizes
 /// [`workspace_sizes`] gives.
 struct HeapStorage {
@@ -480,6 +545,15 @@ struct HeapStorage {
 }
 
 impl HeapStorage {
+    fn new(sizes: WorkspaceSizes) -> Self {
+        Self {
+            sizes,
+            bytes: vec![0u8; sizes.bytes],
+            words: vec![0u32; sizes.words],
+            runs: vec![Run::default(); sizes.runs],
+        }
+    }
+
     fn workspace(&mut self) -> Result<Workspace<'_>> {
         Ok(Workspace::new(
             self.sizes,
@@ -502,15 +576,7 @@ fn checked_storage(req: &Request<'_>) -> Result<(usize, HeapStorage)> {
     }
     req.params.validate().map_err(FailureCode::from)?;
     let sizes = workspace_sizes(&req.params);
-    Ok((
-        n,
-        HeapStorage {
-            sizes,
-            bytes: vec![0u8; sizes.bytes],
-            words: vec![0u32; sizes.words],
-            runs: vec![Run::default(); sizes.runs],
-        },
-    ))
+    Ok((n, HeapStorage::new(sizes)))
 }
 
 /// The simulated runner of `req` (camera, clock, map store, prior,

@@ -42,6 +42,9 @@ pub struct Args {
     /// meets it.
     #[command(flatten)]
     pub accuracy: super::AccuracyArg,
+    /// `--threads N`: the threads the attempts run on (same result).
+    #[command(flatten)]
+    pub threads: super::ThreadsArg,
     /// Output directory (default: the first free `vtsm-demo/run-N`).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -120,7 +123,8 @@ pub fn run(args: &Args) -> Result<u8> {
     let req = Request::new(map, &pair.left, &pair.right, rig, prior)
         .with_seed(args.seed)
         .with_verify(args.verify.checks())
-        .with_accuracy(args.accuracy.accuracy);
+        .with_accuracy(args.accuracy.accuracy)
+        .with_threads(args.threads.threads());
     let report = locate::relocalize(&req, RunOptions::default())?;
     let o = &report.outcome;
     let (t0_m, r0) = prior.error_to(&truth);
@@ -194,8 +198,10 @@ pub fn run(args: &Args) -> Result<u8> {
         );
     }
     println!(
-        "  relocalization time {:.2} s (single thread), workspace {:.1} MB",
+        "  relocalization time {:.2} s ({} thread{}), workspace {:.1} MB",
         report.elapsed.as_secs_f64(),
+        req.threads,
+        if req.threads == 1 { "" } else { "s" },
         report.workspace_bytes as f64 / 1e6
     );
     println!("  status: {status}");

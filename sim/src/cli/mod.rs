@@ -59,6 +59,25 @@ pub struct AccuracyArg {
     pub accuracy: Option<vtsm_core::reloc::Accuracy>,
 }
 
+/// `--threads N` of `vtsm relocalize` and `demo`: the threads one
+/// relocalization's attempts run on ([`crate::workers`]).
+#[derive(Debug, Clone, Copy, Default, clap::Args)]
+pub struct ThreadsArg {
+    /// Run the attempts of a relocalization on N threads (default: every
+    /// core, or `RAYON_NUM_THREADS`). The result is the same, bit for bit,
+    /// for every N; only the time changes.
+    #[arg(long = "threads", value_name = "N", value_parser = clap::value_parser!(u16).range(1..=256))]
+    pub threads: Option<u16>,
+}
+
+impl ThreadsArg {
+    /// The threads asked for, else [`crate::workers::default_threads`].
+    pub fn threads(self) -> usize {
+        self.threads
+            .map_or_else(crate::workers::default_threads, usize::from)
+    }
+}
+
 /// Parse the value of `--accuracy`: `T_MM,R_DEG`, 1-σ translation in
 /// millimetres (0, 1000] and rotation in degrees (0, 10].
 ///

@@ -68,6 +68,9 @@ pub struct Args {
     /// meets it.
     #[command(flatten)]
     pub accuracy: super::AccuracyArg,
+    /// `--threads N`: the threads each pair's attempts run on (same result).
+    #[command(flatten)]
+    pub threads: super::ThreadsArg,
     /// Where to write result.json; without it the result is printed to stdout.
     #[arg(long, value_name = "result.json")]
     pub out: Option<PathBuf>,
@@ -128,6 +131,7 @@ impl Args {
             },
             verify: self.verify.checks(),
             accuracy: self.accuracy.accuracy,
+            threads: self.threads.threads(),
             force: self.force,
         })
     }
@@ -186,6 +190,7 @@ pub fn with_inputs<R>(
     let map = job::check_map(&bytes, &spec.map)?;
     let inputs = Inputs {
         accuracy: spec.accuracy,
+        threads: spec.threads,
         ..job::load_inputs(&map, &calib, &pair, spec.verify)?
     };
     f(map, &inputs)

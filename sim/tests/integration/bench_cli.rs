@@ -103,6 +103,14 @@ fn quick_run_prints_and_writes_every_section() {
     assert_eq!(number(engine[3]), sum);
     assert!(seconds(engine[4]) > 0.0);
     row(&stdout, "test", "runner, outside the engine");
+    // The threads table: one and two threads, each with the one-thread
+    // outcome (VTSM-RELOC-043); no claim on the speed-up.
+    assert!(stdout.contains("### Threads"), "{stdout}");
+    for n in ["1", "2"] {
+        let t = row(&stdout, "test", n);
+        assert_eq!(t[4], "identical", "{t:?}");
+        assert!(seconds(t[2]) > 0.0, "{t:?}");
+    }
 
     // NCC: each case found its template with a positive time and work.
     for (case, at) in [

@@ -708,3 +708,56 @@ fn pairs_batch_accepts_every_calibration_form() {
         );
     }
 }
+
+/// `--threads N` changes nothing in `result.json`: `vtsm relocalize` on 1,
+/// 2 and 3 threads and with the default (here `RAYON_NUM_THREADS=2`) writes
+/// the same bytes; `vtsm demo` says how many threads it used. `--threads 0`
+/// is bad input: exit 2, nothing written.
+///
+/// Verifies: VTSM-CLI-049
+#[test]
+fn threads_give_the_same_result_bytes() {
+    let dir = exported();
+    let read = |p: &Path| std::fs::read(p).unwrap();
+    let (code, one) = relocalize(&dir, &dir.join("t1.json"), &["--threads", "1"]);
+    assert_eq!(code, Some(0));
+    assert_eq!(one["status"], "ok");
+    for n in ["2", "3"] {
+        let out = dir.join(format!("t{n}.json"));
+        let (code, _) = relocalize(&dir, &out, &["--threads", n]);
+        assert_eq!(code, Some(0));
+        assert_eq!(read(&out), read(&dir.join("t1.json")), "{n} threads");
+    }
+    let env = dir.join("tenv.json");
+    let args = relocalize_args(&dir, &env);
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_vtsm"))
+        .args(&args)
+        .env("RAYON_NUM_THREADS", "2")
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0), "{o:?}");
+    assert_eq!(read(&env), read(&dir.join("t1.json")));
+
+    let bad = dir.join("t0.json");
+    let mut args = relocalize_args(&dir, &bad);
+    args.extend(["--threads".to_string(), "0".to_string()]);
+    let o = vtsm(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(!bad.exists());
+
+    let out = dir.join("demo-threads");
+    let o = vtsm(&[
+        "demo",
+        "--profile",
+        "test",
+        "--seed",
+        "3",
+        "--threads",
+        "2",
+        "--out",
+        s(&out),
+    ]);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(o.status.code(), Some(0), "{stdout}");
+    assert!(stdout.contains("(2 threads)"), "{stdout}");
+}

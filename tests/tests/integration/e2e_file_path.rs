@@ -64,6 +64,7 @@ fn args(dir: &Path, prior: &str, out: Option<PathBuf>) -> Args {
         seed: SEED,
         verify: Default::default(),
         accuracy: Default::default(),
+        threads: Default::default(),
         out,
         force: false,
         tile_size_m: DEFAULT_TILE_SIZE_M,

@@ -313,3 +313,69 @@ fn hopeless_frames_end_fast_with_their_own_codes() {
     assert_eq!(o.stats.attempts, cap);
     assert_eq!(o.stats.correspondences, 0);
 }
+
+/// The attempts of one relocalization on 1, 2, 3 or 5 threads
+/// (`Request::with_threads`, `Session::step_pooled`): the outcome — pose,
+/// code, quality, every counter, the failure log — and the downlinked
+/// telemetry are bit-identical to one thread's, at any step granularity and
+/// when a step limit ends the run with the anytime result.
+///
+/// Verifies: VTSM-HAL-029, VTSM-RELOC-043
+#[test]
+fn threads_do_not_change_the_outcome() {
+    let scene = scene();
+    let threaded = |threads: usize, limits: DriveLimits| {
+        locate::run(
+            &request(&scene.map).with_threads(threads),
+            RunOptions::default().limits(limits),
+        )
+        .unwrap()
+    };
+    let same = |a: &DeviceRun, b: &DeviceRun, what: &str| {
+        let (oa, ra) = a.result.as_ref().unwrap();
+        let (ob, rb) = b.result.as_ref().unwrap();
+        assert_eq!(bits(oa), bits(ob), "{what}");
+        assert_eq!(oa.failure, ob.failure, "{what}");
+        assert_eq!(oa.stats, ob.stats, "{what}");
+        assert_eq!(oa.quality, ob.quality, "{what}");
+        assert_eq!(
+            oa.log.counters().collect::<Vec<_>>(),
+            ob.log.counters().collect::<Vec<_>>(),
+            "{what}"
+        );
+        assert_eq!(ra.drive.steps, rb.drive.steps, "{what}");
+        let frames = |r: &DeviceRun| {
+            r.telemetry
+                .iter()
+                .map(|f| (f.kind, f.payload.clone()))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(frames(a), frames(b), "{what}");
+    };
+    for limits in [
+        DriveLimits::UNLIMITED,
+        DriveLimits {
+            units_per_step: 1,
+            ..DriveLimits::UNLIMITED
+        },
+        // Ends early with the anytime result, in the middle of a round.
+        DriveLimits {
+            units_per_step: 3,
+            max_steps: 17,
+            budget_ticks: u64::MAX,
+        },
+    ] {
+        let one = threaded(1, limits);
+        let (o, _) = one.result.as_ref().unwrap();
+        if limits.max_steps < u32::MAX {
+            assert_eq!(o.failure, Some(FailureCode::RelocBudgetExhausted));
+        } else {
+            assert_eq!(o.failure, None);
+            assert!(o.stats.rounds > 1 && o.stats.attempts > 100);
+        }
+        for threads in [2, 3, 5] {
+            let what = format!("{threads} threads, {limits:?}");
+            same(&one, &threaded(threads, limits), &what);
+        }
+    }
+}
