@@ -438,9 +438,9 @@ fn budget_prints_the_config_capacities() {
 
 /// A test-profile Flagstone scene (the one of `tests/tests/integration/e2e_file_path.rs`)
 /// written by `vtsm scene export`, and its map product built by
-/// `vtsm map build`.
-fn exported() -> PathBuf {
-    let dir = dir("verify_scene");
+/// `vtsm map build`, in the test directory `name`.
+fn exported(name: &str) -> PathBuf {
+    let dir = dir(name);
     let run = |args: &[&str]| {
         let o = vtsm(args);
         assert_eq!(o.status.code(), Some(0), "{args:?}: {o:?}");
@@ -525,7 +525,7 @@ fn verified(r: &serde_json::Value) -> (bool, bool) {
 /// Verifies: VTSM-CLI-039
 #[test]
 fn relocalize_verify_runs_the_checks_and_says_so() {
-    let dir = exported();
+    let dir = exported("verify_scene");
     let (code, both) = relocalize(&dir, &dir.join("both.json"), &["--verify"]);
     println!("{both}");
     assert_eq!(code, Some(0));
@@ -717,7 +717,7 @@ fn pairs_batch_accepts_every_calibration_form() {
 /// Verifies: VTSM-CLI-049
 #[test]
 fn threads_give_the_same_result_bytes() {
-    let dir = exported();
+    let dir = exported("threads_scene");
     let read = |p: &Path| std::fs::read(p).unwrap();
     let (code, one) = relocalize(&dir, &dir.join("t1.json"), &["--threads", "1"]);
     assert_eq!(code, Some(0));
