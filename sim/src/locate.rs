@@ -243,6 +243,8 @@ pub struct Report {
     pub telemetry: Vec<DecodedFrame>,
     /// Whole copies of the stereo pair made ([`DeviceRun::pair_copies`]).
     pub pair_copies: u32,
+    /// Attempts the threads worked ([`DeviceRun::attempts_worked`]).
+    pub attempts_worked: Option<u32>,
 }
 
 /// Run one relocalization to completion with `opts`
@@ -271,6 +273,7 @@ fn into_report(req: &Request<'_>, run: DeviceRun) -> Result<Report> {
         device_log: run.log,
         telemetry: run.telemetry,
         pair_copies: run.pair_copies,
+        attempts_worked: run.attempts_worked,
     })
 }
 
@@ -294,6 +297,10 @@ pub struct DeviceRun {
     /// runner's RAM buffers (1 on [`PairPath::Ram`], 0 on
     /// [`PairPath::Store`]); setting the camera up copies nothing.
     pub pair_copies: u32,
+    /// With threads ([`Request::threads`] > 1): the attempts the threads
+    /// worked, those taken back (`outcome.stats.attempts`) and those dropped
+    /// as stale; `None` on one thread.
+    pub attempts_worked: Option<u32>,
 }
 
 impl DeviceRun {
@@ -316,6 +323,7 @@ impl DeviceRun {
             workspace_bytes,
             ticks: probe.ticks(),
             pair_copies: runner.camera.pair_copies,
+            attempts_worked: None,
         }
     }
 }
@@ -463,10 +471,13 @@ pub fn run(req: &Request<'_>, opts: RunOptions<'_>) -> Result<DeviceRun> {
             };
             start = Instant::now();
             if req.threads > 1 && pair.between.is_none() && observe.is_none() {
-                run_threaded(&mut runner, &job, &mut map, pair, ws, req.threads)
-            } else {
-                runner.run(&job, &mut map, pair, ws, observe)
+                let (result, worked) =
+                    run_threaded(&mut runner, &job, &mut map, pair, ws, req.threads);
+                let mut run = DeviceRun::of(result, &runner, start, sizes.total_bytes(), &probe);
+                run.attempts_worked = worked;
+                return Ok(run);
             }
+            runner.run(&job, &mut map, pair, ws, observe)
         }
         PairPath::Store {
             window_faults,
@@ -501,7 +512,10 @@ fn run_threaded(
     pair: RamPair<'_, '_>,
     ws: Workspace<'_>,
     threads: usize,
-) -> std::result::Result<(Outcome, RelocReport), FailureCode> {
+) -> (
+    std::result::Result<(Outcome, RelocReport), FailureCode>,
+    Option<u32>,
+) {
     let sizes = ws.sizes();
     let mut stores: Vec<HeapStorage> = (0..threads).map(|_| HeapStorage::new(sizes)).collect();
     let mut slot = None;
@@ -511,17 +525,21 @@ fn run_threaded(
         Err(code) => {
             drop(started);
             runner.send_failure_log();
-            return Err(code);
+            return (Err(code), None);
         }
     };
     let mut workers = Vec::with_capacity(threads);
     for s in &mut stores {
-        let ws = s
-            .workspace()
-            .map_err(|_| FailureCode::ConfigCapacityTooSmall)?;
-        workers.push(session.engine().worker(ws)?);
+        // Sized as the engine's own workspace: `worker` cannot refuse it.
+        let Ok(ws) = s.workspace() else {
+            return (Err(FailureCode::ConfigCapacityTooSmall), None);
+        };
+        match session.engine().worker(ws) {
+            Ok(w) => workers.push(w),
+            Err(code) => return (Err(code), None),
+        }
     }
-    std::thread::scope(|scope| {
+    let worked = std::thread::scope(|scope| {
         let mut pool = ThreadPool::start(scope, workers);
         // Bounded: the session counts its step calls against
         // `job.limits.max_steps` and is done at the limit.
@@ -531,8 +549,9 @@ fn run_threaded(
             }
         }
         pool.cancel();
+        pool.worked()
     });
-    Ok(session.finish())
+    (Ok(session.finish()), Some(worked))
 }
 
 /// The engine's caller-owned storage on the host heap, of the sizes

@@ -10,7 +10,7 @@
 //! of a single thread, bit for bit ([`vtsm_hal::pool`]).
 
 use std::collections::{HashMap, VecDeque};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::{Arc, Mutex};
 use std::thread::Scope;
@@ -29,6 +29,8 @@ pub struct ThreadPool {
     jobs: Option<Sender<(u64, Ticket)>>,
     results: Receiver<(u64, Worked)>,
     generation: Arc<AtomicU64>,
+    /// Tickets worked by the threads, stale ones included.
+    worked: Arc<AtomicU32>,
     /// Indices of the tickets in flight, oldest first.
     flight: VecDeque<u32>,
     /// Work of this generation that came back before its turn.
@@ -48,6 +50,7 @@ impl ThreadPool {
         let (done_tx, results) = channel();
         let queue = Arc::new(Mutex::new(queue));
         let generation = Arc::new(AtomicU64::new(0));
+        let worked = Arc::new(AtomicU32::new(0));
         let capacity = u32::try_from(workers.len().saturating_mul(2))
             .unwrap_or(u32::MAX)
             .max(1);
@@ -55,6 +58,7 @@ impl ThreadPool {
             let queue = Arc::clone(&queue);
             let done_tx = done_tx.clone();
             let generation = Arc::clone(&generation);
+            let count = Arc::clone(&worked);
             scope.spawn(move || loop {
                 // The lock is held only while waiting for the next ticket.
                 let job = match queue.lock() {
@@ -68,6 +72,7 @@ impl ThreadPool {
                     continue;
                 }
                 let worked = work_ticket(&mut attempt, &ticket);
+                count.fetch_add(1, Ordering::Relaxed);
                 if done_tx.send((g, worked)).is_err() {
                     break;
                 }
@@ -77,10 +82,17 @@ impl ThreadPool {
             jobs: Some(jobs),
             results,
             generation,
+            worked,
             flight: VecDeque::new(),
             done: HashMap::new(),
             capacity,
         }
+    }
+
+    /// Tickets the threads have worked so far, those dropped as stale
+    /// included (the attempts taken back are the engine's count).
+    pub fn worked(&self) -> u32 {
+        self.worked.load(Ordering::Relaxed)
     }
 
     fn generation(&self) -> u64 {

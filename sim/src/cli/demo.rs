@@ -198,10 +198,16 @@ pub fn run(args: &Args) -> Result<u8> {
         );
     }
     println!(
-        "  relocalization time {:.2} s ({} thread{}), workspace {:.1} MB",
+        "  relocalization time {:.2} s ({}), workspace {:.1} MB",
         report.elapsed.as_secs_f64(),
-        req.threads,
-        if req.threads == 1 { "" } else { "s" },
+        match report.attempts_worked {
+            None => "1 thread".to_string(),
+            Some(w) => format!(
+                "{} threads, {} attempts dropped as stale",
+                req.threads,
+                w.saturating_sub(o.stats.attempts)
+            ),
+        },
         report.workspace_bytes as f64 / 1e6
     );
     println!("  status: {status}");

@@ -759,5 +759,8 @@ fn threads_give_the_same_result_bytes() {
     ]);
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert_eq!(o.status.code(), Some(0), "{stdout}");
-    assert!(stdout.contains("(2 threads)"), "{stdout}");
+    assert!(
+        stdout.contains("(2 threads, ") && stdout.contains(" attempts dropped as stale)"),
+        "{stdout}"
+    );
 }

@@ -373,9 +373,15 @@ fn threads_do_not_change_the_outcome() {
             assert_eq!(o.failure, None);
             assert!(o.stats.rounds > 1 && o.stats.attempts > 100);
         }
+        assert_eq!(one.attempts_worked, None);
         for threads in [2, 3, 5] {
             let what = format!("{threads} threads, {limits:?}");
-            same(&one, &threaded(threads, limits), &what);
+            let many = threaded(threads, limits);
+            same(&one, &many, &what);
+            // Every attempt taken back was worked by a thread; the rest
+            // were dropped as stale.
+            let worked = many.attempts_worked.unwrap();
+            assert!(worked >= o.stats.attempts, "{what}: {worked} worked");
         }
     }
 }
