@@ -33,7 +33,6 @@ pub struct Epoch {
 /// One attempt handed out by [`Relocalizer::ticket`]: what a worker needs to
 /// run it on its own pipeline ([`work_ticket`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Ticket {
     /// The attempt's viewpoint, bounds and index (`ctx.index`).
     pub ctx: AttemptContext,
@@ -51,7 +50,6 @@ impl Ticket {
 
 /// A ticket's attempt, run: its result and the pipeline work it did.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Worked {
     /// The ticket that was run.
     pub ticket: Ticket,
