@@ -32,6 +32,9 @@ pub struct MappingOptions {
     pub vertex_m: f32,
     /// Texel size, metres.
     pub texel_m: f32,
+    /// Radiance samples per texel along each axis (the texel is their mean,
+    /// as a camera pixel integrates its footprint).
+    pub texel_samples: u32,
     /// Standard deviation of per-vertex white height noise, metres.
     pub noise_m: f32,
     /// Amplitude of the smooth height warp (wavelength ~0.5 m), metres.
@@ -44,11 +47,33 @@ pub struct MappingOptions {
     pub seed: u64,
 }
 
+impl MappingOptions {
+    /// The same options for imagery `k` times coarser: vertex spacing, texel
+    /// size and samples per texel axis × `k` (`k` ≤ 1 changes nothing), so a
+    /// coarse texel is the mean over its whole footprint at the fine
+    /// sampling density, as a coarser camera's pixel would be, not a
+    /// subsampled copy of the fine texture.
+    pub fn coarsened(self, k: u32) -> Self {
+        if k <= 1 {
+            return self;
+        }
+        let k = k as f32;
+        let k_int = k as u32;
+        Self {
+            vertex_m: self.vertex_m * k,
+            texel_m: self.texel_m * k,
+            texel_samples: self.texel_samples.saturating_mul(k_int),
+            ..self
+        }
+    }
+}
+
 impl Default for MappingOptions {
     fn default() -> Self {
         Self {
             vertex_m: 0.02,
             texel_m: 0.004,
+            texel_samples: 2,
             noise_m: 0.0015,
             warp_m: 0.003,
             half_x_m: DEPOT_HALF_X_M,
@@ -114,16 +139,19 @@ pub fn build_map(terrain: &Terrain, light: &Lighting, opts: &MappingOptions) -> 
     let th = (2.0 * hy / opts.texel_m).round().max(1.0) as usize;
     let (tx, ty) = (2.0 * hx / tw as f32, 2.0 * hy / th as f32);
     let mut tex = vec![0u8; tw * th];
+    let n = opts.texel_samples.clamp(1, 64);
     tex.par_chunks_mut(tw).enumerate().for_each(|(r, row)| {
         for (c, px) in row.iter_mut().enumerate() {
-            // 2×2 samples per texel.
+            // n×n samples per texel, at the centres of an n×n subgrid.
             let mut sum = 0.0;
-            for (ox, oy) in [(0.25, 0.25), (0.75, 0.25), (0.25, 0.75), (0.75, 0.75)] {
-                let x = -hx + (c as f32 + ox) * tx;
-                let y = hy - (r as f32 + oy) * ty;
-                sum += radiance(terrain, light, x, y);
+            for j in 0..n {
+                for i in 0..n {
+                    let x = -hx + (c as f32 + (i as f32 + 0.5) / n as f32) * tx;
+                    let y = hy - (r as f32 + (j as f32 + 0.5) / n as f32) * ty;
+                    sum += radiance(terrain, light, x, y);
+                }
             }
-            *px = tone(0.25 * sum, light.exposure).round() as u8;
+            *px = tone(sum / (n * n) as f32, light.exposure).round() as u8;
         }
     });
     MeshData {

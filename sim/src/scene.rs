@@ -264,6 +264,10 @@ pub struct Scene {
     pub profile: Profile,
     /// Seed (terrain, map noise, sensor noise are forked from it).
     pub seed: u64,
+    /// The map is made from imagery this many times coarser than the
+    /// profile's: its vertex spacing and texel size are multiplied by it
+    /// ([`MappingOptions::coarsened`]); 1 is the profile's map.
+    pub map_coarse: u32,
 }
 
 impl Scene {
@@ -273,6 +277,17 @@ impl Scene {
             terrain: Terrain::generate(kind, seed, profile.terrain_cell_m()),
             profile,
             seed,
+            map_coarse: 1,
+        }
+    }
+
+    /// The same scene with its map made `k` times coarser (`k` ≥ 1: vertex
+    /// spacing and texel size × `k`), as a map from a lander's descent
+    /// camera or an older rover's would be; the live pairs are unchanged.
+    pub fn with_map_coarse(self, k: u32) -> Self {
+        Self {
+            map_coarse: k.max(1),
+            ..self
         }
     }
 
@@ -365,7 +380,10 @@ impl Scene {
         build_map(
             &self.terrain,
             light,
-            &self.profile.mapping(self.seed ^ 0x4D41_5000),
+            &self
+                .profile
+                .mapping(self.seed ^ 0x4D41_5000)
+                .coarsened(self.map_coarse),
         )
     }
 }

@@ -29,6 +29,10 @@ pub struct Args {
     /// Seed of the depot, the capture noise, the prior perturbation and the relocalization.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Map from imagery K times coarser: 1, 2, 4 or 8 (vertex spacing and
+    /// texel size × K); the stereo pair is unchanged.
+    #[arg(long, value_name = "K", default_value_t = 1)]
+    pub map_coarse: u32,
     /// Capture stop on the paper's grid (0..30).
     #[arg(long, default_value_t = 3)]
     pub stop: u32,
@@ -80,6 +84,9 @@ pub fn run(args: &Args) -> Result<u8> {
     if args.stop >= 2 * STOPS_PER_CIRCLE {
         return Err(Error::msg("--stop must be 0..30"));
     }
+    if ![1, 2, 4, 8].contains(&args.map_coarse) {
+        return Err(Error::msg("--map-coarse must be 1, 2, 4 or 8"));
+    }
     let out = args.out.clone().unwrap_or_else(default_out);
     let result_path = out.join("result.json");
     let panel_path = out.join("panel.png");
@@ -100,7 +107,7 @@ pub fn run(args: &Args) -> Result<u8> {
         args.seed
     );
     let t0 = Instant::now();
-    let scene = Scene::new(kind, args.seed, profile);
+    let scene = Scene::new(kind, args.seed, profile).with_map_coarse(args.map_coarse);
     let map_mesh = scene.map(&scene.lighting(MAP_HOURS));
     let map_bytes = map_mesh.encode_map(0.5)?;
     let capture = Capture::from_index(args.stop, 0, 0.40);

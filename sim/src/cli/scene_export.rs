@@ -43,6 +43,10 @@ pub struct Args {
     /// Wind between mapping and capture, 0..1 (sand moved, dust deposited); 0 = none.
     #[arg(long, default_value_t = 0.0)]
     pub wind: f32,
+    /// Map from imagery K times coarser: 1, 2, 4 or 8 (vertex spacing and
+    /// texel size × K); the pair is unchanged.
+    #[arg(long, value_name = "K", default_value_t = 1)]
+    pub map_coarse: u32,
     /// Overwrite files already in DIR.
     #[arg(long)]
     pub force: bool,
@@ -85,6 +89,9 @@ pub fn run(args: &Args) -> Result<u8> {
     if !(args.wind.is_finite() && (0.0..=1.0).contains(&args.wind)) {
         return Err(Error::msg("--wind must be in [0, 1]"));
     }
+    if ![1, 2, 4, 8].contains(&args.map_coarse) {
+        return Err(Error::msg("--map-coarse must be 1, 2, 4 or 8"));
+    }
     if !(args.baseline.is_finite() && args.baseline > 0.0 && args.baseline < 2.0) {
         return Err(Error::msg("--baseline must be in (0, 2) metres"));
     }
@@ -94,7 +101,7 @@ pub fn run(args: &Args) -> Result<u8> {
         }
     }
     let t0 = Instant::now();
-    let map_scene = Scene::new(kind, args.seed, profile);
+    let map_scene = Scene::new(kind, args.seed, profile).with_map_coarse(args.map_coarse);
     let scene = if args.wind > 0.0 {
         Scene {
             terrain: map_scene.terrain.with_wind(args.seed, args.wind),
@@ -136,7 +143,7 @@ pub fn run(args: &Args) -> Result<u8> {
     let meta = serde_json::json!({
         "terrain": kind.name(), "seed": args.seed, "profile": profile.name(),
         "hours": hours, "map_hours": map_hours, "stop": args.stop, "look_at": args.look_at,
-        "baseline_m": args.baseline, "wind": args.wind, "sun_elevation_deg": light.sun.elevation_deg,
+        "baseline_m": args.baseline, "wind": args.wind, "map_coarse": args.map_coarse, "sun_elevation_deg": light.sun.elevation_deg,
         "sun_azimuth_deg": light.sun.azimuth_deg, "triangles": map.triangles.len(),
         "masked_triangles": map.mask.iter().filter(|&&m| m).count(),
         "physical": args.physical,

@@ -215,6 +215,7 @@ fn known_point_appears_at_predicted_pixels_in_both_images() {
         terrain: t,
         profile: Profile::Test,
         seed: 0,
+        map_coarse: 1,
     };
     let light = scene.lighting(12.5);
     for baseline in BASELINES_M {
@@ -423,4 +424,46 @@ fn every_profile_has_a_valid_rig() {
             assert_eq!(StereoRig::new(cam, b).unwrap().baseline_m(), b);
         }
     }
+}
+
+/// A map from imagery 4× coarser has 1/16 the texels and about 1/16 the
+/// vertices, each texel the mean over its footprint (the mean brightness is
+/// kept), and `map_coarse` 1 is the profile's map bit for bit.
+///
+/// Verifies: VTSM-SIM-017
+#[test]
+fn a_coarse_map_has_fewer_texels_and_vertices_and_the_same_brightness() {
+    let scene = cfa6_test_scene();
+    let light = scene.lighting(9.5);
+    let fine = scene.map(&light);
+    let same = scene.clone().with_map_coarse(1).map(&light);
+    assert_eq!(fine.texture.pixels, same.texture.pixels);
+    assert_eq!(fine.vertices, same.vertices);
+    let coarse = scene.clone().with_map_coarse(4).map(&light);
+    let texels = |m: &MeshData| m.texture.pixels.len() as f64;
+    let ratio = texels(&fine) / texels(&coarse);
+    assert!((15.0..=17.0).contains(&ratio), "texel ratio {ratio}");
+    let ratio = fine.vertices.len() as f64 / coarse.vertices.len() as f64;
+    assert!((13.0..=17.0).contains(&ratio), "vertex ratio {ratio}");
+    let mean =
+        |m: &MeshData| m.texture.pixels.iter().map(|&p| f64::from(p)).sum::<f64>() / texels(m);
+    let (a, b) = (mean(&fine), mean(&coarse));
+    assert!((a - b).abs() < 3.0, "mean {a:.1} vs {b:.1}");
+    // Coarser means smoother: less texel-to-texel contrast per texel.
+    let contrast = |m: &MeshData| {
+        let w = m.texture.width as usize;
+        m.texture
+            .pixels
+            .windows(2)
+            .enumerate()
+            .filter(|(i, _)| (i + 1) % w != 0)
+            .map(|(_, p)| (f64::from(p[0]) - f64::from(p[1])).abs())
+            .sum::<f64>()
+            / texels(m)
+    };
+    assert!(contrast(&coarse) > 0.0 && contrast(&fine) > 0.0);
+    assert!(
+        coarse.mask.iter().any(|&m| m),
+        "the coarse map keeps a mask"
+    );
 }

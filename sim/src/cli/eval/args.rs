@@ -215,6 +215,12 @@ pub struct Args {
     /// (`Terrain::with_wind`); the maps stay those of the mapping-time depot.
     #[arg(long, value_name = "S", default_value_t = 0.0)]
     pub wind: f32,
+    /// Maps from imagery K times coarser (1, 2, 4 or 8): vertex spacing and
+    /// texel size × K, each texel the mean over its footprint, as a map from
+    /// a lander's descent camera or an older rover's (`Scene::with_map_coarse`);
+    /// the live pairs are unchanged.
+    #[arg(long, value_name = "K", default_value_t = 1)]
+    pub map_coarse: u32,
     /// Run nothing: draw the figures of the run recorded in DIR again from its
     /// `trials.csv` (suite and terrains from its `summary.json`), into DIR
     /// (`--force` to replace them).
@@ -264,6 +270,7 @@ impl Args {
             light_model: LightModelArg::Full,
             mask: MaskArg::Paper,
             wind: 0.0,
+            map_coarse: 1,
             replot: None,
             shard: None,
             data: None,
@@ -334,6 +341,10 @@ pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
         return Err(Error::msg("--wind must be a strength in 0..=1"));
     }
     cfg.wind = args.wind;
+    if ![1, 2, 4, 8].contains(&args.map_coarse) {
+        return Err(Error::msg("--map-coarse must be 1, 2, 4 or 8"));
+    }
+    cfg.map_coarse = args.map_coarse;
     cfg.shard = args.shard;
     dataset_args(args, &mut cfg)?;
     Ok(cfg)
@@ -361,6 +372,7 @@ fn dataset_args(args: &Args, cfg: &mut SuiteConfig) -> Result<()> {
         ("--light-model", args.light_model != LightModelArg::Full),
         ("--mask", args.mask != MaskArg::Paper),
         ("--wind", args.wind != 0.0),
+        ("--map-coarse", args.map_coarse != 1),
     ];
     if let Some((flag, _)) = simulated.iter().find(|f| f.1) {
         return Err(Error::msg(format!(

@@ -96,6 +96,9 @@ pub struct SuiteConfig {
     pub mask_all: bool,
     /// Wind strength between mapping and the live pairs (`--wind`, 0 = none).
     pub wind: f32,
+    /// The maps from imagery this many times coarser (`--map-coarse`, 1 =
+    /// the profile's map; `Scene::with_map_coarse`).
+    pub map_coarse: u32,
     /// Run only this shard of the campaign's trials (`--shard K/N`).
     pub shard: Option<super::shard::Shard>,
     /// The data set directory (`dataset` only, `--data`).
@@ -128,6 +131,7 @@ impl SuiteConfig {
             light_model: LightModel::Full,
             mask_all: false,
             wind: 0.0,
+            map_coarse: 1,
             shard: None,
             data: None,
             panels: None,

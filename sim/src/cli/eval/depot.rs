@@ -32,7 +32,7 @@ impl Depot {
         let scenes: Vec<Scene> = cfg
             .terrains
             .par_iter()
-            .map(|&k| Scene::new(k, cfg.seed, cfg.profile))
+            .map(|&k| Scene::new(k, cfg.seed, cfg.profile).with_map_coarse(cfg.map_coarse))
             .collect();
         let meshes = mapped_meshes(cfg, &scenes);
         let windy: Vec<Scene> = if cfg.wind > 0.0 {

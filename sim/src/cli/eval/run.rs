@@ -269,6 +269,7 @@ fn run_meta(cfg: &SuiteConfig, def: &dyn SuiteDef, depot: &Depot, command: &str)
             "light_model": cfg.light_model.name(),
             "mask": if cfg.mask_all { "all" } else { "paper" },
             "wind": cfg.wind,
+            "map_coarse": cfg.map_coarse,
             "rectify_interp": if cfg.physical { Some(cfg.interp.name()) } else { None },
             "baseline": cfg.baseline.map(Method::name),
             "origin": cfg.origin,

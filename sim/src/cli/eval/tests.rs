@@ -219,6 +219,10 @@ fn feature_baseline_runs_on_the_same_trials_and_is_reported_side_by_side() {
     assert!(config_from_args(&args).is_err());
     args.wind = 0.5;
     assert_eq!(config_from_args(&args).unwrap().wind, 0.5);
+    args.map_coarse = 3;
+    assert!(config_from_args(&args).is_err());
+    args.map_coarse = 4;
+    assert_eq!(config_from_args(&args).unwrap().map_coarse, 4);
     // Unknown names are refused by the parser, suite and terrain names in
     // any case.
     let parse = |line: &str| {
@@ -251,9 +255,10 @@ struct Cli {
 
 /// `--wind` changes the live pairs and not the map or the priors (beyond the
 /// micrometres the ground under the rover moves); `--mask all` changes the
-/// map's mask and not the pairs or the priors.
+/// map's mask and `--map-coarse 4` the map's resolution, not the pairs or
+/// the priors.
 ///
-/// Verifies: VTSM-SIM-016
+/// Verifies: VTSM-SIM-016, VTSM-SIM-017
 #[test]
 fn wind_and_mask_change_only_what_they_name() {
     let base = SuiteConfig {
@@ -277,7 +282,15 @@ fn wind_and_mask_change_only_what_they_name() {
         "test",
     )
     .unwrap();
-    for run in [&windy, &masked] {
+    let coarse = run_suite(
+        &SuiteConfig {
+            map_coarse: 4,
+            ..base.clone()
+        },
+        "test",
+    )
+    .unwrap();
+    for run in [&windy, &masked, &coarse] {
         assert_eq!(run.outcomes.len(), plain.outcomes.len());
         for (a, b) in plain.outcomes.iter().zip(&run.outcomes) {
             // The rover stands on the live ground, which the wind moves by
@@ -295,8 +308,19 @@ fn wind_and_mask_change_only_what_they_name() {
     };
     assert_ne!(finals(&plain), finals(&windy), "wind changed nothing");
     assert_ne!(finals(&plain), finals(&masked), "the mask changed nothing");
+    assert_ne!(
+        finals(&plain),
+        finals(&coarse),
+        "the coarse map changed nothing"
+    );
+    // The live pairs are the same: the prior errors are equal bit for bit.
+    for (a, b) in plain.outcomes.iter().zip(&coarse.outcomes) {
+        assert_eq!(a.init_t_mm.to_bits(), b.init_t_mm.to_bits());
+    }
     assert_eq!(windy.meta.params["wind"], 1.0);
     assert_eq!(masked.meta.params["mask"], "all");
+    assert_eq!(coarse.meta.params["map_coarse"], 4);
+    assert_eq!(plain.meta.params["map_coarse"], 1);
 }
 
 /// The paper suite with the whole scene offset to UTM-sized coordinates
