@@ -83,6 +83,13 @@ impl Pose {
         [q.w, q.i, q.j, q.k]
     }
 
+    /// The seven numbers of [`Self::t`] then [`Self::q`] as their bit
+    /// patterns: what "bit-identical poses" compares.
+    pub fn to_bits(&self) -> [u32; 7] {
+        let (t, q) = (self.t(), self.q());
+        [t[0], t[1], t[2], q[0], q[1], q[2], q[3]].map(f32::to_bits)
+    }
+
     /// Translation vector.
     pub fn translation(&self) -> Vec3 {
         self.iso.translation.vector

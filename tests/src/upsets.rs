@@ -133,22 +133,15 @@ fn classify(
     clean: &Outcome,
     truth: &Pose,
 ) -> (Class, Option<FailureCode>, Option<f32>) {
-    let bits = |o: &Outcome| {
-        o.pose
-            .t()
-            .into_iter()
-            .chain(o.pose.q())
-            .map(f32::to_bits)
-            .collect::<Vec<_>>()
-    };
-    if o.failure.is_some() && o.failure == clean.failure && bits(o) == bits(clean) {
+    if o.failure.is_some() && o.failure == clean.failure && o.pose.to_bits() == clean.pose.to_bits()
+    {
         return (Class::Identical, o.failure, None);
     }
     match (o.failure, clean.failure) {
         (None, None) => {
             let (e, _) = o.pose.error_to(truth);
             let (d, _) = o.pose.error_to(&clean.pose);
-            let class = if bits(o) == bits(clean) {
+            let class = if o.pose.to_bits() == clean.pose.to_bits() {
                 Class::Identical
             } else if d <= 1.0e-3 {
                 Class::Tolerated

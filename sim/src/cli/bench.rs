@@ -366,15 +366,7 @@ fn threads_rows(req: &Request<'_>) -> Result<Vec<ThreadsRow>> {
 /// Whether two outcomes are the same bit for bit: pose, code, quality,
 /// every counter and the failure log's counters.
 fn same_outcome(a: &Outcome, b: &Outcome) -> bool {
-    let bits = |o: &Outcome| {
-        o.pose
-            .t()
-            .into_iter()
-            .chain(o.pose.q())
-            .map(f32::to_bits)
-            .collect::<Vec<_>>()
-    };
-    bits(a) == bits(b)
+    a.pose.to_bits() == b.pose.to_bits()
         && a.failure == b.failure
         && a.stats == b.stats
         && a.quality == b.quality
