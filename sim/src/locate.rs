@@ -461,7 +461,7 @@ pub fn run(req: &Request<'_>, opts: RunOptions<'_>) -> Result<DeviceRun> {
         }
     ];
     let start;
-    let result = match path {
+    let (result, attempts_worked) = match path {
         PairPath::Ram => {
             let (mut left, mut right) = (vec![0u8; n], vec![0u8; n]);
             let pair = RamPair {
@@ -471,13 +471,10 @@ pub fn run(req: &Request<'_>, opts: RunOptions<'_>) -> Result<DeviceRun> {
             };
             start = Instant::now();
             if req.threads > 1 && pair.between.is_none() && observe.is_none() {
-                let (result, worked) =
-                    run_threaded(&mut runner, &job, &mut map, pair, ws, req.threads);
-                let mut run = DeviceRun::of(result, &runner, start, sizes.total_bytes(), &probe);
-                run.attempts_worked = worked;
-                return Ok(run);
+                run_threaded(&mut runner, &job, &mut map, pair, ws, req.threads)
+            } else {
+                (runner.run(&job, &mut map, pair, ws, observe), None)
             }
-            runner.run(&job, &mut map, pair, ws, observe)
         }
         PairPath::Store {
             window_faults,
@@ -488,16 +485,13 @@ pub fn run(req: &Request<'_>, opts: RunOptions<'_>) -> Result<DeviceRun> {
                 runner.store = runner.store.memory_mapped();
             }
             start = Instant::now();
-            runner.run(&job, &mut map, InStore, ws, observe)
+            (runner.run(&job, &mut map, InStore, ws, observe), None)
         }
     };
-    Ok(DeviceRun::of(
-        result,
-        &runner,
-        start,
-        sizes.total_bytes(),
-        &probe,
-    ))
+    Ok(DeviceRun {
+        attempts_worked,
+        ..DeviceRun::of(result, &runner, start, sizes.total_bytes(), &probe)
+    })
 }
 
 /// [`Runner::run`] with the attempts on `threads` threads

@@ -57,12 +57,11 @@ impl MappingOptions {
         if k <= 1 {
             return self;
         }
-        let k = k as f32;
-        let k_int = k as u32;
+        let scale = k as f32;
         Self {
-            vertex_m: self.vertex_m * k,
-            texel_m: self.texel_m * k,
-            texel_samples: self.texel_samples.saturating_mul(k_int),
+            vertex_m: self.vertex_m * scale,
+            texel_m: self.texel_m * scale,
+            texel_samples: self.texel_samples.saturating_mul(k),
             ..self
         }
     }

@@ -281,6 +281,23 @@ impl Scene {
         }
     }
 
+    /// The map coarsening factors `--map-coarse` accepts.
+    pub const MAP_COARSE: [u32; 4] = [1, 2, 4, 8];
+
+    /// `k` if it is one of [`Self::MAP_COARSE`].
+    ///
+    /// # Errors
+    /// Any other value, with what is accepted (bad input: exit 2).
+    pub fn check_map_coarse(k: u32) -> crate::error::Result<u32> {
+        if Self::MAP_COARSE.contains(&k) {
+            Ok(k)
+        } else {
+            Err(crate::error::Error::msg(
+                "--map-coarse must be 1, 2, 4 or 8",
+            ))
+        }
+    }
+
     /// The same scene with its map made `k` times coarser (`k` ≥ 1: vertex
     /// spacing and texel size × `k`), as a map from a lander's descent
     /// camera or an older rover's would be; the live pairs are unchanged.

@@ -84,9 +84,7 @@ pub fn run(args: &Args) -> Result<u8> {
     if args.stop >= 2 * STOPS_PER_CIRCLE {
         return Err(Error::msg("--stop must be 0..30"));
     }
-    if ![1, 2, 4, 8].contains(&args.map_coarse) {
-        return Err(Error::msg("--map-coarse must be 1, 2, 4 or 8"));
-    }
+    Scene::check_map_coarse(args.map_coarse)?;
     let out = args.out.clone().unwrap_or_else(default_out);
     let result_path = out.join("result.json");
     let panel_path = out.join("panel.png");

@@ -89,9 +89,7 @@ pub fn run(args: &Args) -> Result<u8> {
     if !(args.wind.is_finite() && (0.0..=1.0).contains(&args.wind)) {
         return Err(Error::msg("--wind must be in [0, 1]"));
     }
-    if ![1, 2, 4, 8].contains(&args.map_coarse) {
-        return Err(Error::msg("--map-coarse must be 1, 2, 4 or 8"));
-    }
+    Scene::check_map_coarse(args.map_coarse)?;
     if !(args.baseline.is_finite() && args.baseline > 0.0 && args.baseline < 2.0) {
         return Err(Error::msg("--baseline must be in (0, 2) metres"));
     }

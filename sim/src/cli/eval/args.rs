@@ -341,10 +341,7 @@ pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
         return Err(Error::msg("--wind must be a strength in 0..=1"));
     }
     cfg.wind = args.wind;
-    if ![1, 2, 4, 8].contains(&args.map_coarse) {
-        return Err(Error::msg("--map-coarse must be 1, 2, 4 or 8"));
-    }
-    cfg.map_coarse = args.map_coarse;
+    cfg.map_coarse = crate::scene::Scene::check_map_coarse(args.map_coarse)?;
     cfg.shard = args.shard;
     dataset_args(args, &mut cfg)?;
     Ok(cfg)
