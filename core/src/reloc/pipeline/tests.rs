@@ -286,6 +286,37 @@ fn epipolar_band_holds_the_positions_valid_can_accept() {
     assert_eq!(nan, None);
 }
 
+/// A worker's pipeline (`Engine::worker`) needs a workspace as large as the
+/// engine's own: a smaller one is refused with `CONFIG_CAPACITY_TOO_SMALL`.
+///
+/// Verifies: VTSM-RELOC-043
+#[test]
+fn a_worker_refuses_a_workspace_smaller_than_the_engines() {
+    let (bytes, truth) = scene();
+    let map = MapView::new_checked(&bytes).unwrap();
+    let rig = rig();
+    let p = test_params();
+    let left = render_full(&map, &rig.cam, &truth, 0.85, 20.0);
+    let right = render_full(&map, &rig.cam, &rig.world_from_right(&truth), 0.85, 20.0);
+    let lv = GrayView::new(&left, 640, 480, 640).unwrap();
+    let rv = GrayView::new(&right, 640, 480, 640).unwrap();
+    let (mut b, mut w, mut r) = workspace_buffers(&TEST_WORKSPACE);
+    let ws = Workspace::new(TEST_WORKSPACE, &mut b, &mut w, &mut r).unwrap();
+    let engine = Setup::new(&map, lv, rv, &rig, &p, &truth, 1)
+        .build(ws)
+        .unwrap();
+    let tiny = WorkspaceSizes::new(32, 256, ncc::Search::CoarseToFine);
+    let (mut tb, mut tw, mut tr) = workspace_buffers(&tiny);
+    let small = Workspace::new(tiny, &mut tb, &mut tw, &mut tr).unwrap();
+    assert_eq!(
+        engine.worker(small).err(),
+        Some(FailureCode::ConfigCapacityTooSmall)
+    );
+    let (mut sb, mut sw, mut sr) = workspace_buffers(&TEST_WORKSPACE);
+    let same = Workspace::new(TEST_WORKSPACE, &mut sb, &mut sw, &mut sr).unwrap();
+    assert!(engine.worker(same).is_ok());
+}
+
 /// Verifies: VTSM-RELOC-016
 #[test]
 fn setup_refuses_mismatched_images_small_workspaces_and_bad_inputs() {
