@@ -3,7 +3,7 @@
 //! Desktop side of VTSM (std): procedural depots ([`terrain`]), a photometric
 //! renderer of its own ([`render`]), photogrammetry-like map products
 //! ([`mapping`]), capture grids and scenes ([`scene`]), HAL implementations with
-//! seeded fault injection ([`devices`]), file formats ([`io`]), the user and
+//! seeded fault injection ([`devices`]), a camera that is not ideal ([`effects`]), file formats ([`io`]), the user and
 //! map-local frames ([`frame`]), the host relocalization job ([`job`]), evaluation suites
 //! ([`eval`]), the local-feature baseline ([`features`]) and the `vtsm`
 //! command line ([`cli`]).
@@ -11,6 +11,7 @@
 
 pub mod cli;
 pub mod devices;
+pub mod effects;
 pub mod error;
 pub mod eval;
 pub mod features;

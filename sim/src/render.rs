@@ -68,6 +68,27 @@ impl Sun {
         Self::at(hours, DEFAULT_LATITUDE_DEG, DEFAULT_DECLINATION_DEG)
     }
 
+    /// The afternoon local solar time at which the depot's sun
+    /// ([`Sun::depot`]) stands `elevation_deg` above the horizon, by
+    /// bisection between noon and 18 h (40 halvings, well under a second of
+    /// time); `None` when the sun is never there in the afternoon.
+    pub fn depot_afternoon_at(elevation_deg: f32) -> Option<f32> {
+        let el = |h: f32| Self::depot(h).elevation_deg;
+        let (mut lo, mut hi) = (12.0f32, 18.0f32);
+        if !(el(hi)..=el(lo)).contains(&elevation_deg) {
+            return None;
+        }
+        for _ in 0..40 {
+            let mid = 0.5 * (lo + hi);
+            if el(mid) > elevation_deg {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        Some(0.5 * (lo + hi))
+    }
+
     /// A sun from explicit elevation and azimuth (degrees, azimuth clockwise from north).
     pub fn from_angles(elevation_deg: f32, azimuth_deg: f32) -> Self {
         let (e, a) = (elevation_deg.to_radians(), azimuth_deg.to_radians());
@@ -731,6 +752,10 @@ mod tests {
         );
         assert!(am.elevation_deg < noon.elevation_deg && pm.elevation_deg < noon.elevation_deg);
         // Symmetric about noon.
+        let h8 = Sun::depot_afternoon_at(8.0).unwrap();
+        assert!(h8 > 15.5 && h8 < 17.0, "{h8}");
+        assert!((Sun::depot(h8).elevation_deg - 8.0).abs() < 1e-3);
+        assert_eq!(Sun::depot_afternoon_at(80.0), None);
         let a = Sun::depot(10.0);
         let b = Sun::depot(14.0);
         assert!((a.elevation_deg - b.elevation_deg).abs() < 1e-3);

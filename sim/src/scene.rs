@@ -14,7 +14,7 @@
 
 use crate::mapping::{build_map, MappingOptions, MeshData};
 use crate::render::{render, LightModel, Lighting, RenderOptions, Sun};
-use crate::terrain::{Terrain, TerrainKind, TUBE_XY_M};
+use crate::terrain::{DepotChange, Terrain, TerrainKind, TUBE_XY_M};
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
 use vtsm_core::geom::{Camera, Pose, StereoRig, Vec3};
 use vtsm_core::rng::Rng;
@@ -305,6 +305,28 @@ impl Scene {
         Self {
             map_coarse: k.max(1),
             ..self
+        }
+    }
+
+    /// The same depot as it is at capture time: after wind of `wind`
+    /// ([`Terrain::with_wind`]) and then `change` ([`Terrain::with_change`]),
+    /// both drawn from `seed`. The map is still made from `self`, so a change
+    /// is what the map does not know. No wind and [`DepotChange::NONE`] give
+    /// an identical scene.
+    pub fn live(&self, wind: f32, change: &DepotChange, seed: u64) -> Scene {
+        let mut terrain = if wind > 0.0 {
+            self.terrain.with_wind(seed, wind)
+        } else {
+            self.terrain.clone()
+        };
+        if !change.is_none() {
+            terrain = terrain.with_change(seed, change);
+        }
+        Scene {
+            terrain,
+            profile: self.profile,
+            seed: self.seed,
+            map_coarse: self.map_coarse,
         }
     }
 

@@ -523,6 +523,14 @@ impl Rock {
 type CellBox = [usize; 4];
 
 impl Rock {
+    /// Whether the rock reaches within `margin_m` of a sample tube's
+    /// footprint (edits of the depot leave those rocks alone).
+    fn near_tube(&self, margin_m: f32) -> bool {
+        TUBE_XY_M.iter().any(|t| {
+            (self.x - t[0]).hypot(self.y - t[1]) < TUBE_LENGTH_M + self.bound_m() + margin_m
+        })
+    }
+
     /// Cells that the rock's bounding square touches (clamped to the grid).
     fn cell_box(&self, x0: f32, y0: f32, cell_m: f32, nx: usize, ny: usize) -> CellBox {
         let b = self.bound_m();
@@ -584,6 +592,13 @@ impl Cells<'_> {
 fn terrain_seed(kind: TerrainKind, seed: u64) -> u64 {
     seed ^ (kind as u64 + 1).wrapping_mul(0x1234_5678_9ABC_DEF1)
 }
+
+mod change;
+
+pub use change::{
+    DepotChange, BERM_HEIGHT_M, BERM_WIDTH_M, DUST_ALBEDO, GROUSER_ALBEDO, GROUSER_DEPTH_M,
+    GROUSER_PITCH_M, MAX_TRACKS, RUT_DEPTH_M, TRACK_ALBEDO, TRACK_GAUGE_M, WHEEL_WIDTH_M,
+};
 
 /// Pebbles that wind may move: rocks of at most this diameter, metres.
 pub const PEBBLE_MAX_DIAMETER_M: f32 = 0.05;
@@ -781,7 +796,6 @@ impl Terrain {
             return out;
         }
         let (nx, ny, x0, y0, c) = (self.nx, self.ny, self.x0, self.y0, self.cell_m);
-        let tseed = terrain_seed(self.kind, self.seed);
         let mut rng = Rng::new(seed).fork(0x0050_4542_424C);
         let mut boxes: Vec<CellBox> = Vec::new();
         for rock in out.rocks.iter_mut() {
@@ -791,12 +805,13 @@ impl Terrain {
                 rng.uniform(0.01, 0.04),
                 rng.uniform(0.0, 2.0 * PI),
             );
-            let near_tube = TUBE_XY_M.iter().any(|t| {
-                (rock.x - t[0]).hypot(rock.y - t[1]) < TUBE_LENGTH_M + rock.bound_m() + 0.05
-            });
             let (x, y) = (rock.x + dist * ang.cos(), rock.y + dist * ang.sin());
             let off_grid = x.abs() >= GRID_HALF_X_M || y.abs() >= GRID_HALF_Y_M;
-            if rock.diameter_m > PEBBLE_MAX_DIAMETER_M || pick >= frac || near_tube || off_grid {
+            if rock.diameter_m > PEBBLE_MAX_DIAMETER_M
+                || pick >= frac
+                || rock.near_tube(0.05)
+                || off_grid
+            {
                 continue;
             }
             boxes.push(rock.cell_box(x0, y0, c, nx, ny));
@@ -806,18 +821,33 @@ impl Terrain {
         if boxes.is_empty() {
             return out;
         }
-        let rocks = out.rocks.clone();
+        let keep = vec![true; out.rocks.len()];
+        out.regenerate(&boxes, &keep);
+        out.refresh_derived();
+        out
+    }
+
+    /// Regenerate the cells of `boxes` as [`Terrain::generate`] made them:
+    /// bare ground, then every rock `idx` with `keep[idx]` that reaches the
+    /// box, in placement order (sample tubes and Flagstone slabs are not
+    /// redrawn: callers keep edits away from them). Derived layers are left
+    /// to [`Terrain::refresh_derived`].
+    fn regenerate(&mut self, boxes: &[CellBox], keep: &[bool]) {
+        let (nx, ny, x0, y0, c) = (self.nx, self.ny, self.x0, self.y0, self.cell_m);
+        let tseed = terrain_seed(self.kind, self.seed);
+        let kind = self.kind;
+        let rocks = self.rocks.clone();
         let mut cells = Cells {
             nx,
             ny,
             x0,
             y0,
             cell_m: c,
-            height: &mut out.height,
-            albedo: &mut out.albedo,
-            label: &mut out.label,
+            height: &mut self.height,
+            albedo: &mut self.albedo,
+            label: &mut self.label,
         };
-        for &bx in &boxes {
+        for &bx in boxes {
             let [i0, i1, j0, j1] = bx;
             // Bare ground as generated, ...
             for j in j0..=j1 {
@@ -826,12 +856,15 @@ impl Terrain {
                     let grain = 0.05 * (lattice(tseed ^ 0x6A, i as i64, j as i64) - 0.5);
                     let k = j * nx + i;
                     cells.height[k] = base_height(tseed, x, y);
-                    cells.albedo[k] = ground_albedo(self.kind, tseed, x, y) + grain;
+                    cells.albedo[k] = ground_albedo(kind, tseed, x, y) + grain;
                     cells.label[k] = LABEL_SAND;
                 }
             }
-            // ... then every rock that reaches the box, in placement order.
+            // ... then every kept rock that reaches the box, in placement order.
             for (idx, rock) in rocks.iter().enumerate() {
+                if !keep.get(idx).copied().unwrap_or(true) {
+                    continue;
+                }
                 let rb = rock.cell_box(x0, y0, c, nx, ny);
                 let clip = [rb[0].max(i0), rb[1].min(i1), rb[2].max(j0), rb[3].min(j1)];
                 if clip[0] <= clip[1] && clip[2] <= clip[3] {
@@ -844,10 +877,14 @@ impl Terrain {
                 }
             }
         }
-        out.max_height_m = out.height.iter().copied().fold(f32::MIN, f32::max);
-        out.sky = sky_visibility(&out.height, nx, ny, c);
-        out.mip = MaxMip::build(&out.height, nx, ny);
-        out
+    }
+
+    /// Recompute what is derived from the heights after an edit: the highest
+    /// cell, sky visibility and the maximum quadtree.
+    fn refresh_derived(&mut self) {
+        self.max_height_m = self.height.iter().copied().fold(f32::MIN, f32::max);
+        self.sky = sky_visibility(&self.height, self.nx, self.ny, self.cell_m);
+        self.mip = MaxMip::build(&self.height, self.nx, self.ny);
     }
 
     /// The same depot after "wind" between mapping and relocalization: sand ripples
@@ -891,9 +928,7 @@ impl Terrain {
                     }
                 }
             });
-        out.max_height_m = out.height.iter().copied().fold(f32::MIN, f32::max);
-        out.sky = sky_visibility(&out.height, nx, self.ny, c);
-        out.mip = MaxMip::build(&out.height, nx, self.ny);
+        out.refresh_derived();
         out
     }
 

@@ -4,6 +4,7 @@
 //! paper's Fig. 6b (synthetic templates at the random start, the real image,
 //! synthetic templates at the final pose).
 
+use crate::cli::eval::protocol::CAMERA_SEED;
 use crate::cli::relocalize::{outcome_from_core, outcome_result, Outcome};
 use crate::error::{Error, Result, EXIT_RELOC_FAILED};
 use crate::io::json;
@@ -33,6 +34,10 @@ pub struct Args {
     /// texel size × K); the stereo pair is unchanged.
     #[arg(long, value_name = "K", default_value_t = 1)]
     pub map_coarse: u32,
+    /// `--change SPEC` and `--camera SPEC`: the depot changed since mapping
+    /// and a camera that is not ideal.
+    #[command(flatten)]
+    pub conditions: super::ConditionsArg,
     /// Capture stop on the paper's grid (0..30).
     #[arg(long, default_value_t = 3)]
     pub stop: u32,
@@ -104,12 +109,22 @@ pub fn run(args: &Args) -> Result<u8> {
         profile.name(),
         args.seed
     );
+    let (change, camera) = (args.conditions.change, args.conditions.camera);
+    if !change.is_none() || !camera.is_none() {
+        println!(
+            "  depot changed since mapping: {}; camera: {}",
+            change.label(),
+            camera.label()
+        );
+    }
     let t0 = Instant::now();
     let scene = Scene::new(kind, args.seed, profile).with_map_coarse(args.map_coarse);
     let map_mesh = scene.map(&scene.lighting(MAP_HOURS));
     let map_bytes = map_mesh.encode_map(0.5)?;
     let capture = Capture::from_index(args.stop, 0, 0.40);
-    let (rig, truth, pair) = scene.capture(&scene.lighting(MAP_HOURS + args.hours), &capture);
+    let live = scene.live(0.0, &change, args.seed);
+    let (rig, truth, pair) = live.capture(&live.lighting(MAP_HOURS + args.hours), &capture);
+    let pair = camera.apply(&pair, args.seed ^ CAMERA_SEED)?;
     let prior = perturbed_prior(&truth, args.seed);
     println!(
         "  depot and map: {} triangles ({} in the sampling mask), texture {}×{}; stereo pair {}×{}, baseline {:.2} m  [{:.1} s]",

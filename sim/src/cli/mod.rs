@@ -1,7 +1,9 @@
 //! The `vtsm` subcommands, one module each. Each `run` returns the process exit
 //! code: 0 ok, 1 relocalization failed cleanly, 2 bad input.
 
+use crate::effects::CameraEffects;
 use crate::error::{Error, EXIT_BAD_INPUT};
+use crate::terrain::DepotChange;
 use vtsm_hal::runner::VerifyChecks;
 
 pub mod batch;
@@ -76,6 +78,28 @@ impl ThreadsArg {
         self.threads
             .map_or_else(crate::workers::default_threads, usize::from)
     }
+}
+
+/// `--change SPEC` and `--camera SPEC` of `vtsm scene export`, `demo` and
+/// `eval`: how the live depot and the live camera differ from the mapped
+/// depot and the ideal camera.
+#[derive(Debug, Clone, Copy, Default, clap::Args)]
+pub struct ConditionsArg {
+    /// The depot changed since mapping: `none`, or a comma-separated list of
+    /// `tracks=N` (rover passes, each two wheel tracks with tread, 0–8),
+    /// `rocks=F` (fraction of the rocks moved 5–30 cm or taken away, 0–1) and
+    /// `dust=F` (dust cover lowering albedo contrast, 0–0.9). Seeded by
+    /// `--seed`; the map is made from the unchanged depot.
+    #[arg(long, value_name = "SPEC", default_value = "none", value_parser = DepotChange::parse)]
+    pub change: DepotChange,
+    /// A camera that is not ideal: `none`, or a comma-separated list of
+    /// `gain=G` (0.1–10), `mismatch=M` (right/left gain − 1, ±0.5),
+    /// `noise=DN` (read noise, 0–50, with shot noise), `defocus=PX` (Gaussian
+    /// σ, 0–10), `motion=PX` (blur length, 0–30), `motion-deg=D`,
+    /// `vignetting=F` (0–0.9), `jpeg=Q` (1–100) and `compand` (12→8-bit
+    /// square root). Noise seeded by `--seed`.
+    #[arg(long, value_name = "SPEC", default_value = "none", value_parser = CameraEffects::parse)]
+    pub camera: CameraEffects,
 }
 
 /// Parse the value of `--accuracy`: `T_MM,R_DEG`, 1-σ translation in

@@ -1,6 +1,7 @@
 //! `vtsm scene export`: render one capture of a simulated depot and write the files
 //! `vtsm relocalize` reads (design §5), plus `scene.json` describing the scene.
 
+use crate::cli::eval::protocol::CAMERA_SEED;
 use crate::error::{Error, Result};
 use crate::io::calib::opencv::opencv_calib_text;
 use crate::scene::export::{existing, write_scene, write_scene_with_calib, SceneFiles};
@@ -47,6 +48,10 @@ pub struct Args {
     /// texel size × K); the pair is unchanged.
     #[arg(long, value_name = "K", default_value_t = 1)]
     pub map_coarse: u32,
+    /// `--change SPEC` and `--camera SPEC`: the depot changed since mapping
+    /// (after the wind) and a camera that is not ideal.
+    #[command(flatten)]
+    pub conditions: super::ConditionsArg,
     /// Overwrite files already in DIR.
     #[arg(long)]
     pub force: bool,
@@ -100,14 +105,8 @@ pub fn run(args: &Args) -> Result<u8> {
     }
     let t0 = Instant::now();
     let map_scene = Scene::new(kind, args.seed, profile).with_map_coarse(args.map_coarse);
-    let scene = if args.wind > 0.0 {
-        Scene {
-            terrain: map_scene.terrain.with_wind(args.seed, args.wind),
-            ..map_scene.clone()
-        }
-    } else {
-        map_scene.clone()
-    };
+    let (change, camera) = (args.conditions.change, args.conditions.camera);
+    let scene = map_scene.live(args.wind, &change, args.seed);
     let terrain_s = t0.elapsed().as_secs_f64();
     let cap = Capture::from_index(args.stop, args.look_at, args.baseline);
     let t1 = Instant::now();
@@ -127,10 +126,11 @@ pub fn run(args: &Args) -> Result<u8> {
         let (rig, truth, pair) = scene.capture(&light, &cap);
         (rig, truth, pair, None)
     };
+    let pair = camera.apply(&pair, args.seed ^ CAMERA_SEED)?;
     let pair_s = t2.elapsed().as_secs_f64();
     let pair_cpu_s = process_cpu_s().zip(cpu2).map(|(b, a)| b - a);
     let t3 = Instant::now();
-    let map_light = if (map_hours - hours).abs() < 1e-6 && args.wind <= 0.0 {
+    let map_light = if (map_hours - hours).abs() < 1e-6 && args.wind <= 0.0 && change.is_none() {
         light.clone()
     } else {
         map_scene.lighting(map_hours)
@@ -141,7 +141,8 @@ pub fn run(args: &Args) -> Result<u8> {
     let meta = serde_json::json!({
         "terrain": kind.name(), "seed": args.seed, "profile": profile.name(),
         "hours": hours, "map_hours": map_hours, "stop": args.stop, "look_at": args.look_at,
-        "baseline_m": args.baseline, "wind": args.wind, "map_coarse": args.map_coarse, "sun_elevation_deg": light.sun.elevation_deg,
+        "baseline_m": args.baseline, "wind": args.wind, "map_coarse": args.map_coarse,
+        "change": change.label(), "camera": camera.label(), "sun_elevation_deg": light.sun.elevation_deg,
         "sun_azimuth_deg": light.sun.azimuth_deg, "triangles": map.triangles.len(),
         "masked_triangles": map.mask.iter().filter(|&&m| m).count(),
         "physical": args.physical,

@@ -41,6 +41,26 @@ pub enum GroupColumns {
         /// The forward path (else the wave path).
         forward: bool,
     },
+    /// One condition of the operating envelope (`hard`): the light, the
+    /// depot, the map and the camera of the group.
+    Condition {
+        /// Time difference between mapping and capture, hours.
+        hours: f32,
+        /// Sun elevation at capture, degrees.
+        sun_el_deg: f32,
+        /// Sun elevation at mapping, degrees.
+        map_sun_el_deg: f32,
+        /// Map coarsening factor (1: the profile's map).
+        map_coarse: u32,
+        /// Wheel-track passes across the depot since mapping.
+        tracks: u32,
+        /// Fraction of the rocks moved or taken away since mapping.
+        rocks_moved: f32,
+        /// Dust cover since mapping.
+        dust: f32,
+        /// The live camera is not ideal (the group label says how).
+        camera: bool,
+    },
     /// The stereo pairs of a data set on disk (`dataset`).
     Dataset {
         /// The pair's index in the data set (its `views/` directories in
@@ -60,7 +80,8 @@ impl GroupColumns {
         match *self {
             Self::Prior { hours, .. }
             | Self::WrongPlace { hours, .. }
-            | Self::Step { hours, .. } => Some(hours),
+            | Self::Step { hours, .. }
+            | Self::Condition { hours, .. } => Some(hours),
             Self::Dataset { .. } => None,
         }
     }
@@ -92,6 +113,25 @@ impl GroupColumns {
                 ("hours", f64::from(hours)),
                 ("step", step as f64),
                 ("forward", f64::from(u8::from(forward))),
+            ]),
+            Self::Condition {
+                hours,
+                sun_el_deg,
+                map_sun_el_deg,
+                map_coarse,
+                tracks,
+                rocks_moved,
+                dust,
+                camera,
+            } => out.extend([
+                ("hours", f64::from(hours)),
+                ("sun_el_deg", f64::from(sun_el_deg)),
+                ("map_sun_el_deg", f64::from(map_sun_el_deg)),
+                ("map_coarse", f64::from(map_coarse)),
+                ("tracks", f64::from(tracks)),
+                ("rocks_moved", f64::from(rocks_moved)),
+                ("dust", f64::from(dust)),
+                ("camera_effects", f64::from(u8::from(camera))),
             ]),
             Self::Dataset { pair, t0_m, r0_deg } => out.extend([
                 ("pair", f64::from(pair)),

@@ -221,6 +221,11 @@ pub struct Args {
     /// the live pairs are unchanged.
     #[arg(long, value_name = "K", default_value_t = 1)]
     pub map_coarse: u32,
+    /// `--change SPEC` and `--camera SPEC`: the live depot changed since
+    /// mapping and a camera that is not ideal, in every group (the `hard`
+    /// suite sets its own).
+    #[command(flatten)]
+    pub conditions: super::super::ConditionsArg,
     /// Run nothing: draw the figures of the run recorded in DIR again from its
     /// `trials.csv` (suite and terrains from its `summary.json`), into DIR
     /// (`--force` to replace them).
@@ -271,6 +276,7 @@ impl Args {
             mask: MaskArg::Paper,
             wind: 0.0,
             map_coarse: 1,
+            conditions: super::super::ConditionsArg::default(),
             replot: None,
             shard: None,
             data: None,
@@ -342,6 +348,8 @@ pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
     }
     cfg.wind = args.wind;
     cfg.map_coarse = crate::scene::Scene::check_map_coarse(args.map_coarse)?;
+    cfg.change = args.conditions.change;
+    cfg.camera = args.conditions.camera;
     cfg.shard = args.shard;
     dataset_args(args, &mut cfg)?;
     Ok(cfg)
@@ -370,6 +378,8 @@ fn dataset_args(args: &Args, cfg: &mut SuiteConfig) -> Result<()> {
         ("--mask", args.mask != MaskArg::Paper),
         ("--wind", args.wind != 0.0),
         ("--map-coarse", args.map_coarse != 1),
+        ("--change", !args.conditions.change.is_none()),
+        ("--camera", !args.conditions.camera.is_none()),
     ];
     if let Some((flag, _)) = simulated.iter().find(|f| f.1) {
         return Err(Error::msg(format!(

@@ -42,6 +42,9 @@ pub enum Suite {
     Wrongplace,
     /// The stereo pairs of a data set on disk (`--data DIR`), real or not.
     Dataset,
+    /// The operating envelope: low sun, a changed depot, coarse maps, a
+    /// camera that is not ideal, and their worst combinations.
+    Hard,
 }
 
 impl Suite {
@@ -99,6 +102,10 @@ pub struct SuiteConfig {
     /// The maps from imagery this many times coarser (`--map-coarse`, 1 =
     /// the profile's map; `Scene::with_map_coarse`).
     pub map_coarse: u32,
+    /// How the live depot changed since mapping (`--change`).
+    pub change: crate::terrain::DepotChange,
+    /// The live camera's effects in every group (`--camera`).
+    pub camera: crate::effects::CameraEffects,
     /// Run only this shard of the campaign's trials (`--shard K/N`).
     pub shard: Option<super::shard::Shard>,
     /// The data set directory (`dataset` only, `--data`).
@@ -132,6 +139,8 @@ impl SuiteConfig {
             mask_all: false,
             wind: 0.0,
             map_coarse: 1,
+            change: crate::terrain::DepotChange::NONE,
+            camera: crate::effects::CameraEffects::NONE,
             shard: None,
             data: None,
             panels: None,

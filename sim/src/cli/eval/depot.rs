@@ -1,6 +1,6 @@
 //! The simulated depots of a run, built once and shared read-only by every
 //! trial: one scene per terrain, its mapped mesh, the live scenes (after
-//! `--wind`) and one live lighting per terrain and time difference.
+//! `--wind`, and after each [`World`]'s change) and their lightings.
 
 use super::config::SuiteConfig;
 use super::protocol::WIND_SEED;
@@ -8,7 +8,21 @@ use crate::cli::demo::MAP_HOURS;
 use crate::io::mesh::MeshData;
 use crate::render::Lighting;
 use crate::scene::Scene;
+use crate::terrain::DepotChange;
 use rayon::prelude::*;
+
+/// A live depot a suite asks for besides its terrains × time differences:
+/// terrain `terrain` after `change` (instead of `--change`, on top of
+/// `--wind`), lit at local solar time `hours`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct World {
+    /// Terrain index (into `--terrains`).
+    pub terrain: usize,
+    /// Local solar time of the live pairs, hours.
+    pub hours: f32,
+    /// How the depot changed since mapping.
+    pub change: DepotChange,
+}
 
 /// The depots of a run.
 pub struct Depot {
@@ -16,65 +30,83 @@ pub struct Depot {
     pub scenes: Vec<Scene>,
     /// The mapped mesh of each scene (under the mapping lighting).
     pub meshes: Vec<MeshData>,
-    /// The live scenes: the mapped ones after `--wind` (empty without wind,
-    /// the mapped ones are then live).
-    windy: Vec<Scene>,
+    /// The live scenes: one per terrain (the mapped one after `--wind` and
+    /// `--change`), then
+    /// one per distinct changed depot of the worlds.
+    live: Vec<Scene>,
     /// The time differences the live pairs are rendered at, hours.
     pub live_hours: Vec<f32>,
-    /// Live lightings, terrain-major: index [`Depot::light_of`].
+    /// Live lightings: terrain-major over `live_hours` ([`Depot::light_of`]),
+    /// then one per world ([`Depot::world_light`]).
     pub lights: Vec<Lighting>,
+    /// The live scene (index into `live`) each lighting belongs to.
+    light_scene: Vec<usize>,
 }
 
 impl Depot {
     /// Build the scenes, meshes, live scenes and lightings of `cfg` for the
-    /// time differences `live_hours`.
-    pub fn build(cfg: &SuiteConfig, live_hours: Vec<f32>) -> Self {
+    /// time differences `live_hours` and the extra `worlds`.
+    pub fn build(cfg: &SuiteConfig, live_hours: Vec<f32>, worlds: &[World]) -> Self {
         let scenes: Vec<Scene> = cfg
             .terrains
             .par_iter()
             .map(|&k| Scene::new(k, cfg.seed, cfg.profile).with_map_coarse(cfg.map_coarse))
             .collect();
         let meshes = mapped_meshes(cfg, &scenes);
-        let windy: Vec<Scene> = if cfg.wind > 0.0 {
-            scenes
-                .par_iter()
-                .map(|s| Scene {
-                    terrain: s.terrain.with_wind(s.seed ^ WIND_SEED, cfg.wind),
-                    ..*s
-                })
-                .collect()
-        } else {
-            Vec::new()
-        };
-        let live: &[Scene] = if windy.is_empty() { &scenes } else { &windy };
-        let keys: Vec<(usize, f32)> = (0..scenes.len())
-            .flat_map(|t| live_hours.iter().map(move |&h| (t, h)))
+        // Distinct (terrain, change) pairs, the run's own (`--change`) first.
+        let mut kinds: Vec<(usize, DepotChange)> =
+            (0..scenes.len()).map(|t| (t, cfg.change)).collect();
+        for w in worlds {
+            if !kinds.contains(&(w.terrain, w.change)) {
+                kinds.push((w.terrain, w.change));
+            }
+        }
+        let live: Vec<Scene> = kinds
+            .par_iter()
+            .map(|&(t, change)| {
+                let s = &scenes[t];
+                s.live(cfg.wind, &change, s.seed ^ WIND_SEED)
+            })
             .collect();
+        let mut keys: Vec<(usize, f32)> = (0..scenes.len())
+            .flat_map(|t| live_hours.iter().map(move |&h| (t, MAP_HOURS + h)))
+            .collect();
+        keys.extend(worlds.iter().map(|w| {
+            let s = kinds
+                .iter()
+                .position(|k| *k == (w.terrain, w.change))
+                .unwrap_or(w.terrain);
+            (s, w.hours)
+        }));
         let lights: Vec<Lighting> = keys
             .par_iter()
-            .map(|&(t, h)| live[t].lighting_with(MAP_HOURS + h, cfg.light_model))
+            .map(|&(s, h)| live[s].lighting_with(h, cfg.light_model))
             .collect();
         Self {
             scenes,
             meshes,
-            windy,
+            live,
             live_hours,
             lights,
+            light_scene: keys.iter().map(|k| k.0).collect(),
         }
     }
 
-    /// The scenes the live pairs are taken in.
-    pub fn live(&self) -> &[Scene] {
-        if self.windy.is_empty() {
-            &self.scenes
-        } else {
-            &self.windy
-        }
+    /// The live scene lighting `light` belongs to.
+    pub fn live_of(&self, light: usize) -> &Scene {
+        let s = self.light_scene.get(light).copied().unwrap_or(0);
+        &self.live[s.min(self.live.len().saturating_sub(1))]
     }
 
     /// Index into [`Depot::lights`] of terrain `t` at time difference index `hi`.
     pub fn light_of(&self, t: usize, hi: usize) -> usize {
         t * self.live_hours.len() + hi
+    }
+
+    /// Index into [`Depot::lights`] of world `w` (in the order given to
+    /// [`Depot::build`]).
+    pub fn world_light(&self, w: usize) -> usize {
+        self.scenes.len() * self.live_hours.len() + w
     }
 }
 
@@ -83,12 +115,16 @@ impl Depot {
 fn mapped_meshes(cfg: &SuiteConfig, scenes: &[Scene]) -> Vec<MeshData> {
     scenes
         .par_iter()
-        .map(|s| {
-            let mut mesh = s.map(&s.lighting_with(MAP_HOURS, cfg.light_model));
-            if cfg.mask_all {
-                mesh.mask.iter_mut().for_each(|m| *m = true);
-            }
-            mesh
-        })
+        .map(|s| mapped_mesh(cfg, s, MAP_HOURS))
         .collect()
+}
+
+/// The mesh of `scene` mapped at local solar time `hours`, with every
+/// triangle in the mask under `--mask all`.
+pub fn mapped_mesh(cfg: &SuiteConfig, scene: &Scene, hours: f32) -> MeshData {
+    let mut mesh = scene.map(&scene.lighting_with(hours, cfg.light_model));
+    if cfg.mask_all {
+        mesh.mask.iter_mut().for_each(|m| *m = true);
+    }
+    mesh
 }

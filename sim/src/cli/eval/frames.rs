@@ -35,7 +35,7 @@ pub fn live_frames(
     capture: &Capture,
     seed: u64,
 ) -> LiveFrames {
-    let (scene, light) = (&depot.live()[g.terrain], &depot.lights[g.light]);
+    let (scene, light) = (depot.live_of(g.light), &depot.lights[g.light]);
     let (rig, here, mut pair, calib) = shoot(physical, scene, light, capture);
     let mut prior = prior_in_range(&here, seed, g.prior_m);
     let truth = match g.frames {
@@ -52,8 +52,13 @@ pub fn live_frames(
         }
         Frames::OtherDepot(o) => {
             let hour = g.light % depot.live_hours.len().max(1);
-            let light = &depot.lights[depot.light_of(o, hour)];
-            let (_, there, p, _) = shoot(physical, &depot.live()[o], light, capture);
+            let other = depot.light_of(o, hour);
+            let (_, there, p, _) = shoot(
+                physical,
+                depot.live_of(other),
+                &depot.lights[other],
+                capture,
+            );
             pair = p;
             there
         }

@@ -2,6 +2,7 @@
 
 use super::config::Method;
 use super::protocol::{MAIN_BASELINE_M, PRIOR_M};
+use crate::effects::CameraEffects;
 use crate::eval::columns::GroupColumns;
 use vtsm_core::config::PriorUncertainty;
 
@@ -46,6 +47,9 @@ pub struct Group {
     pub frames: Frames,
     /// Small parameters (N_corr 27, N_iter 1, reseed cap 3).
     pub small: bool,
+    /// What the live camera adds to the frames ([`CameraEffects::NONE`]:
+    /// the ideal one).
+    pub camera: CameraEffects,
 }
 
 impl Group {
@@ -66,6 +70,7 @@ impl Group {
             columns,
             frames: Frames::Truth,
             small: false,
+            camera: CameraEffects::NONE,
         }
     }
 
@@ -97,6 +102,11 @@ impl Group {
             small,
             ..self
         }
+    }
+
+    /// The same group seen through a camera with `camera`'s effects.
+    pub fn with_camera(self, camera: CameraEffects) -> Self {
+        Self { camera, ..self }
     }
 
     /// The same group on map product `map`.

@@ -113,6 +113,9 @@ pub enum Kind {
     Cdf,
     /// Each series is points (x, y).
     Scatter,
+    /// Each series is rates (x, y in percent) joined in x order, y axis
+    /// 0–100 % with a margin (a rate of 0 stays on the chart).
+    Rate,
 }
 
 /// One series of a figure.
@@ -250,7 +253,11 @@ impl Figure {
         for s in &self.series {
             match self.kind {
                 Kind::Cdf => draw_path(&mut chart, &cdf_steps(&s.points, x_end), s.style)?,
-                Kind::Scatter => draw_points(&mut chart, &s.points, s.style)?,
+                Kind::Scatter => draw_points(&mut chart, &s.points, s.style, false)?,
+                Kind::Rate => {
+                    draw_path(&mut chart, &s.points, s.style)?;
+                    draw_points(&mut chart, &s.points, s.style, true)?;
+                }
             }
         }
         Ok(())
@@ -278,7 +285,7 @@ impl Figure {
                         area.draw(&DashedPathElement::new(pts, dash, gap, st))?;
                     }
                 }
-                Kind::Scatter => draw_marker(area, (26, y), s.style)?,
+                Kind::Scatter | Kind::Rate => draw_marker(area, (26, y), s.style)?,
             }
             area.draw(&Text::new(s.name.clone(), (54, y - step / 3), font.clone()))?;
         }
@@ -307,6 +314,7 @@ impl Figure {
         let x = (-round_up(-1.04 * x_lo), round_up(1.04 * x_hi));
         match self.kind {
             Kind::Cdf => (x, (-2.0, 102.0), false),
+            Kind::Rate => (x, (-4.0, 104.0), false),
             Kind::Scatter if y_hi / y_min_pos > LOG_SPAN => {
                 let lo = 10f64.powi(y_min_pos.log10().floor() as i32);
                 (x, (lo, round_up(1.3 * y_hi)), true)
@@ -386,17 +394,20 @@ fn draw_path<DB: DrawingBackend, Y: Ranged<ValueType = f64>>(
     Ok(())
 }
 
+/// Markers at `pts`; a y of 0 or below only with `keep_zero` (a log axis has
+/// no place for it).
 fn draw_points<DB: DrawingBackend, Y: Ranged<ValueType = f64>>(
     chart: &mut Chart<'_, DB, Y>,
     pts: &[(f64, f64)],
     style: Style,
+    keep_zero: bool,
 ) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     let area = chart.plotting_area();
     let base = area.get_base_pixel();
     let pixels = area.strip_coord_spec();
     for p in pts
         .iter()
-        .filter(|p| p.0.is_finite() && p.1.is_finite() && p.1 > 0.0)
+        .filter(|p| p.0.is_finite() && p.1.is_finite() && (keep_zero || p.1 > 0.0))
     {
         let (x, y) = chart.backend_coord(p);
         draw_marker(&pixels, (x - base.0, y - base.1), style)?;

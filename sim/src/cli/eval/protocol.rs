@@ -36,6 +36,9 @@ pub const SHIFT_PX: u32 = 4;
 /// Fork of a scene's seed that seeds its `--wind`.
 pub const WIND_SEED: u64 = 0x5749_4E44_4556;
 
+/// Fork of a trial's seed that seeds its live camera's effects (`hard`).
+pub const CAMERA_SEED: u64 = 0x4341_4D45_5241;
+
 /// Largest prior rotation, degrees (all suites).
 pub const PRIOR_MAX_DEG: f32 = 1.5;
 /// A map triangle counts as seen by a mapping view when its centroid is within

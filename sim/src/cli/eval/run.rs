@@ -71,7 +71,7 @@ pub fn run_suite_journaled(
     }
     def.check(cfg)?;
     let t_setup = Instant::now();
-    let depot = Depot::build(cfg, def.live_hours(cfg));
+    let depot = Depot::build(cfg, def.live_hours(cfg), &def.worlds(cfg));
     let maps = def.maps(cfg, &depot);
     let groups = with_baseline_groups(def.groups(cfg, &depot, &maps), cfg.baseline);
     let setup_s = t_setup.elapsed().as_secs_f64();
@@ -270,6 +270,8 @@ fn run_meta(cfg: &SuiteConfig, def: &dyn SuiteDef, depot: &Depot, command: &str)
             "mask": if cfg.mask_all { "all" } else { "paper" },
             "wind": cfg.wind,
             "map_coarse": cfg.map_coarse,
+            "change": cfg.change.label(),
+            "camera": cfg.camera.label(),
             "rectify_interp": if cfg.physical { Some(cfg.interp.name()) } else { None },
             "baseline": cfg.baseline.map(Method::name),
             "origin": cfg.origin,

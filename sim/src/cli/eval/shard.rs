@@ -189,6 +189,17 @@ fn columns_from(entries: &[(String, u64)]) -> std::result::Result<TrialColumns, 
             t0_m: f32_("t0_m")?,
             r0_deg: f32_("r0_deg")?,
         })
+    } else if has("sun_el_deg") {
+        Some(GroupColumns::Condition {
+            hours: f32_("hours")?,
+            sun_el_deg: f32_("sun_el_deg")?,
+            map_sun_el_deg: f32_("map_sun_el_deg")?,
+            map_coarse: v("map_coarse")? as u32,
+            tracks: v("tracks")? as u32,
+            rocks_moved: f32_("rocks_moved")?,
+            dust: f32_("dust")?,
+            camera: flag("camera_effects")?,
+        })
     } else if has("step") {
         Some(GroupColumns::Step {
             hours: f32_("hours")?,

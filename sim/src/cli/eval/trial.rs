@@ -7,7 +7,7 @@ use super::depot::Depot;
 use super::frames::{live_frames, LiveFrames};
 use super::group::Group;
 use super::maps::MapEntry;
-use super::protocol::{capture_for_trial, nearest_view, trial_seed};
+use super::protocol::{capture_for_trial, nearest_view, trial_seed, CAMERA_SEED};
 use crate::eval::columns::{
     CaptureColumns, EngineColumns, FeatureColumns, TrialColumns, VerifyColumns, ViewColumns,
 };
@@ -163,6 +163,20 @@ pub fn run_trial(sh: &Shared<'_>, s: &Spec) -> TrialOutcome {
         o.failure = Some(format!("prior in the map's frame: {}", c.name()));
         return o;
     }
+    // The live camera's effects (the group's, else the run's `--camera`), on
+    // the frames as the camera delivers them (before any rectification).
+    let camera = if g.camera.is_none() {
+        cfg.camera
+    } else {
+        g.camera
+    };
+    let live = match camera.apply(&live.pair, seed ^ CAMERA_SEED) {
+        Ok(pair) => LiveFrames { pair, ..live },
+        Err(e) => {
+            o.failure = Some(format!("camera effects: {e}"));
+            return o;
+        }
+    };
     let inputs = match inputs(cfg, live, prior) {
         Ok(i) => i,
         Err(e) => {

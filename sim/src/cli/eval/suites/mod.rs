@@ -5,7 +5,7 @@
 //! [`Suite::def`] is the registry, the one place a [`Suite`] is matched.
 
 use super::config::{Suite, SuiteConfig};
-use super::depot::Depot;
+use super::depot::{Depot, World};
 use super::group::Group;
 use super::maps::MapEntry;
 use super::plot::{Figure, Style};
@@ -18,6 +18,7 @@ use vtsm_core::config::PriorUncertainty;
 
 mod baseline;
 mod dataset;
+mod hard;
 mod paper;
 mod stepsize;
 mod uncertainty50;
@@ -49,6 +50,13 @@ pub trait SuiteDef: Sync {
     /// The time differences the live pairs are rendered at, hours.
     fn live_hours(&self, cfg: &SuiteConfig) -> Vec<f32> {
         cfg.hours.clone()
+    }
+
+    /// Live depots besides the terrains × time differences (changed since
+    /// mapping, or lit at another hour); groups reach them through
+    /// [`Depot::world_light`]. None by default.
+    fn worlds(&self, _cfg: &SuiteConfig) -> Vec<World> {
+        Vec::new()
     }
 
     /// The map products: by default each terrain's whole map, with the 60
@@ -108,6 +116,7 @@ impl Suite {
             Self::Stepsize => &stepsize::Stepsize,
             Self::Wrongplace => &wrongplace::Wrongplace,
             Self::Dataset => &dataset::Dataset,
+            Self::Hard => &hard::Hard,
         }
     }
 }
