@@ -764,3 +764,57 @@ fn threads_give_the_same_result_bytes() {
         "{stdout}"
     );
 }
+
+// ---- --change and --camera ---------------------------------------------------
+
+/// `vtsm scene export --change ... --camera ...` writes what it was asked for
+/// into `scene.json`, images that differ from the unchanged export and the
+/// same map; a spec out of range exits 2 and writes nothing.
+///
+/// Verifies: VTSM-SIM-018, VTSM-SIM-020
+#[test]
+fn scene_export_writes_a_changed_depot_through_another_camera() {
+    let export = |name: &str, extra: &[&str]| {
+        let d = dir(name);
+        let mut args = vec![
+            "scene",
+            "export",
+            "--terrain",
+            "cfa6",
+            "--hours",
+            "am",
+            "--profile",
+            "test",
+            "--seed",
+            "3",
+            "--out",
+            s(&d),
+        ];
+        args.extend_from_slice(extra);
+        (d.clone(), vtsm(&args))
+    };
+    let (plain, o) = export("export_plain", &[]);
+    assert_eq!(o.status.code(), Some(0), "{o:?}");
+    let (changed, o) = export(
+        "export_changed",
+        &[
+            "--change",
+            "tracks=2,rocks=0.3",
+            "--camera",
+            "noise=4,jpeg=60",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(0), "{o:?}");
+    let meta: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(changed.join("scene.json")).unwrap()).unwrap();
+    assert_eq!(meta["change"], "tracks=2,rocks=0.3");
+    assert_eq!(meta["camera"], "noise=4,jpeg=60");
+    let read = |d: &Path, f: &str| std::fs::read(d.join(f)).unwrap();
+    assert_ne!(read(&plain, "left.png"), read(&changed, "left.png"));
+    assert_eq!(read(&plain, "map.obj"), read(&changed, "map.obj"));
+    for (flag, bad) in [("--change", "rocks=2"), ("--camera", "jpeg=101")] {
+        let (d, o) = export("export_bad", &[flag, bad]);
+        assert_eq!(o.status.code(), Some(2), "{flag} {bad}: {o:?}");
+        assert!(!d.join("left.png").exists());
+    }
+}

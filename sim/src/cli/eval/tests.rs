@@ -557,3 +557,123 @@ fn priors_and_captures_follow_the_protocol() {
     // A rotation of 0.5 rad about world z: the optical axis turns by at most 0.5 rad.
     assert!(near.1 > 0.0 && near.1 <= 0.5f64.to_degrees() + 1e-3);
 }
+
+/// `--change` changes the live depot and `--camera` the live frames, not the
+/// maps: the trials differ, the camera leaves the priors bit for bit, and
+/// both are recorded.
+///
+/// Verifies: VTSM-SIM-018, VTSM-SIM-020
+#[test]
+fn change_and_camera_change_only_the_live_side() {
+    let base = SuiteConfig {
+        terrains: vec![TerrainKind::Cfa6],
+        ..small(Suite::Paper)
+    };
+    let plain = run_suite(&base, "test").unwrap();
+    let changed = run_suite(
+        &SuiteConfig {
+            change: crate::terrain::DepotChange::parse("tracks=3,rocks=0.5").unwrap(),
+            ..base.clone()
+        },
+        "test",
+    )
+    .unwrap();
+    let camera = run_suite(
+        &SuiteConfig {
+            camera: crate::effects::CameraEffects::parse("noise=4,jpeg=60").unwrap(),
+            ..base.clone()
+        },
+        "test",
+    )
+    .unwrap();
+    let finals = |r: &SuiteRun| {
+        r.outcomes
+            .iter()
+            .map(|o| (o.final_t_mm.to_bits(), o.inliers))
+            .collect::<Vec<_>>()
+    };
+    assert_ne!(
+        finals(&plain),
+        finals(&changed),
+        "the change changed nothing"
+    );
+    assert_ne!(
+        finals(&plain),
+        finals(&camera),
+        "the camera changed nothing"
+    );
+    for (a, b) in plain.outcomes.iter().zip(&camera.outcomes) {
+        assert_eq!(a.init_t_mm.to_bits(), b.init_t_mm.to_bits());
+    }
+    assert_eq!(changed.meta.params["change"], "tracks=3,rocks=0.5");
+    assert_eq!(camera.meta.params["camera"], "noise=4,jpeg=60");
+    assert_eq!(plain.meta.params["camera"], "none");
+}
+
+/// `--suite hard` runs every condition on every terrain, writes the envelope
+/// (a row per condition) and its four figures, records each group's
+/// condition in its columns, and refuses the flags it sets itself.
+///
+/// Verifies: VTSM-SIM-019
+#[test]
+fn the_hard_suite_writes_the_envelope() {
+    let cfg = SuiteConfig {
+        terrains: vec![TerrainKind::Cfa2],
+        ..small(Suite::Hard)
+    };
+    let run = run_suite(&cfg, "test").unwrap();
+    let conditions = super::suites::hard::conditions();
+    assert_eq!(run.groups.len(), conditions.len());
+    for c in &conditions {
+        assert!(
+            run.notes.contains(&format!("| {} |", c.name)),
+            "no envelope row for {}",
+            c.name
+        );
+    }
+    for stem in [
+        "envelope_sun",
+        "envelope_hours",
+        "envelope_rocks",
+        "envelope_map",
+    ] {
+        assert!(run.plots.iter().any(|f| f.stem == stem), "no {stem}");
+    }
+    for (o, c) in run.outcomes.iter().zip(&conditions) {
+        assert_eq!(o.group, format!("cfa2 {}", c.name));
+        match o.columns.group {
+            Some(GroupColumns::Condition {
+                hours,
+                sun_el_deg,
+                map_coarse,
+                tracks,
+                camera,
+                ..
+            }) => {
+                assert!((hours - (c.hours - c.map_hours)).abs() < 1e-4, "{}", c.name);
+                let el = crate::render::Sun::depot(c.hours).elevation_deg;
+                assert!((sun_el_deg - el).abs() < 1e-3, "{}", c.name);
+                assert_eq!(map_coarse, c.map_coarse);
+                assert_eq!(tracks, c.change.tracks);
+                assert_eq!(camera, !c.camera.is_none());
+            }
+            ref other => panic!("{}: {other:?}", c.name),
+        }
+    }
+    for bad in [
+        SuiteConfig {
+            map_coarse: 2,
+            ..cfg.clone()
+        },
+        SuiteConfig {
+            hours: vec![3.0],
+            ..cfg.clone()
+        },
+        SuiteConfig {
+            camera: crate::effects::CameraEffects::parse("jpeg=50").unwrap(),
+            ..cfg.clone()
+        },
+    ] {
+        assert!(run_suite(&bad, "test").is_err());
+    }
+}

@@ -18,7 +18,7 @@ use vtsm_core::config::PriorUncertainty;
 
 mod baseline;
 mod dataset;
-mod hard;
+pub mod hard;
 mod paper;
 mod stepsize;
 mod uncertainty50;
