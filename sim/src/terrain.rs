@@ -899,12 +899,32 @@ impl Terrain {
             return self.clone();
         }
         let mut out = self.with_pebbles_displaced(seed, WIND_PEBBLE_FRACTION * k);
-        let (nx, x0, y0, c) = (self.nx, self.x0, self.y0, self.cell_m);
         let wseed = seed ^ 0x5749_4E44;
-        out.height
+        out.edit_cells(|x, y, h, a, l| {
+            let streak = smoothstep(-0.1, 0.2, fbm(wseed, x * 0.4 + y, y * 0.3, 0.6, 4));
+            match l {
+                LABEL_SAND => {
+                    *h += k * 0.008 * fbm(wseed ^ 1, x * 0.6 + y * 0.8, y * 1.4 - x * 0.3, 0.08, 3);
+                    *a = (*a + k * 0.05 * streak).clamp(0.03, 0.95);
+                }
+                LABEL_ROCK => *a += (0.30 - *a) * k * 0.15 * streak,
+                _ => {}
+            }
+        });
+        out.refresh_derived();
+        out
+    }
+
+    /// Apply `edit(x, y, height, albedo, label)` to every cell, rows in
+    /// parallel (each cell depends only on its own values and position, so
+    /// the result does not depend on the thread count). Derived layers are
+    /// left to [`Terrain::refresh_derived`].
+    fn edit_cells(&mut self, edit: impl Fn(f32, f32, &mut f32, &mut f32, u8) + Sync) {
+        let (nx, x0, y0, c) = (self.nx, self.x0, self.y0, self.cell_m);
+        self.height
             .par_chunks_mut(nx)
-            .zip(out.albedo.par_chunks_mut(nx))
-            .zip(out.label.par_chunks(nx))
+            .zip(self.albedo.par_chunks_mut(nx))
+            .zip(self.label.par_chunks(nx))
             .enumerate()
             .for_each(|(j, ((hrow, arow), lrow))| {
                 let y = y0 + j as f32 * c;
@@ -914,22 +934,9 @@ impl Terrain {
                     .zip(lrow.iter())
                     .enumerate()
                 {
-                    let x = x0 + i as f32 * c;
-                    let streak = smoothstep(-0.1, 0.2, fbm(wseed, x * 0.4 + y, y * 0.3, 0.6, 4));
-                    match *l {
-                        LABEL_SAND => {
-                            *h += k
-                                * 0.008
-                                * fbm(wseed ^ 1, x * 0.6 + y * 0.8, y * 1.4 - x * 0.3, 0.08, 3);
-                            *a = (*a + k * 0.05 * streak).clamp(0.03, 0.95);
-                        }
-                        LABEL_ROCK => *a += (0.30 - *a) * k * 0.15 * streak,
-                        _ => {}
-                    }
+                    edit(x0 + i as f32 * c, y, h, a, *l);
                 }
             });
-        out.refresh_derived();
-        out
     }
 
     /// Continuous cell coordinates of a world point.

@@ -14,7 +14,6 @@ use super::{
     LABEL_SAND, LABEL_TUBE, TUBE_LENGTH_M, TUBE_XY_M,
 };
 use core::f32::consts::PI;
-use rayon::prelude::*;
 use vtsm_core::rng::Rng;
 
 /// Distance between the two wheel tracks of a pass (centre to centre), metres.
@@ -223,37 +222,22 @@ impl Terrain {
         let passes = draw_passes(rng.fork(2), change.tracks.min(MAX_TRACKS));
         let dust = change.dust.clamp(0.0, 0.9);
         let dseed = rng.fork(3).next_u64();
-        let (nx, x0, y0, c) = (out.nx, out.x0, out.y0, out.cell_m);
-        out.height
-            .par_chunks_mut(nx)
-            .zip(out.albedo.par_chunks_mut(nx))
-            .zip(out.label.par_chunks(nx))
-            .enumerate()
-            .for_each(|(j, ((hrow, arow), lrow))| {
-                let y = y0 + j as f32 * c;
-                for (i, ((h, a), l)) in hrow
-                    .iter_mut()
-                    .zip(arow.iter_mut())
-                    .zip(lrow.iter())
-                    .enumerate()
-                {
-                    let x = x0 + i as f32 * c;
-                    if *l == LABEL_SAND {
-                        for p in &passes {
-                            if let Some((dh, fa)) = p.imprint(x, y) {
-                                *h += dh;
-                                *a *= fa;
-                            }
-                        }
+        out.edit_cells(|x, y, h, a, l| {
+            if l == LABEL_SAND {
+                for p in &passes {
+                    if let Some((dh, fa)) = p.imprint(x, y) {
+                        *h += dh;
+                        *a *= fa;
                     }
-                    if dust > 0.0 && *l != LABEL_TUBE {
-                        let cover = (0.5 + fbm(dseed, x, y, 0.8, 3)).clamp(0.0, 1.0);
-                        let k = (dust * (0.8 + 0.4 * cover)).min(1.0);
-                        *a += (DUST_ALBEDO - *a) * k;
-                    }
-                    *a = a.clamp(0.03, 0.95);
                 }
-            });
+            }
+            if dust > 0.0 && l != LABEL_TUBE {
+                let cover = (0.5 + fbm(dseed, x, y, 0.8, 3)).clamp(0.0, 1.0);
+                let k = (dust * (0.8 + 0.4 * cover)).min(1.0);
+                *a += (DUST_ALBEDO - *a) * k;
+            }
+            *a = a.clamp(0.03, 0.95);
+        });
         out.refresh_derived();
         out
     }
