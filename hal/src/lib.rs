@@ -118,7 +118,8 @@
 //! let ws = Workspace::new(TEST_WORKSPACE, &mut bytes, &mut words, &mut runs)?;
 //!
 //! let job = Job { rig, params: testkit::test_params(), seed: 7,
-//!                 limits: DriveLimits::UNLIMITED, verify: VerifyChecks::ALL, accuracy: None };
+//!                 limits: DriveLimits::UNLIMITED, verify: VerifyChecks::ALL, accuracy: None,
+//!                 final_pairs: 0 };
 //! let (outcome, report) = runner.run(&job, &mut [], RamPair::new(&mut l, &mut r), ws, None)?;
 //!
 //! assert!(outcome.failure.is_none(), "{:?}", outcome.failure);

@@ -789,6 +789,10 @@ pub struct Job {
     /// The accuracy the caller needs: the rounds end as soon as the stated
     /// uncertainty meets it (`None`: every pose update of `params.n_iter`).
     pub accuracy: Option<Accuracy>,
+    /// Correspondences of the last round
+    /// ([`Options::final_pairs`](vtsm_core::reloc::Options::final_pairs); 0:
+    /// N_corr like every round).
+    pub final_pairs: u16,
 }
 
 /// What a [`PairSource`] hands the runner after the capture: the engine's
@@ -1017,7 +1021,10 @@ fn build<'a, 'w, F: FrameSource>(
     start: u64,
 ) -> Result<Engine<'a, 'w, F>, FailureCode> {
     let setup = setup.with_upset_checks(job.verify.repeat_solve, job.verify.recheck_map);
-    let options = setup.options().with_accuracy(job.accuracy);
+    let options = setup
+        .options()
+        .with_accuracy(job.accuracy)
+        .and_then(|o| o.with_final_pairs(job.final_pairs));
     options
         .and_then(|o| setup.with_options(o))
         .and_then(|s| s.build(ws))

@@ -64,6 +64,8 @@ pub struct Spec {
     /// The accuracy the caller needs (`--accuracy`): the rounds end once the
     /// stated uncertainty meets it.
     pub accuracy: Option<vtsm_core::reloc::Accuracy>,
+    /// Correspondences of each pair's last round (`--final-pairs`; 0: N_corr).
+    pub final_pairs: u16,
     /// Threads each pair's attempts run on (`--threads`; pairs run one
     /// after another). Same outcome for every number.
     pub threads: usize,
@@ -209,6 +211,9 @@ pub struct Inputs {
     /// The accuracy the caller needs (`None` from [`load_inputs`]; a job
     /// sets its [`Spec::accuracy`]).
     pub accuracy: Option<vtsm_core::reloc::Accuracy>,
+    /// Correspondences of the last round (0 from [`load_inputs`]; a job
+    /// sets its [`Spec::final_pairs`]).
+    pub final_pairs: u16,
     /// Threads the attempts run on (1 from [`load_inputs`]; a job sets its
     /// [`Spec::threads`]).
     pub threads: usize,
@@ -259,6 +264,7 @@ pub fn load_inputs(
         seed: pair.seed,
         verify,
         accuracy: None,
+        final_pairs: 0,
         threads: 1,
         physical,
         origin,
@@ -321,6 +327,7 @@ pub fn run_engine(map: MapView<'_>, inputs: &Inputs) -> Result<Ran> {
     .with_seed(inputs.seed)
     .with_verify(inputs.verify)
     .with_accuracy(inputs.accuracy)
+    .with_final_pairs(inputs.final_pairs)
     .with_threads(inputs.threads);
     let report = locate::relocalize(&req, RunOptions::default())?;
     let mut outcome = Outcome {
@@ -434,6 +441,7 @@ pub fn run_pair(
     };
     let inputs = Inputs {
         accuracy: spec.accuracy,
+        final_pairs: spec.final_pairs,
         threads: spec.threads,
         ..load_inputs(&map, calib, pair, spec.verify)?
     };

@@ -117,6 +117,8 @@ pub struct Request<'a> {
     /// The accuracy the caller needs ([`Job::accuracy`](vtsm_hal::runner::Job::accuracy)):
     /// the rounds end once the stated uncertainty meets it.
     pub accuracy: Option<vtsm_core::reloc::Accuracy>,
+    /// Correspondences of the last round ([`Job::final_pairs`](vtsm_hal::runner::Job::final_pairs); 0: N_corr).
+    pub final_pairs: u16,
     /// Threads the attempts run on ([`crate::workers`]); 1: the runner's
     /// own pipeline in the caller's thread. Same outcome for every number.
     pub threads: usize,
@@ -145,6 +147,7 @@ impl<'a> Request<'a> {
             seed: 0,
             verify: VerifyChecks::OFF,
             accuracy: None,
+            final_pairs: 0,
             threads: 1,
         }
     }
@@ -177,6 +180,15 @@ impl<'a> Request<'a> {
     /// `accuracy` (`None`: every pose update).
     pub fn with_accuracy(self, accuracy: Option<vtsm_core::reloc::Accuracy>) -> Self {
         Self { accuracy, ..self }
+    }
+
+    /// The same request with `final_pairs` correspondences in its last
+    /// round (0: N_corr).
+    pub fn with_final_pairs(self, final_pairs: u16) -> Self {
+        Self {
+            final_pairs,
+            ..self
+        }
     }
 
     /// The same request with the prior's stated uncertainty.
@@ -441,6 +453,7 @@ pub fn run(req: &Request<'_>, opts: RunOptions<'_>) -> Result<DeviceRun> {
         limits,
         verify: req.verify,
         accuracy: req.accuracy,
+        final_pairs: req.final_pairs,
     };
     // RAM for the map only when it must be read from storage (bytes, not
     // memory-mapped); a checked view is used where it is.

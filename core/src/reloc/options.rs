@@ -45,6 +45,7 @@ pub struct Options {
     pub(super) verify: Verify,
     pub(super) focus: Focus,
     pub(super) final_gradient_only: bool,
+    pub(super) final_pairs: u16,
     pub(super) accuracy: Option<Accuracy>,
 }
 
@@ -295,6 +296,7 @@ impl Options {
             verify: Verify::off(params),
             focus: Focus::for_params(params),
             final_gradient_only: true,
+            final_pairs: 0,
             accuracy: None,
         }
     }
@@ -373,6 +375,19 @@ impl Options {
     /// consensus needs their yield (`fsw-docs/eval/lighting.md`).
     pub const fn final_gradient_only(&self) -> bool {
         self.final_gradient_only
+    }
+
+    /// Correspondences the last round (the one whose success is the
+    /// `n_iter`-th pose update) collects before its solve, N_corr..=
+    /// [`MAX_CORR`](crate::config::MAX_CORR); 0 (the default) is N_corr like
+    /// every round. The final estimate is refined on that round's inliers,
+    /// so more of them give (and state) a smaller uncertainty where the
+    /// matches are good. The round keeps the attempt cap of every round
+    /// (`attempts_per_iter`): when the cap comes first, the round solves on
+    /// what it has if that is N_corr or more, so the work bound is
+    /// unchanged.
+    pub const fn final_pairs(&self) -> u16 {
+        self.final_pairs
     }
 
     /// The accuracy the caller needs, when it stated one: the rounds end as
@@ -511,6 +526,23 @@ impl Options {
         }
     }
 
+    /// With the last round collecting `final_pairs` correspondences
+    /// ([`Self::final_pairs`]; 0 = N_corr).
+    ///
+    /// # Errors
+    /// [`FailureCode::ConfigParamOutOfRange`] for a count above
+    /// [`MAX_CORR`](crate::config::MAX_CORR) (below N_corr is refused where
+    /// the options meet the parameters).
+    pub const fn with_final_pairs(self, final_pairs: u16) -> Result<Self, FailureCode> {
+        if final_pairs as usize > crate::config::MAX_CORR {
+            return Err(FailureCode::ConfigParamOutOfRange);
+        }
+        Ok(Self {
+            final_pairs,
+            ..self
+        })
+    }
+
     /// Every check, those against `params` included.
     pub(super) fn validate(&self, params: &Params) -> Result<(), FailureCode> {
         let ok = (3..=params.n_corr).contains(&self.min_inliers)
@@ -520,6 +552,8 @@ impl Options {
             && self.gates.validate()
             && self.verify.validate()
             && self.focus.validate(params)
+            && (self.final_pairs == 0
+                || (params.n_corr..=crate::config::MAX_CORR as u16).contains(&self.final_pairs))
             && self.accuracy.is_none_or(|a| a.validate());
         if ok {
             Ok(())

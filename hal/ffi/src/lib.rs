@@ -1097,6 +1097,7 @@ unsafe fn create(
             limits: DriveLimits::UNLIMITED,
             verify,
             accuracy,
+            final_pairs: 0,
         },
         prior,
         map: cfg.map,

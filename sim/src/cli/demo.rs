@@ -51,6 +51,9 @@ pub struct Args {
     /// meets it.
     #[command(flatten)]
     pub accuracy: super::AccuracyArg,
+    /// `--final-pairs N`: correspondences of the last round.
+    #[command(flatten)]
+    pub final_pairs: super::FinalPairsArg,
     /// `--threads N`: the threads the attempts run on (same result).
     #[command(flatten)]
     pub threads: super::ThreadsArg,
@@ -144,6 +147,7 @@ pub fn run(args: &Args) -> Result<u8> {
         .with_seed(args.seed)
         .with_verify(args.verify.checks())
         .with_accuracy(args.accuracy.accuracy)
+        .with_final_pairs(args.final_pairs.final_pairs)
         .with_threads(args.threads.threads());
     let report = locate::relocalize(&req, RunOptions::default())?;
     let o = &report.outcome;

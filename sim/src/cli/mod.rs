@@ -61,6 +61,20 @@ pub struct AccuracyArg {
     pub accuracy: Option<vtsm_core::reloc::Accuracy>,
 }
 
+/// `--final-pairs N` of `vtsm relocalize`, `demo` and `eval`: the
+/// correspondences of the last round
+/// ([`Options::final_pairs`](vtsm_core::reloc::Options::final_pairs)).
+#[derive(Debug, Clone, Copy, Default, clap::Args)]
+pub struct FinalPairsArg {
+    /// Collect N correspondences in the last round instead of N_corr
+    /// (N_corr..=256; 0, the default: N_corr): the final estimate is refined
+    /// on more pairs, more exact where the matches are good, for more
+    /// attempts in that round (`fsw-docs/eval/final-pairs.md`).
+    #[arg(long = "final-pairs", value_name = "N", default_value_t = 0,
+          value_parser = clap::value_parser!(u16).range(0..=vtsm_core::config::MAX_CORR as i64))]
+    pub final_pairs: u16,
+}
+
 /// `--threads N` of `vtsm relocalize` and `demo`: the threads one
 /// relocalization's attempts run on ([`crate::workers`]).
 #[derive(Debug, Clone, Copy, Default, clap::Args)]

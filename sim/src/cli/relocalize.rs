@@ -68,6 +68,9 @@ pub struct Args {
     /// meets it.
     #[command(flatten)]
     pub accuracy: super::AccuracyArg,
+    /// `--final-pairs N`: correspondences of the last round.
+    #[command(flatten)]
+    pub final_pairs: super::FinalPairsArg,
     /// `--threads N`: the threads each pair's attempts run on (same result).
     #[command(flatten)]
     pub threads: super::ThreadsArg,
@@ -131,6 +134,7 @@ impl Args {
             },
             verify: self.verify.checks(),
             accuracy: self.accuracy.accuracy,
+            final_pairs: self.final_pairs.final_pairs,
             threads: self.threads.threads(),
             force: self.force,
         })
@@ -190,6 +194,7 @@ pub fn with_inputs<R>(
     let map = job::check_map(&bytes, &spec.map)?;
     let inputs = Inputs {
         accuracy: spec.accuracy,
+        final_pairs: spec.final_pairs,
         threads: spec.threads,
         ..job::load_inputs(&map, &calib, &pair, spec.verify)?
     };

@@ -64,6 +64,7 @@ fn args(dir: &Path, prior: &str, out: Option<PathBuf>) -> Args {
         seed: SEED,
         verify: Default::default(),
         accuracy: Default::default(),
+        final_pairs: Default::default(),
         threads: Default::default(),
         out,
         force: false,

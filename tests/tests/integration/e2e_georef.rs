@@ -78,6 +78,7 @@ fn args(dir: &Path, prior: &str, origin: Option<&str>) -> Args {
         seed: SEED,
         verify: Default::default(),
         accuracy: Default::default(),
+        final_pairs: Default::default(),
         threads: Default::default(),
         out: None,
         force: false,

@@ -40,6 +40,7 @@ fn args(dir: &Path) -> Args {
         seed: SEED,
         verify: Default::default(),
         accuracy: Default::default(),
+        final_pairs: Default::default(),
         threads: Default::default(),
         out: None,
         force: false,

@@ -77,6 +77,7 @@ fn args(dir: &Path, prior: Option<&str>, out: Option<PathBuf>) -> Args {
         origin: None,
         verify: Default::default(),
         accuracy: Default::default(),
+        final_pairs: Default::default(),
         threads: Default::default(),
     }
 }

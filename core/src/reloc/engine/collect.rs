@@ -57,7 +57,13 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         let cap = self.opts.no_evidence_attempts;
         if cap > 0 && self.stats.correspondences == 0 && self.stats.attempts >= cap {
             self.finish(Some(FailureCode::RelocNoEvidence), now);
-        } else if self.pairs.len() >= usize::from(self.params.n_corr) {
+        } else if self.pairs.len() >= self.round_pairs() {
+            self.phase = Phase::Solve;
+        } else if self.round_attempts >= self.params.attempts_per_iter
+            && self.pairs.len() >= usize::from(self.params.n_corr)
+        {
+            // A last round that could not collect its larger count solves
+            // on what it has, as any round would.
             self.phase = Phase::Solve;
         } else if self.round_attempts >= self.params.attempts_per_iter {
             self.log
@@ -101,18 +107,34 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
     }
 
     /// Whether the round under way is the final one and keeps only
-    /// gradient-domain pairs ([`Options::final_gradient_only`]): a success
-    /// now would be the `n_iter`-th and no round has failed since the last
-    /// update (every failed round that goes on counts a Stall or a Reseed,
-    /// and an update clears both; so a restricted final round that fails
-    /// runs again with every variant). Never while seeding.
+    /// gradient-domain pairs ([`Options::final_gradient_only`]): see
+    /// [`Self::last_round`].
     pub(super) fn final_round(&self) -> bool {
-        self.opts.final_gradient_only
-            && !self.seeding
+        self.opts.final_gradient_only && self.last_round()
+    }
+
+    /// Whether the round under way is the last one: a success now would be
+    /// the `n_iter`-th and no round has failed since the last update (every
+    /// failed round that goes on counts a Stall or a Reseed, and an update
+    /// clears both; so a restricted last round that fails runs again as any
+    /// round). Never while seeding.
+    pub(super) fn last_round(&self) -> bool {
+        !self.seeding
             && self.stats.successes > 0
             && self.consecutive_stall == 0
             && self.consecutive_reseed == 0
             && self.stats.successes.saturating_add(1) >= u16::from(self.params.n_iter)
+    }
+
+    /// Correspondences the round under way collects before its solve:
+    /// N_corr, or [`Options::final_pairs`](crate::reloc::Options::final_pairs) in the last round.
+    pub(super) fn round_pairs(&self) -> usize {
+        let n = usize::from(self.params.n_corr);
+        if self.opts.final_pairs > 0 && self.last_round() {
+            n.max(usize::from(self.opts.final_pairs))
+        } else {
+            n
+        }
     }
 
     pub(super) fn start_round(&mut self) {

@@ -168,7 +168,7 @@ pub struct Args {
     #[arg(long, default_value_t = 16)]
     pub seeds_k: u16,
     /// Also run a baseline relocalizer on the same trials and report it next to
-    /// VTSM (`paper` and `baseline` suites).
+    /// VTSM (`paper`, `baseline`, `hard` and `dataset` suites).
     #[arg(long, value_enum, ignore_case = true)]
     pub baseline: Option<BaselineArg>,
     /// No progress bar.
@@ -185,6 +185,9 @@ pub struct Args {
     /// stated uncertainty meets it.
     #[command(flatten)]
     pub accuracy: super::super::AccuracyArg,
+    /// `--final-pairs N`: correspondences of every VTSM trial's last round.
+    #[command(flatten)]
+    pub final_pairs: super::super::FinalPairsArg,
     /// Live pairs in the physical form of `vtsm scene export --physical`
     /// (distorted, slightly rotated cameras, OpenCV calibration), rectified on
     /// the host as `vtsm relocalize` does; errors are those of the physical
@@ -270,6 +273,7 @@ impl Args {
             origin: None,
             verify: super::super::VerifyArg::default(),
             accuracy: super::super::AccuracyArg::default(),
+            final_pairs: super::super::FinalPairsArg::default(),
             physical: false,
             interp: Interp::Lanczos4,
             light_model: LightModelArg::Full,
@@ -326,7 +330,7 @@ pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
     if let Some(b) = args.baseline {
         if !suite.def().takes_baseline() {
             return Err(Error::msg(
-                "--baseline runs with the paper and baseline suites only",
+                "--baseline runs with the paper, baseline, hard and dataset suites only",
             ));
         }
         cfg.baseline = Some(b.into());
@@ -339,6 +343,7 @@ pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
         .transpose()?;
     cfg.verify = args.verify.checks();
     cfg.accuracy = args.accuracy.accuracy;
+    cfg.final_pairs = args.final_pairs.final_pairs;
     cfg.physical = args.physical;
     cfg.interp = args.interp;
     cfg.light_model = args.light_model.into();

@@ -88,6 +88,9 @@ pub struct SuiteConfig {
     pub verify: VerifyChecks,
     /// The accuracy every VTSM trial is asked for (`--accuracy`).
     pub accuracy: Option<vtsm_core::reloc::Accuracy>,
+    /// Correspondences of every VTSM trial's last round (`--final-pairs`; 0:
+    /// N_corr).
+    pub final_pairs: u16,
     /// Live pairs in the physical form, rectified on the host (`--physical`).
     pub physical: bool,
     /// Kernel of that rectification (`--interp`).
@@ -133,6 +136,7 @@ impl SuiteConfig {
             origin: None,
             verify: VerifyChecks::OFF,
             accuracy: None,
+            final_pairs: 0,
             physical: false,
             interp: Interp::default(),
             light_model: LightModel::Full,

@@ -277,6 +277,7 @@ fn run_meta(cfg: &SuiteConfig, def: &dyn SuiteDef, depot: &Depot, command: &str)
             "origin": cfg.origin,
             "verify": verify_json(cfg),
             "accuracy": accuracy_json(cfg),
+            "final_pairs": cfg.final_pairs,
             "features": cfg.baseline.map(|_| {
                 format!("{:?}", crate::features::FeatureParams::for_width(width))
             }),

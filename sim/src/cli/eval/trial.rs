@@ -286,6 +286,7 @@ pub(super) fn request<'a>(
         .with_seed(seed)
         .with_verify(cfg.verify)
         .with_accuracy(cfg.accuracy)
+        .with_final_pairs(cfg.final_pairs)
 }
 
 /// The local-feature baseline on the same request.

@@ -311,3 +311,53 @@ fn converges_when_the_update_is_below_threshold() {
     assert_eq!(out.pose, at_x(0.0));
     assert_eq!(out.quality.inliers, 0);
 }
+
+/// `Options::final_pairs` makes the last round collect that many pairs (the
+/// others N_corr), within the round's attempt cap; when the cap comes first
+/// the last round solves on what it has (N_corr or more), and 0 or a count
+/// outside N_corr..=MAX_CORR is the default or refused.
+///
+/// Verifies: VTSM-RELOC-044
+#[test]
+fn the_last_round_collects_its_own_count_of_pairs() {
+    let p = small_params();
+    let run = |final_pairs: u16, fail_every: Option<u32>| {
+        let o = opts(&p).with_final_pairs(final_pairs).unwrap();
+        let solver = FakeSolver::new(|call, pairs, mask| {
+            Ok(even_inliers(at_x(0.1 * (call + 1) as f32), pairs, mask))
+        });
+        let attempt = match fail_every {
+            Some(k) => {
+                FakeAttempt::new(move |i, _| (i % k != 0).then_some(FailureCode::NccWindowFlat))
+            }
+            None => FakeAttempt::ok(),
+        };
+        let mut r = Relocalizer::new(attempt, solver, &p, &o, &at_x(0.0), 5).unwrap();
+        let out = r.run_to_completion(0);
+        assert!(out.failure.is_none(), "{:?}", out.failure);
+        let sizes: Vec<usize> = r.solver_ref().calls.iter().map(Vec::len).collect();
+        (sizes, out.stats.attempts)
+    };
+    let n = usize::from(p.n_corr);
+    let (plain, plain_attempts) = run(0, None);
+    assert_eq!(plain, std::vec![n; usize::from(p.n_iter)]);
+    let (more, more_attempts) = run(45, None);
+    let mut expect = std::vec![n; usize::from(p.n_iter)];
+    *expect.last_mut().unwrap() = 45;
+    assert_eq!(more, expect);
+    assert!(more_attempts > plain_attempts);
+    // One attempt in two matches: the last round reaches its cap of 50
+    // attempts before 45 pairs and solves on what it has.
+    let (capped, _) = run(45, Some(2));
+    let last = *capped.last().unwrap();
+    assert!((n..45).contains(&last), "{capped:?}");
+    assert!(capped[..capped.len() - 1].iter().all(|&k| k == n));
+    // Refused: above MAX_CORR at once, below N_corr where options meet params.
+    assert_eq!(
+        opts(&p).with_final_pairs(crate::config::MAX_CORR as u16 + 1),
+        Err(FailureCode::ConfigParamOutOfRange)
+    );
+    let low = opts(&p).with_final_pairs(p.n_corr - 1).unwrap();
+    let solver = FakeSolver::new(|_, pairs, mask| Ok(even_inliers(at_x(0.0), pairs, mask)));
+    assert!(Relocalizer::new(FakeAttempt::ok(), solver, &p, &low, &at_x(0.0), 5).is_err());
+}
