@@ -87,6 +87,10 @@ int bad_input_tests(uint8_t *storage, size_t storage_len) {
     expect("create: accuracy negative", create_with(storage, storage_len, &c), VTSM_CONFIG_PARAM_OUT_OF_RANGE);
     c = good; c.accuracy_sigma_t_m = NAN; c.accuracy_sigma_r_deg = 0.1f;
     expect("create: accuracy NaN", create_with(storage, storage_len, &c), VTSM_CONFIG_PARAM_OUT_OF_RANGE);
+    c = good; c.final_pairs = (uint16_t)(c.params.n_corr - 1u);
+    expect("create: final_pairs below n_corr", create_with(storage, storage_len, &c), VTSM_CONFIG_PARAM_OUT_OF_RANGE);
+    c = good; c.final_pairs = 257u;
+    expect("create: final_pairs above 256", create_with(storage, storage_len, &c), VTSM_CONFIG_PARAM_OUT_OF_RANGE);
     expect("params: unknown profile", vtsm_params_for_profile(42u, &c.params), VTSM_CONFIG_PARAM_OUT_OF_RANGE);
     expect("params: out NULL", vtsm_params_for_profile(VTSM_PROFILE_TEST, NULL), VTSM_FFI_NULL_POINTER);
     expect("storage size: params NULL is 0", vtsm_storage_size(NULL) == 0 ? VTSM_OK : 1, VTSM_OK);

@@ -202,6 +202,19 @@ int main(void) {
         early.stats.attempts >= out.stats.attempts || out.stats.rounds_saved != 0)
         failed++;
 
+    /* More correspondences in the last round: the same success, more
+     * attempts than with N_corr, and the engine's inliers can exceed N_corr. */
+    VtsmConfig wide = cfg;
+    wide.final_pairs = (uint16_t)(cfg.params.n_corr + cfg.params.n_corr / 2u);
+    VtsmOutcome more;
+    rc = vtsm_engine_create(storage, sizeof storage, &wide, &engine);
+    if (rc == VTSM_OK) rc = vtsm_engine_run(engine, &limits, &more);
+    printf("VTSM-C-FINAL-PAIRS %s: %s, final_pairs %u, %lu attempts (N_corr: %lu), %u inliers\n",
+           vtsm_failure_name(rc), vtsm_failure_name(more.failure), (unsigned)wide.final_pairs,
+           (unsigned long)more.stats.attempts, (unsigned long)out.stats.attempts, (unsigned)more.inliers);
+    if (rc != VTSM_OK || more.failure != VTSM_OK || more.stats.attempts <= out.stats.attempts)
+        failed++;
+
     failed += bad_input_tests(storage, sizeof storage);
 
     uint64_t cpp_digest = 0;

@@ -470,6 +470,12 @@ typedef struct VtsmConfig {
     // The accuracy the caller needs, 1-σ rotation in degrees (0, 10]; both 0:
     // none.
     float accuracy_sigma_r_deg;
+    // Correspondences of the last round, N_corr..=256 (0: N_corr like every
+    // round): the final estimate is refined on more pairs, more exact where
+    // the light agrees, for more attempts in that round
+    // (`Options::final_pairs`; fewer than N_corr is refused with
+    // `VTSM_CONFIG_PARAM_OUT_OF_RANGE`).
+    uint16_t final_pairs;
     // The devices.
     struct VtsmIo io;
 } VtsmConfig;

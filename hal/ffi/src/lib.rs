@@ -444,6 +444,12 @@ pub struct VtsmConfig {
     /// The accuracy the caller needs, 1-σ rotation in degrees (0, 10]; both 0:
     /// none.
     pub accuracy_sigma_r_deg: f32,
+    /// Correspondences of the last round, N_corr..=256 (0: N_corr like every
+    /// round): the final estimate is refined on more pairs, more exact where
+    /// the light agrees, for more attempts in that round
+    /// (`Options::final_pairs`; fewer than N_corr is refused with
+    /// `VTSM_CONFIG_PARAM_OUT_OF_RANGE`).
+    pub final_pairs: u16,
     /// The devices.
     pub io: VtsmIo,
 }
@@ -1057,6 +1063,11 @@ unsafe fn create(
         recheck_map: flag(cfg.verify_recheck_map)?,
     };
     let accuracy = accuracy_of(cfg.accuracy_sigma_t_m, cfg.accuracy_sigma_r_deg)?;
+    // `Options::final_pairs`' range, checked at creation as the others are.
+    let max_pairs = vtsm_core::config::MAX_CORR as u16;
+    if cfg.final_pairs != 0 && !(params.n_corr..=max_pairs).contains(&cfg.final_pairs) {
+        return Err(FailureCode::ConfigParamOutOfRange);
+    }
     if cfg.map_len == 0 || u32::try_from(cfg.map_len).is_err() {
         return Err(FailureCode::HalMapTooLarge);
     }
@@ -1097,7 +1108,7 @@ unsafe fn create(
             limits: DriveLimits::UNLIMITED,
             verify,
             accuracy,
-            final_pairs: 0,
+            final_pairs: cfg.final_pairs,
         },
         prior,
         map: cfg.map,
