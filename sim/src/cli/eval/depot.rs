@@ -31,9 +31,10 @@ pub struct Depot {
     /// The mapped mesh of each scene (under the mapping lighting).
     pub meshes: Vec<MeshData>,
     /// The live scenes: one per terrain (the mapped one after `--wind` and
-    /// `--change`), then
-    /// one per distinct changed depot of the worlds.
-    live: Vec<Scene>,
+    /// `--change`), then one per distinct changed depot of the worlds, each
+    /// with its terrain index; `None` where nothing changed (the mapped
+    /// scene is the live one, not a copy of it).
+    live: Vec<(usize, Option<Scene>)>,
     /// The time differences the live pairs are rendered at, hours.
     pub live_hours: Vec<f32>,
     /// Live lightings: terrain-major over `live_hours` ([`Depot::light_of`]),
@@ -61,11 +62,15 @@ impl Depot {
                 kinds.push((w.terrain, w.change));
             }
         }
-        let live: Vec<Scene> = kinds
+        let live: Vec<(usize, Option<Scene>)> = kinds
             .par_iter()
             .map(|&(t, change)| {
                 let s = &scenes[t];
-                s.live(cfg.wind, &change, s.seed ^ WIND_SEED)
+                let changed = cfg.wind > 0.0 || !change.is_none();
+                (
+                    t,
+                    changed.then(|| s.live(cfg.wind, &change, s.seed ^ WIND_SEED)),
+                )
             })
             .collect();
         let mut keys: Vec<(usize, f32)> = (0..scenes.len())
@@ -78,24 +83,34 @@ impl Depot {
                 .unwrap_or(w.terrain);
             (s, w.hours)
         }));
-        let lights: Vec<Lighting> = keys
-            .par_iter()
-            .map(|&(s, h)| live[s].lighting_with(h, cfg.light_model))
-            .collect();
-        Self {
+        let mut depot = Self {
             scenes,
             meshes,
             live,
             live_hours,
-            lights,
+            lights: Vec::new(),
             light_scene: keys.iter().map(|k| k.0).collect(),
+        };
+        let lights: Vec<Lighting> = keys
+            .par_iter()
+            .map(|&(s, h)| depot.live_scene(s).lighting_with(h, cfg.light_model))
+            .collect();
+        depot.lights = lights;
+        depot
+    }
+
+    /// Live scene `s` (index into `live`).
+    fn live_scene(&self, s: usize) -> &Scene {
+        match self.live.get(s) {
+            Some((_, Some(changed))) => changed,
+            Some((t, None)) => &self.scenes[*t],
+            None => &self.scenes[0],
         }
     }
 
     /// The live scene lighting `light` belongs to.
     pub fn live_of(&self, light: usize) -> &Scene {
-        let s = self.light_scene.get(light).copied().unwrap_or(0);
-        &self.live[s.min(self.live.len().saturating_sub(1))]
+        self.live_scene(self.light_scene.get(light).copied().unwrap_or(0))
     }
 
     /// Index into [`Depot::lights`] of terrain `t` at time difference index `hi`.
