@@ -359,6 +359,23 @@ fn split_label(label: &str) -> (&str, &str, &str) {
     (terrain, condition, method)
 }
 
+/// The trials of condition `name` relocalized by `method`, on `terrain`
+/// (every terrain: `None`).
+fn trials_of<'o>(
+    outcomes: &'o [TrialOutcome],
+    name: &str,
+    method: &str,
+    terrain: Option<&str>,
+) -> Vec<&'o TrialOutcome> {
+    outcomes
+        .iter()
+        .filter(|o| {
+            let (ot, oc, om) = split_label(&o.group);
+            oc == name && om == method && terrain.is_none_or(|t| t == ot)
+        })
+        .collect()
+}
+
 /// The envelope: per condition, VTSM's trials within 5 cm per terrain and
 /// overall, the baseline's overall, the confident-wrong count, the median
 /// error of the successes and the slowest failure.
@@ -390,15 +407,7 @@ pub fn envelope_table(outcomes: &[TrialOutcome]) -> String {
     s += &"---:|".repeat(terrains.len() + 4 + 2 * baselines.len());
     s += "\n";
     for c in conditions() {
-        let of = |m: &str, t: Option<&str>| -> Vec<&TrialOutcome> {
-            outcomes
-                .iter()
-                .filter(|o| {
-                    let (ot, oc, om) = split_label(&o.group);
-                    oc == c.name && om == m && t.is_none_or(|t| t == ot)
-                })
-                .collect()
-        };
+        let of = |m: &str, t: Option<&str>| trials_of(outcomes, &c.name, m, t);
         let all = of("vtsm", None);
         if all.is_empty() {
             continue;
@@ -494,13 +503,7 @@ fn envelope_figures(cfg: &SuiteConfig, outcomes: &[TrialOutcome]) -> Vec<Figure>
                     .iter()
                     .filter_map(|c| {
                         let x = level(c)?;
-                        let v: Vec<&TrialOutcome> = outcomes
-                            .iter()
-                            .filter(|o| {
-                                let (ot, oc, om) = split_label(&o.group);
-                                oc == c.name && om == m && t.is_none_or(|t| t == ot)
-                            })
-                            .collect();
+                        let v = trials_of(outcomes, &c.name, m, t);
                         (!v.is_empty()).then(|| {
                             let n = v.iter().filter(|o| within(o)).count();
                             (x, 100.0 * n as f64 / v.len() as f64)
