@@ -85,6 +85,7 @@ fn main() {
         texture: GrayView::new(&tex, TEX, TEX, TEX).expect("texture"),
         tile_size_m: 0.5,
         origin: [0.0; 3],
+        vertex_scores: None,
     };
     let t0 = Instant::now();
     let mut bytes = vec![0u8; encoded_len(&src).expect("encoded_len")];

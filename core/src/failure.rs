@@ -121,6 +121,8 @@ failure_codes! {
         "A texture coordinate lies beyond map::MAX_UV_PX texture pixels; the map is not used.";
     MapOriginOutOfRange = 0x030D, Fatal, NewInput, "MAP_ORIGIN_OUT_OF_RANGE",
         "The map's origin is not finite or a coordinate exceeds config::MAX_MAP_ORIGIN_M; the map is not used (nothing is encoded).";
+    MapBadScores = 0x030E, Fatal, NewInput, "MAP_BAD_SCORES",
+        "The map's mask-vertex sampling scores are not a valid running sum (a step above 255, a decrease, or a zero total over the mask vertices); the map is not used (nothing is encoded).";
     // 0x04xx raster
     RasterWindowInvalid = 0x0401, Degraded, Same, "RASTER_WINDOW_INVALID",
         "The render window is empty, larger than the template cap or outside the guard band; nothing is drawn.";

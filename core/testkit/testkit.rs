@@ -144,6 +144,7 @@ pub fn build_map_with_mask(seed: u64, in_mask: impl Fn(usize) -> bool) -> Vec<u8
         texture: GrayView::new(&texture, TEX, TEX, TEX).unwrap(),
         tile_size_m: 1.0,
         origin: [0.0; 3],
+        vertex_scores: None,
     };
     let mut out = vec![0u8; vtsm_core::map::encoded_len(&src).unwrap()];
     let n = vtsm_core::map::encode(&src, &mut out).unwrap();

@@ -33,6 +33,7 @@ pub struct CheckedMap {
     max: Vec3,
     origin: [f64; 3],
     texture_size: (usize, usize),
+    score_total: u32,
 }
 
 impl MapView<'_> {
@@ -53,6 +54,7 @@ impl MapView<'_> {
             max: self.max,
             origin: self.origin,
             texture_size: (self.texture.width(), self.texture.height()),
+            score_total: self.score_total,
         }
     }
 }
@@ -96,6 +98,7 @@ impl CheckedMap {
             max: self.max,
             origin: self.origin,
             texture,
+            score_total: self.score_total,
         })
     }
 }

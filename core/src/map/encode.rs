@@ -35,6 +35,12 @@ pub struct MapSource<'s> {
     /// Origin of the local frame in the user frame, metres (see the module doc);
     /// must pass [`origin_ok`].
     pub origin: [f64; 3],
+    /// Sampling score of each vertex (one per entry of `vertices`), or `None`.
+    /// With scores the product is version 3 and carries the running sum of
+    /// the mask vertices' scores, so mask vertices are drawn in proportion to
+    /// them; without, it is version 2 (mask vertices drawn uniformly).
+    /// Scores of vertices outside the mask are not stored.
+    pub vertex_scores: Option<&'s [u8]>,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -83,7 +89,10 @@ pub(super) fn plan(src: &MapSource) -> Result<Plan, FailureCode> {
     if !(3..=MAX_MAP_VERTICES).contains(&nv) || !(1..=MAX_MAP_TRIANGLES).contains(&nt) {
         return Err(F::MapCountOutOfRange);
     }
-    if src.uvs.len() != nt || src.mask.len() != nt {
+    if src.uvs.len() != nt
+        || src.mask.len() != nt
+        || src.vertex_scores.is_some_and(|s| s.len() != nv)
+    {
         return Err(F::MapInconsistent);
     }
     let (tw, th) = (src.texture.width(), src.texture.height());
@@ -108,6 +117,8 @@ pub(super) fn plan(src: &MapSource) -> Result<Plan, FailureCode> {
     }
     let mut mask_tris = 0usize;
     let mut surface = false;
+    // Whether some vertex of a mask triangle has a positive score.
+    let mut scored = false;
     let (tw_f, th_f) = (tw as f32, th as f32);
     for ((t, uv), m) in src.triangles.iter().zip(src.uvs).zip(src.mask) {
         if t.iter().any(|v| *v as usize >= nv) {
@@ -132,9 +143,17 @@ pub(super) fn plan(src: &MapSource) -> Result<Plan, FailureCode> {
             surface = has_area(&a, &b, &c);
         }
         mask_tris = mask_tris.saturating_add(usize::from(*m));
+        if *m && !scored {
+            scored = src
+                .vertex_scores
+                .is_some_and(|s| t.iter().any(|v| s.get(*v as usize).is_some_and(|x| *x > 0)));
+        }
     }
     if !surface {
         return Err(F::MapNoSurface);
+    }
+    if src.vertex_scores.is_some() && mask_tris > 0 && !scored {
+        return Err(F::MapBadScores);
     }
     let cells = |lo: f32, hi: f32| -> Result<u32, FailureCode> {
         let extent = hi - lo;
@@ -158,13 +177,24 @@ pub(super) fn plan(src: &MapSource) -> Result<Plan, FailureCode> {
         max,
         tiles_x,
         tiles_y,
-        layout: Layout::new(HEADER_LEN, nv, nt, tiles, masks_max, tw, th),
+        layout: Layout::new(header_len(src), nv, nt, tiles, masks_max, tw, th),
     })
 }
 
+/// The header length of the version `src` is written in: version 3 with
+/// scores, version 2 without.
+fn header_len(src: &MapSource) -> usize {
+    if src.vertex_scores.is_some() {
+        HEADER_LEN_V3
+    } else {
+        HEADER_LEN
+    }
+}
+
 /// Size of the output buffer [`encode`] needs for `src`, in bytes. This is an
-/// upper bound: it counts the mask-vertex list at its largest,
-/// `min(vertices, 3 · mask triangles)` entries; [`encode`] returns the exact length.
+/// upper bound: it counts the mask-vertex list (and with scores, the score
+/// section) at its largest, `min(vertices, 3 · mask triangles)` entries;
+/// [`encode`] returns the exact length.
 ///
 /// # Errors
 /// As [`encode`], except [`FailureCode::MapEncodeBufferTooSmall`].
@@ -179,12 +209,16 @@ pub fn encoded_len(src: &MapSource) -> Result<usize, FailureCode> {
 ///
 /// Triangles are grouped by the grid cell of their centroid (stable within a
 /// cell); UVs are converted from OBJ convention to texture pixels (see [`Triangle`](super::Triangle)).
+/// Without [`MapSource::vertex_scores`] the product is version 2; with them,
+/// version 3 with the running sum of the mask vertices' scores, in mask order.
 ///
 /// # Errors
 /// [`FailureCode::MapCountOutOfRange`] (counts or texture size above the caps,
 /// vertex extent beyond f32), [`FailureCode::MapTileSizeOutOfRange`] (tile size
 /// not positive and finite, or a tile grid above `MAX_MAP_TILES`),
-/// [`FailureCode::MapInconsistent`] (slice lengths disagree),
+/// [`FailureCode::MapInconsistent`] (slice lengths disagree, scores included),
+/// [`FailureCode::MapBadScores`] (scores given, and every vertex of every mask
+/// triangle scores 0),
 /// [`FailureCode::MapOriginOutOfRange`] (origin not finite or beyond ±[`MAX_MAP_ORIGIN_M`](crate::config::MAX_MAP_ORIGIN_M)),
 /// [`FailureCode::MapNonFinite`], [`FailureCode::MapUvOutOfRange`] (a UV beyond
 /// ±[`MAX_UV_PX`] texture pixels once converted), [`FailureCode::MapNoSurface`]
@@ -199,6 +233,7 @@ pub fn encode(src: &MapSource, out: &mut [u8]) -> Result<usize, FailureCode> {
         .ok_or(FailureCode::MapEncodeBufferTooSmall)?;
     buf.fill(0);
     let masks = write_vertices(src, &lay, buf)?;
+    write_scores(src, &lay, masks, buf)?;
     let tiles = write_tiles_and_triangles(src, &plan, buf)?;
     write_texture(src, &lay, buf)?;
     write_header(src, &plan, tiles, masks, buf)
@@ -243,6 +278,33 @@ fn write_vertices(src: &MapSource, lay: &Layout, buf: &mut [u8]) -> Result<usize
         )?;
     }
     Ok(masks)
+}
+
+/// The score section, when `src` has scores: the running sum of the mask
+/// vertices' scores in mask order, right after the `masks` entries of the
+/// mask-vertex list (where the exact layout puts it; the planned layout
+/// counted the list at its largest, so it fits).
+fn write_scores(
+    src: &MapSource,
+    lay: &Layout,
+    masks: usize,
+    buf: &mut [u8],
+) -> Result<(), FailureCode> {
+    use FailureCode as F;
+    let Some(scores) = src.vertex_scores else {
+        return Ok(());
+    };
+    let o_mask = lay.off(SEC_MASK);
+    let o_scores = at(o_mask, masks, MASK_VERTEX_BYTES);
+    let mut cum = 0u32;
+    for k in 0..masks {
+        let v = rd_u32(buf, at(o_mask, k, MASK_VERTEX_BYTES)).ok_or(F::MapEncodeBufferTooSmall)?;
+        let s = scores.get(v as usize).ok_or(F::MapIndexOutOfRange)?;
+        // At most MAX_MAP_VERTICES · 255 < u32::MAX.
+        cum = cum.saturating_add(u32::from(*s));
+        wr_u32(buf, at(o_scores, k, MASK_SCORE_BYTES), cum)?;
+    }
+    Ok(())
 }
 
 /// The grid cell of triangle `t`'s centroid.
@@ -395,11 +457,12 @@ fn write_texture(src: &MapSource, lay: &Layout, buf: &mut [u8]) -> Result<(), Fa
 }
 
 /// The header with the exact mask count, the section table with each
-/// section's CRC, and the header CRC last. Returns the product's length.
+/// section's CRC (the entries of the version written), and the header CRC
+/// last. Returns the product's length.
 #[allow(
     clippy::arithmetic_side_effects,
     clippy::cast_possible_truncation,
-    reason = "counts and sizes are checked against the config capacities (all below u32::MAX) by plan() before they are written as u32; header offsets are constants of the layout (i < 11 fields, k < 3, i < SECTIONS)"
+    reason = "counts and sizes are checked against the config capacities (all below u32::MAX) by plan() before they are written as u32; header offsets are constants of the layout (i < 11 fields, k < 3, header_len ≥ 4 + the fixed fields)"
 )]
 fn write_header(
     src: &MapSource,
@@ -411,8 +474,14 @@ fn write_header(
     use FailureCode as F;
     let nv = src.vertices.len();
     let ts = src.tile_size_m;
+    let header = header_len(src);
+    let version = if header == HEADER_LEN_V3 {
+        VERSION_SCORED
+    } else {
+        VERSION
+    };
     let real = Layout::new(
-        HEADER_LEN,
+        header,
         nv,
         src.triangles.len(),
         tiles,
@@ -424,8 +493,8 @@ fn write_header(
         .ok_or(F::MapEncodeBufferTooSmall)?
         .copy_from_slice(&MAGIC);
     let fields = [
-        VERSION,
-        HEADER_LEN as u32,
+        version,
+        header as u32,
         nv as u32,
         src.triangles.len() as u32,
         tiles as u32,
@@ -446,34 +515,31 @@ fn write_header(
             .ok_or(F::MapEncodeBufferTooSmall)?
             .copy_from_slice(&c.to_le_bytes());
     }
-    for (i, s) in real.sec.iter().enumerate() {
+    for (s, e) in real.sec.iter().zip(ENTRY_OFF).take(real.entries()) {
         let crc = crc32(
             buf.get(s.off..s.off.saturating_add(s.len))
                 .ok_or(F::MapEncodeBufferTooSmall)?,
         );
-        let e = OFF_SECTIONS + 12 * i;
+        // e is an ENTRY_OFF constant: e + 4 and e + 8 never wrap.
         wr_u32(buf, e, s.off as u32)?;
-        wr_u32(buf, e + 4, s.len as u32)?;
-        wr_u32(buf, e + 8, crc)?;
+        wr_u32(buf, e.wrapping_add(4), s.len as u32)?;
+        wr_u32(buf, e.wrapping_add(8), crc)?;
     }
-    let hcrc = crc32(
-        buf.get(..HEADER_LEN - 4)
-            .ok_or(F::MapEncodeBufferTooSmall)?,
-    );
-    wr_u32(buf, HEADER_LEN - 4, hcrc)?;
+    let hcrc = crc32(buf.get(..header - 4).ok_or(F::MapEncodeBufferTooSmall)?);
+    wr_u32(buf, header - 4, hcrc)?;
     Ok(real.total)
 }
 
 /// Recompute every CRC of a product in place (header last). For tools and tests
 /// that edit a product on purpose; a product edited without this is rejected.
-/// The header length follows the version field (an unknown version is treated
-/// as the current one).
+/// The header length and the number of section entries follow the version
+/// field (an unknown version is treated as version 2).
 ///
 /// # Errors
 /// [`FailureCode::MapTruncated`] if `bytes` is shorter than its header or sections say.
 #[allow(
     clippy::arithmetic_side_effects,
-    reason = "header offsets are constants of the layout (i < SECTIONS) and header_len ≥ 4 + the fixed fields (header_len_of)"
+    reason = "header_len ≥ 4 + the fixed fields (header_len_of)"
 )]
 pub fn reseal(bytes: &mut [u8]) -> Result<(), FailureCode> {
     use FailureCode as F;
@@ -482,13 +548,12 @@ pub fn reseal(bytes: &mut [u8]) -> Result<(), FailureCode> {
     if bytes.len() < header_len {
         return Err(F::MapTruncated);
     }
-    for i in 0..SECTIONS {
-        let e = OFF_SECTIONS + 12 * i;
+    for e in ENTRY_OFF.into_iter().take(entries_of(header_len)) {
         let off = rd_u32(bytes, e).ok_or(F::MapTruncated)? as usize;
-        let len = rd_u32(bytes, e + 4).ok_or(F::MapTruncated)? as usize;
+        let len = rd_u32(bytes, e.wrapping_add(4)).ok_or(F::MapTruncated)? as usize;
         let end = off.checked_add(len).ok_or(F::MapTruncated)?;
         let crc = crc32(bytes.get(off..end).ok_or(F::MapTruncated)?);
-        wr_u32(bytes, e + 8, crc).map_err(|_| F::MapTruncated)?;
+        wr_u32(bytes, e.wrapping_add(8), crc).map_err(|_| F::MapTruncated)?;
     }
     let hcrc = crc32(bytes.get(..header_len - 4).ok_or(F::MapTruncated)?);
     wr_u32(bytes, header_len - 4, hcrc).map_err(|_| F::MapTruncated)

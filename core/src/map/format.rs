@@ -12,11 +12,20 @@ use crate::geom::Vec3;
 /// First eight bytes of every map product.
 pub const MAGIC: [u8; 8] = *b"VTSMMAP\0";
 
-/// Format version written by this build (version 1 is also read).
+/// Format version the encoder writes for a map without sampling scores
+/// (version 1 is also read).
 pub const VERSION: u32 = 2;
+
+/// Format version the encoder writes for a map with sampling scores: the
+/// version-2 header with a seventh section entry (the score section).
+pub const VERSION_SCORED: u32 = 3;
 
 /// Length of the version-2 header in bytes (including its own CRC).
 pub const HEADER_LEN: usize = 176;
+
+/// Length of the version-3 header in bytes: the version-2 fields, the score
+/// section's entry at 172..184 and the header CRC at 184.
+pub const HEADER_LEN_V3: usize = 188;
 
 /// Length of the version-1 header in bytes (no origin).
 pub const HEADER_LEN_V1: usize = 152;
@@ -36,6 +45,14 @@ pub const UV_BYTES: usize = 24;
 /// Bytes per mask-vertex record.
 pub const MASK_VERTEX_BYTES: usize = 4;
 
+/// Bytes per entry of the score section (a u32 running sum of the mask
+/// vertices' scores).
+pub const MASK_SCORE_BYTES: usize = 4;
+
+/// Largest score of one mask vertex (one byte): the largest step between two
+/// consecutive entries of the score section.
+pub const MAX_MASK_SCORE: u32 = 255;
+
 /// Triangle flag: the triangle belongs to the sampling mask M̂.
 pub const FLAG_MASK: u32 = 1;
 
@@ -45,7 +62,12 @@ pub const FLAG_MASK: u32 = 1;
 /// coordinates to the same range.
 pub const MAX_UV_PX: f32 = (1u32 << 20) as f32;
 
-pub(super) const SECTIONS: usize = 6;
+/// Sections of the layout; a version-1 or version-2 product has the first
+/// six in its table and an empty score section.
+pub(super) const SECTIONS: usize = 7;
+
+/// Section table entries in a version-1 or version-2 header.
+pub(super) const SECTIONS_V2: usize = 6;
 
 pub(super) const SEC_TILES: usize = 0;
 
@@ -59,9 +81,30 @@ pub(super) const SEC_TEXTURE: usize = 4;
 
 pub(super) const SEC_MASK: usize = 5;
 
+pub(super) const SEC_SCORES: usize = 6;
+
 pub(super) const OFF_SECTIONS: usize = 76;
 
 pub(super) const OFF_ORIGIN: usize = 148;
+
+/// Header offset of each section's table entry (offset u32, length u32,
+/// CRC-32 u32): six in a row from [`OFF_SECTIONS`], the score section's
+/// after the origin (version 3 only).
+pub(super) const ENTRY_OFF: [usize; SECTIONS] = [
+    OFF_SECTIONS,
+    OFF_SECTIONS + 12,
+    OFF_SECTIONS + 24,
+    OFF_SECTIONS + 36,
+    OFF_SECTIONS + 48,
+    OFF_SECTIONS + 60,
+    OFF_ORIGIN + 24,
+];
+
+// The six version-2 entries end where the origin starts; the score entry and
+// the header CRC end the version-3 header.
+const _: () = assert!(OFF_SECTIONS + 12 * SECTIONS_V2 == OFF_ORIGIN);
+const _: () = assert!(OFF_ORIGIN + 24 + 4 == HEADER_LEN);
+const _: () = assert!(OFF_ORIGIN + 24 + 12 + 4 == HEADER_LEN_V3);
 
 // ---- little-endian helpers ----------------------------------------------------
 
@@ -107,7 +150,18 @@ pub(super) fn header_len_of(version: u32) -> Option<usize> {
     match version {
         1 => Some(HEADER_LEN_V1),
         VERSION => Some(HEADER_LEN),
+        VERSION_SCORED => Some(HEADER_LEN_V3),
         _ => None,
+    }
+}
+
+/// Entries of the section table in a header of `header_len` bytes: seven in
+/// version 3, six before.
+pub(super) fn entries_of(header_len: usize) -> usize {
+    if header_len == HEADER_LEN_V3 {
+        SECTIONS
+    } else {
+        SECTIONS_V2
     }
 }
 
@@ -174,7 +228,9 @@ pub(super) struct Section {
     pub(super) len: usize,
 }
 
-/// Sizes and offsets of every section, derived from the counts only.
+/// Sizes and offsets of every section, derived from the header length (which
+/// names the version) and the counts only. The score section has one entry
+/// per mask vertex in version 3 and is empty before.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) struct Layout {
     pub(super) sec: [Section; SECTIONS],
@@ -200,6 +256,11 @@ impl Layout {
             t.saturating_mul(UV_BYTES),
             tw.saturating_mul(th),
             masks.saturating_mul(MASK_VERTEX_BYTES),
+            if header == HEADER_LEN_V3 {
+                masks.saturating_mul(MASK_SCORE_BYTES)
+            } else {
+                0
+            },
         ];
         let mut sec = [Section::default(); SECTIONS];
         let mut off = header;
@@ -212,5 +273,20 @@ impl Layout {
 
     pub(super) fn off(&self, i: usize) -> usize {
         self.sec.get(i).map_or(0, |s| s.off)
+    }
+
+    /// Length of the header: where the first section starts.
+    pub(super) fn header_len(&self) -> usize {
+        self.off(SEC_TILES)
+    }
+
+    /// Whether the product has a score section (version 3).
+    pub(super) fn scored(&self) -> bool {
+        self.header_len() == HEADER_LEN_V3
+    }
+
+    /// Entries of the section table in this product's header.
+    pub(super) fn entries(&self) -> usize {
+        entries_of(self.header_len())
     }
 }

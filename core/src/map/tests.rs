@@ -6,6 +6,7 @@ use crate::failure::FailureCode;
 use crate::geom::Vec3;
 use crate::image::GrayView;
 use proptest::prelude::*;
+use std::boxed::Box;
 use std::collections::BTreeSet;
 use std::vec;
 use std::vec::Vec;
@@ -70,20 +71,40 @@ impl Mesh {
             texture: GrayView::new(&self.tex, self.tex_w, self.tex_h, self.tex_w).unwrap(),
             tile_size_m,
             origin: [0.0; 3],
+            vertex_scores: None,
         }
     }
 
     pub fn encode(&self, tile_size_m: f32) -> Vec<u8> {
-        let src = self.source(tile_size_m);
-        let mut out = vec![0u8; encoded_len(&src).unwrap()];
-        let n = encode(&src, &mut out).unwrap();
-        out.truncate(n);
-        out
+        encode_src(&self.source(tile_size_m))
+    }
+
+    /// Sampling scores for every vertex: a repeating pattern with zeros, the
+    /// largest score and small ones.
+    pub fn scores(&self) -> Vec<u8> {
+        (0..self.vertices.len())
+            .map(|k| [0, 1, 255, 17, 0, 128, 3][k % 7])
+            .collect()
+    }
+
+    /// The version-3 product of this mesh with `scores`.
+    pub fn encode_scored(&self, tile_size_m: f32, scores: &[u8]) -> Vec<u8> {
+        encode_src(&MapSource {
+            vertex_scores: Some(scores),
+            ..self.source(tile_size_m)
+        })
     }
 }
 
+fn encode_src(src: &MapSource) -> Vec<u8> {
+    let mut out = vec![0u8; encoded_len(src).unwrap()];
+    let n = encode(src, &mut out).unwrap();
+    out.truncate(n);
+    out
+}
+
 fn section_off(bytes: &[u8], i: usize) -> usize {
-    rd_u32(bytes, OFF_SECTIONS + 12 * i).unwrap() as usize
+    rd_u32(bytes, ENTRY_OFF[i]).unwrap() as usize
 }
 
 #[test]
@@ -200,46 +221,70 @@ fn round_trip_preserves_mesh_tiles_texture_and_mask() {
     }
 }
 
-/// Verifies: VTSM-MAP-002
+/// Verifies: VTSM-MAP-002, VTSM-MAP-011
 #[test]
 fn every_truncation_is_rejected_as_truncated() {
-    let bytes = Mesh::grid(4, 0.5).encode(0.7);
-    for len in 0..bytes.len() {
+    let mesh = Mesh::grid(4, 0.5);
+    let v3 = mesh.encode_scored(0.7, &mesh.scores());
+    for bytes in [mesh.encode(0.7), v3] {
+        let version = rd_u32(&bytes, 8).unwrap();
+        for len in 0..bytes.len() {
+            assert_eq!(
+                MapView::new_checked(&bytes[..len]).err(),
+                Some(FailureCode::MapTruncated),
+                "version {version} len {len}"
+            );
+        }
+        let mut longer = bytes.clone();
+        longer.push(0);
         assert_eq!(
-            MapView::new_checked(&bytes[..len]).err(),
-            Some(FailureCode::MapTruncated),
-            "len {len}"
+            MapView::new_checked(&longer).err(),
+            Some(FailureCode::MapInconsistent),
+            "version {version}"
         );
     }
-    let mut longer = bytes.clone();
-    longer.push(0);
-    assert_eq!(
-        MapView::new_checked(&longer).err(),
-        Some(FailureCode::MapInconsistent)
-    );
 }
 
-/// Verifies: VTSM-MAP-003
+/// Verifies: VTSM-MAP-003, VTSM-MAP-011
 #[test]
 fn every_single_byte_flip_is_rejected() {
-    let bytes = Mesh::grid(3, 0.5).encode(0.7);
-    assert!(MapView::new_checked(&bytes).is_ok());
-    for pos in 0..bytes.len() {
-        let mut b = bytes.clone();
-        b[pos] ^= 0xFF;
-        assert!(MapView::new_checked(&b).is_err(), "byte {pos} accepted");
+    let mesh = Mesh::grid(3, 0.5);
+    let v3 = mesh.encode_scored(0.7, &mesh.scores());
+    for bytes in [mesh.encode(0.7), v3] {
+        let version = rd_u32(&bytes, 8).unwrap();
+        assert!(MapView::new_checked(&bytes).is_ok());
+        for pos in 0..bytes.len() {
+            let mut b = bytes.clone();
+            b[pos] ^= 0xFF;
+            assert!(
+                MapView::new_checked(&b).is_err(),
+                "version {version} byte {pos} accepted"
+            );
+        }
     }
 }
 
 proptest! {
-    /// Verifies: VTSM-MAP-003
+    /// Verifies: VTSM-MAP-003, VTSM-MAP-011
     #[test]
-    fn any_single_byte_corruption_is_rejected(seed in 0usize..1_000_000, xor in 1u8..=255) {
-        let bytes = Mesh::grid(5, 0.4).encode(0.5);
+    fn any_single_byte_corruption_is_rejected(
+        seed in 0usize..1_000_000,
+        xor in 1u8..=255,
+        scored in any::<bool>(),
+    ) {
+        let mesh = Mesh::grid(5, 0.4);
+        let bytes = if scored {
+            mesh.encode_scored(0.5, &mesh.scores())
+        } else {
+            mesh.encode(0.5)
+        };
         let mut b = bytes.clone();
         let pos = seed % b.len();
         b[pos] ^= xor;
-        prop_assert!(MapView::new_checked(&b).is_err(), "pos {} xor {}", pos, xor);
+        prop_assert!(
+            MapView::new_checked(&b).is_err(),
+            "scored {} pos {} xor {}", scored, pos, xor
+        );
     }
 }
 
@@ -254,7 +299,7 @@ fn each_kind_of_inconsistency_has_its_own_code() {
     type Edit = fn(&mut Vec<u8>, usize, usize, usize, u32);
     let cases: &[(Edit, FailureCode)] = &[
         (|b, _, _, _, _| b[0] = b'X', FailureCode::MapBadMagic),
-        (|b, _, _, _, _| b[8] = 3, FailureCode::MapUnsupportedVersion),
+        (|b, _, _, _, _| b[8] = 4, FailureCode::MapUnsupportedVersion),
         (
             |b, t, _, _, nv| wr_u32(b, t + 4, nv).unwrap(),
             FailureCode::MapIndexOutOfRange,
@@ -468,10 +513,9 @@ fn as_version_1(v2: &[u8]) -> Vec<u8> {
     b.extend_from_slice(&v2[HEADER_LEN..]);
     wr_u32(&mut b, 8, 1).unwrap();
     wr_u32(&mut b, 12, HEADER_LEN_V1 as u32).unwrap();
-    for i in 0..SECTIONS {
-        let e = OFF_SECTIONS + 12 * i;
-        let off = rd_u32(&b, e).unwrap();
-        wr_u32(&mut b, e, off - shift as u32).unwrap();
+    for e in &ENTRY_OFF[..SECTIONS_V2] {
+        let off = rd_u32(&b, *e).unwrap();
+        wr_u32(&mut b, *e, off - shift as u32).unwrap();
     }
     reseal(&mut b).unwrap();
     b
@@ -526,6 +570,16 @@ fn version_1_product_reads_with_origin_zero() {
     );
     assert_eq!(b.version(), 1);
     assert_eq!(b.origin(), [0.0; 3]);
+    for m in [&a, &b] {
+        assert!(!m.scored());
+        assert_eq!(m.score_total(), 0);
+        assert_eq!(m.mask_score(0), None);
+        assert_eq!(m.draw_mask_index(0), None);
+    }
+    assert!(a.mask_vertex_count() > 0);
+    for k in 0..a.mask_vertex_count() {
+        assert_eq!(a.mask_vertex(k), b.mask_vertex(k));
+    }
     assert_eq!(a.vertex_count(), b.vertex_count());
     for i in 0..a.vertex_count() {
         assert_eq!(a.vertex(i), b.vertex(i));
@@ -601,4 +655,309 @@ fn non_finite_or_huge_origin_is_rejected() {
         ..mesh.source(1.0)
     };
     assert!(encoded_len(&src).is_ok());
+}
+
+/// The same mesh with and without scores: the same header fields, the six
+/// sections of version 2 the same bytes (moved by the 12 bytes of the seventh
+/// table entry, same lengths and CRCs), the scores after them.
+fn assert_same_content(v2: &[u8], v3: &[u8]) {
+    let shift = HEADER_LEN_V3 - HEADER_LEN;
+    let mc = MapView::new_checked(v2).unwrap().mask_vertex_count() as usize;
+    assert_eq!(v3.len(), v2.len() + shift + mc * MASK_SCORE_BYTES);
+    assert_eq!(v2[16..OFF_SECTIONS], v3[16..OFF_SECTIONS]);
+    assert_eq!(
+        v2[OFF_ORIGIN..OFF_ORIGIN + 24],
+        v3[OFF_ORIGIN..OFF_ORIGIN + 24]
+    );
+    for e in &ENTRY_OFF[..SECTIONS_V2] {
+        let rd = |b: &[u8], k: usize| rd_u32(b, e + 4 * k).unwrap() as usize;
+        assert_eq!(rd(v3, 0), rd(v2, 0) + shift, "entry at {e}");
+        assert_eq!(
+            (rd(v3, 1), rd(v3, 2)),
+            (rd(v2, 1), rd(v2, 2)),
+            "entry at {e}"
+        );
+    }
+    assert_eq!(
+        v2[HEADER_LEN..],
+        v3[HEADER_LEN_V3..v3.len() - mc * MASK_SCORE_BYTES]
+    );
+    let scores = section_off(v3, SEC_SCORES);
+    assert_eq!(scores, v3.len() - mc * MASK_SCORE_BYTES);
+    assert_eq!(
+        rd_u32(v3, ENTRY_OFF[SEC_SCORES] + 4),
+        Some((mc * MASK_SCORE_BYTES) as u32)
+    );
+}
+
+/// A source with scores is written as version 3: scores back bit for bit in
+/// mask order, the running sums' total, and every value of `r` in
+/// `0..score_total()` drawing mask vertex `k` exactly `score[k]` times (a
+/// zero score never); the rest of the product is the version-2 one.
+///
+/// Verifies: VTSM-MAP-010, VTSM-MAP-011
+#[test]
+fn scored_product_round_trips_and_draws_in_proportion() {
+    let mesh = Mesh::grid(5, 0.4);
+    let scores = mesh.scores();
+    let v3 = mesh.encode_scored(0.5, &scores);
+    let map = MapView::new_checked(&v3).unwrap();
+    assert_eq!(map.version(), VERSION_SCORED);
+    assert_eq!(rd_u32(&v3, 8), Some(3));
+    assert_eq!(rd_u32(&v3, 12), Some(HEADER_LEN_V3 as u32));
+    assert!(map.scored());
+    let mc = map.mask_vertex_count();
+    assert!(mc > 0);
+    let want: Vec<u8> = (0..mc)
+        .map(|k| scores[map.mask_vertex(k).unwrap() as usize])
+        .collect();
+    let got: Vec<u8> = (0..mc).map(|k| map.mask_score(k).unwrap()).collect();
+    assert_eq!(got, want);
+    assert!(want.contains(&0) && want.contains(&255), "{want:?}");
+    assert_eq!(map.mask_score(mc), None);
+    let total: u32 = want.iter().map(|s| u32::from(*s)).sum();
+    assert_eq!(map.score_total(), total);
+    let mut hits = vec![0u32; mc as usize];
+    let mut last = 0;
+    for r in 0..total {
+        let k = map.draw_mask_index(r).unwrap();
+        assert!(k >= last, "draws follow r: {r} gave {k} after {last}");
+        last = k;
+        hits[k as usize] += 1;
+    }
+    assert_eq!(hits, want.iter().map(|s| u32::from(*s)).collect::<Vec<_>>());
+    for r in [total, total + 1, u32::MAX] {
+        assert_eq!(map.draw_mask_index(r), None, "r {r}");
+    }
+    // The check's result carries the scores across detach and attach.
+    let again = map.detach().attach(&v3).unwrap();
+    assert_eq!(again.score_total(), total);
+    assert_eq!(
+        again.draw_mask_index(total - 1),
+        map.draw_mask_index(total - 1)
+    );
+    assert_same_content(&mesh.encode(0.5), &v3);
+}
+
+/// One mask vertex scored, the rest zero: every draw is that vertex.
+///
+/// Verifies: VTSM-MAP-011
+#[test]
+fn a_single_scored_mask_vertex_takes_every_draw() {
+    let mesh = Mesh::grid(4, 0.5);
+    let plain = MapView::new_checked(&mesh.encode(1.0))
+        .unwrap()
+        .mask_vertex(3)
+        .unwrap();
+    let mut scores = vec![0u8; mesh.vertices.len()];
+    scores[plain as usize] = 7;
+    let v3 = mesh.encode_scored(1.0, &scores);
+    let map = MapView::new_checked(&v3).unwrap();
+    assert_eq!(map.score_total(), 7);
+    for r in 0..7 {
+        assert_eq!(map.draw_mask_index(r), Some(3));
+    }
+    assert_eq!(map.draw_mask_index(7), None);
+}
+
+/// Without scores the encoder writes version 2 exactly as before: version 2,
+/// unscored, and the length of the version-2 layout.
+///
+/// Verifies: VTSM-MAP-010
+#[test]
+fn unscored_source_is_written_as_version_2() {
+    let mesh = Mesh::grid(5, 0.4);
+    let bytes = mesh.encode(0.5);
+    let map = MapView::new_checked(&bytes).unwrap();
+    assert_eq!(map.version(), VERSION);
+    assert_eq!(rd_u32(&bytes, 8), Some(2));
+    assert_eq!(rd_u32(&bytes, 12), Some(HEADER_LEN as u32));
+    assert!(!map.scored());
+    assert_eq!(map.score_total(), 0);
+    assert_eq!(map.mask_score(0), None);
+    assert_eq!(map.draw_mask_index(0), None);
+    let (tw, th) = (map.texture().width(), map.texture().height());
+    let lay = Layout::new(
+        HEADER_LEN,
+        map.vertex_count() as usize,
+        map.triangle_count() as usize,
+        map.tile_count() as usize,
+        map.mask_vertex_count() as usize,
+        tw,
+        th,
+    );
+    assert_eq!(bytes.len(), lay.total);
+    assert_eq!(section_off(&bytes, SEC_TILES), HEADER_LEN);
+    // The header ends with its CRC where version 2 has it.
+    assert_eq!(
+        rd_u32(&bytes, HEADER_LEN - 4),
+        Some(crc32(&bytes[..HEADER_LEN - 4]))
+    );
+}
+
+/// A score section that is not a running sum of bytes is refused with its own
+/// code once the CRCs are made to match: a step above 255, a decrease, a zero
+/// total over mask vertices; a table entry that disagrees with the counts is
+/// an inconsistency.
+///
+/// Verifies: VTSM-MAP-011
+#[test]
+fn bad_score_sections_are_rejected() {
+    let mesh = Mesh::grid(4, 0.5);
+    let good = mesh.encode_scored(1.0, &mesh.scores());
+    let at = section_off(&good, SEC_SCORES);
+    let mc = rd_u32(&good, 28).unwrap() as usize;
+    assert!(mc >= 3);
+    let cum = move |b: &[u8], k: usize| rd_u32(b, at + 4 * k).unwrap();
+    let total = cum(&good, mc - 1);
+    type Edit = Box<dyn Fn(&mut Vec<u8>)>;
+    let cases: Vec<(&str, Edit, FailureCode)> = vec![
+        (
+            "first step 256",
+            Box::new(move |b: &mut Vec<u8>| {
+                for k in 0..mc {
+                    let c = cum(b, k);
+                    wr_u32(b, at + 4 * k, c + 256).unwrap();
+                }
+            }),
+            FailureCode::MapBadScores,
+        ),
+        (
+            "a later step 256",
+            Box::new(move |b: &mut Vec<u8>| {
+                for k in 1..mc {
+                    let c = cum(b, k);
+                    wr_u32(b, at + 4 * k, c + 256).unwrap();
+                }
+            }),
+            FailureCode::MapBadScores,
+        ),
+        (
+            "decrease",
+            Box::new(move |b: &mut Vec<u8>| {
+                let c = cum(b, 1);
+                wr_u32(b, at, c + 1).unwrap();
+            }),
+            FailureCode::MapBadScores,
+        ),
+        (
+            "last entry below the one before",
+            Box::new(move |b: &mut Vec<u8>| wr_u32(b, at + 4 * (mc - 1), 0).unwrap()),
+            FailureCode::MapBadScores,
+        ),
+        (
+            "zero total",
+            Box::new(move |b: &mut Vec<u8>| {
+                for k in 0..mc {
+                    wr_u32(b, at + 4 * k, 0).unwrap();
+                }
+            }),
+            FailureCode::MapBadScores,
+        ),
+        (
+            "score section length disagrees",
+            Box::new(|b: &mut Vec<u8>| {
+                let len = rd_u32(b, ENTRY_OFF[SEC_SCORES] + 4).unwrap();
+                wr_u32(b, ENTRY_OFF[SEC_SCORES] + 4, len - 4).unwrap();
+            }),
+            FailureCode::MapInconsistent,
+        ),
+    ];
+    assert!(total > 0);
+    for (name, edit, code) in &cases {
+        let mut b = good.clone();
+        edit(&mut b);
+        assert_ne!(b, good, "{name}");
+        assert_eq!(
+            MapView::new_checked(&b).err(),
+            Some(FailureCode::MapCrcMismatch),
+            "{name}: without resealing, the CRC catches it first"
+        );
+        reseal(&mut b).unwrap();
+        assert_eq!(MapView::new_checked(&b).err(), Some(*code), "{name}");
+    }
+    // The largest step and a run of zero steps are accepted.
+    let mut b = good.clone();
+    for k in 0..mc {
+        let c = if k == 0 {
+            255
+        } else {
+            255 + u32::from(k == mc - 1)
+        };
+        wr_u32(&mut b, at + 4 * k, c).unwrap();
+    }
+    reseal(&mut b).unwrap();
+    let map = MapView::new_checked(&b).unwrap();
+    assert_eq!(map.score_total(), 256);
+    assert_eq!(map.mask_score(0), Some(255));
+    assert_eq!(map.mask_score(1), Some(0));
+    assert_eq!(map.draw_mask_index(255), Some(mc as u32 - 1));
+}
+
+/// The encoder refuses scores that are not one per vertex and scores that are
+/// zero on every mask vertex, writing nothing; a mesh without mask triangles
+/// gets an empty score section with total 0, and draws fail.
+///
+/// Verifies: VTSM-MAP-011
+#[test]
+fn encoder_rejects_bad_scores() {
+    let mesh = Mesh::grid(4, 0.5);
+    let nv = mesh.vertices.len();
+    for len in [0, nv - 1, nv + 1] {
+        let scores = vec![1u8; len];
+        let src = MapSource {
+            vertex_scores: Some(&scores),
+            ..mesh.source(1.0)
+        };
+        assert_eq!(
+            encoded_len(&src),
+            Err(FailureCode::MapInconsistent),
+            "{len}"
+        );
+    }
+    // Zero on every mask vertex, positive elsewhere.
+    let on_mask: BTreeSet<u32> = mesh
+        .triangles
+        .iter()
+        .zip(&mesh.mask)
+        .filter(|(_, m)| **m)
+        .flat_map(|(t, _)| t.iter().copied())
+        .collect();
+    let scores: Vec<u8> = (0..nv as u32)
+        .map(|v| if on_mask.contains(&v) { 0 } else { 9 })
+        .collect();
+    let src = MapSource {
+        vertex_scores: Some(&scores),
+        ..mesh.source(1.0)
+    };
+    assert_eq!(encoded_len(&src), Err(FailureCode::MapBadScores));
+    let mut out = vec![0xAAu8; 1 << 16];
+    assert_eq!(encode(&src, &mut out), Err(FailureCode::MapBadScores));
+    assert!(out.iter().all(|&b| b == 0xAA), "encoder wrote on refusal");
+    // No mask triangle: version 3 with an empty score section.
+    let mut m = Mesh::grid(4, 0.5);
+    m.mask.iter_mut().for_each(|x| *x = false);
+    let bytes = m.encode_scored(1.0, &vec![0u8; nv]);
+    let map = MapView::new_checked(&bytes).unwrap();
+    assert_eq!(map.version(), VERSION_SCORED);
+    assert!(map.scored());
+    assert_eq!((map.mask_vertex_count(), map.score_total()), (0, 0));
+    assert_eq!(map.mask_score(0), None);
+    assert_eq!(map.draw_mask_index(0), None);
+    assert_eq!(
+        bytes.len(),
+        m.encode(1.0).len() + HEADER_LEN_V3 - HEADER_LEN
+    );
+    // encoded_len bounds the exact length with scores too.
+    let scores = mesh.scores();
+    let src = MapSource {
+        vertex_scores: Some(&scores),
+        ..mesh.source(1.0)
+    };
+    let need = encoded_len(&src).unwrap();
+    assert!(encode(&src, &mut vec![0u8; need]).unwrap() <= need);
+    assert_eq!(
+        encode(&src, &mut vec![0u8; need - 1]),
+        Err(FailureCode::MapEncodeBufferTooSmall)
+    );
 }

@@ -4,7 +4,9 @@
 //! Input: the product's bytes; [`MapView::new_checked`] verifies the header,
 //! the CRC, the section layout and every record once, in time linear in the
 //! product, so the accessors afterwards only bound-check an index. Output:
-//! vertices, triangles, tiles, texture and mask as values, never a panic.
+//! vertices, triangles, tiles, texture and mask as values, never a panic, and
+//! (version 3) draws of a mask vertex in proportion to its score, a binary
+//! search of at most 33 steps.
 
 use super::crc::crc32;
 use super::format::*;
@@ -60,8 +62,9 @@ impl defmt::Format for Tile {
 }
 
 /// A validated map product. Construction checks everything once; afterwards
-/// every accessor is O(1), cannot panic and returns `None` only for an index
-/// outside its count.
+/// every accessor is O(1) (a draw, [`Self::draw_mask_index`], a binary search),
+/// cannot panic and returns `None` only for an index outside its count (or a
+/// draw from a product without scores).
 #[derive(Clone, Copy, Debug)]
 pub struct MapView<'a> {
     pub(super) bytes: &'a [u8],
@@ -77,14 +80,17 @@ pub struct MapView<'a> {
     pub(super) max: Vec3,
     pub(super) origin: [f64; 3],
     pub(super) texture: GrayView<'a>,
+    /// Sum of the mask vertices' scores (the last entry of the score
+    /// section); 0 without one.
+    pub(super) score_total: u32,
 }
 
 impl<'a> MapView<'a> {
     /// Check a map product and return a view of it.
     ///
     /// Checks, in order: length of the header ([`FailureCode::MapTruncated`]),
-    /// magic ([`FailureCode::MapBadMagic`]), version 1 or 2 ([`FailureCode::MapUnsupportedVersion`]),
-    /// header CRC ([`FailureCode::MapCrcMismatch`]), the origin (version 2:
+    /// magic ([`FailureCode::MapBadMagic`]), version 1, 2 or 3 ([`FailureCode::MapUnsupportedVersion`]),
+    /// header CRC ([`FailureCode::MapCrcMismatch`]), the origin (versions 2 and 3:
     /// [`FailureCode::MapOriginOutOfRange`] unless [`origin_ok`]), counts against the `config`
     /// caps ([`FailureCode::MapCountOutOfRange`]), section table against the
     /// layout implied by the counts ([`FailureCode::MapInconsistent`]), total length
@@ -95,7 +101,10 @@ impl<'a> MapView<'a> {
     /// ([`FailureCode::MapIndexOutOfRange`]), at least one triangle of non-zero
     /// area ([`FailureCode::MapNoSurface`]), tile runs covering the triangles in
     /// order, boxes bounding their triangles, vertices inside the header bounds,
-    /// triangle flags, strictly increasing mask vertices ([`FailureCode::MapInconsistent`]).
+    /// triangle flags, strictly increasing mask vertices ([`FailureCode::MapInconsistent`]),
+    /// and in version 3 the score section: non-decreasing running sums, each
+    /// step at most [`MAX_MASK_SCORE`], a positive total when there are mask
+    /// vertices ([`FailureCode::MapBadScores`]).
     ///
     /// # Errors
     /// The first failed check's code, as above.
@@ -158,7 +167,7 @@ impl<'a> MapView<'a> {
             .ok_or(F::MapTruncated)?;
         let texture = GrayView::new(tex_bytes, tw as usize, th as usize, tw as usize)
             .map_err(|_| F::MapCountOutOfRange)?;
-        let view = Self {
+        let mut view = Self {
             bytes,
             layout,
             vertex_count: vc,
@@ -172,9 +181,39 @@ impl<'a> MapView<'a> {
             max,
             origin,
             texture,
+            score_total: 0,
         };
         view.check_content()?;
+        view.score_total = view.check_scores()?;
         Ok(view)
+    }
+
+    /// The score section of a version-3 product: running sums that never
+    /// decrease, by at most [`MAX_MASK_SCORE`] per mask vertex, to a positive
+    /// total when there are mask vertices. Returns the total (0 without a
+    /// score section).
+    ///
+    /// # Errors
+    /// [`FailureCode::MapBadScores`]; [`FailureCode::MapTruncated`] for an
+    /// entry outside the bytes (a checked layout never has one).
+    fn check_scores(&self) -> Result<u32, FailureCode> {
+        use FailureCode as F;
+        if !self.layout.scored() {
+            return Ok(0);
+        }
+        let mut prev = 0u32;
+        for k in 0..self.mask_vertex_count {
+            let cum = self.cumulative(k).ok_or(F::MapTruncated)?;
+            let step = cum.checked_sub(prev).ok_or(F::MapBadScores)?;
+            if step > MAX_MASK_SCORE {
+                return Err(F::MapBadScores);
+            }
+            prev = cum;
+        }
+        if self.mask_vertex_count > 0 && prev == 0 {
+            return Err(F::MapBadScores);
+        }
+        Ok(prev)
     }
 
     #[allow(
@@ -295,12 +334,12 @@ impl<'a> MapView<'a> {
         self.origin
     }
 
-    /// Format version of the product (1 or 2).
+    /// Format version of the product (1, 2 or 3).
     pub fn version(&self) -> u32 {
-        if self.layout.off(SEC_TILES) == HEADER_LEN_V1 {
-            1
-        } else {
-            VERSION
+        match self.layout.header_len() {
+            HEADER_LEN_V1 => 1,
+            HEADER_LEN_V3 => VERSION_SCORED,
+            _ => VERSION,
         }
     }
 
@@ -429,6 +468,71 @@ impl<'a> MapView<'a> {
             record_at(self.layout.off(SEC_MASK), k, MASK_VERTEX_BYTES)?,
         )
     }
+
+    /// Whether the product carries sampling scores for its mask vertices
+    /// (version 3). Without them, mask vertices are drawn uniformly.
+    pub fn scored(&self) -> bool {
+        self.layout.scored()
+    }
+
+    /// Score of the `k`-th mask vertex (the weight [`Self::draw_mask_index`]
+    /// gives it); `None` for a product without scores or `k` outside the mask.
+    pub fn mask_score(&self, k: u32) -> Option<u8> {
+        let cum = self.cumulative(k)?;
+        let prev = match k.checked_sub(1) {
+            Some(j) => self.cumulative(j)?,
+            None => 0,
+        };
+        u8::try_from(cum.checked_sub(prev)?).ok()
+    }
+
+    /// Sum of the mask vertices' scores; 0 for a product without scores (or
+    /// without mask vertices).
+    pub fn score_total(&self) -> u32 {
+        self.score_total
+    }
+
+    /// The mask vertex (its index `k` in the mask, as for [`Self::mask_vertex`])
+    /// drawn by `r`, uniform in `0..score_total()`: the `k` whose running sums
+    /// enclose it, `cum[k-1] ≤ r < cum[k]` (`cum[-1] = 0`), so each `k` is hit
+    /// by exactly its score's worth of values and a zero score never.
+    /// `None` for a product without scores or `r ≥ score_total()`.
+    /// A binary search of at most 33 steps.
+    pub fn draw_mask_index(&self, r: u32) -> Option<u32> {
+        if !self.scored() || r >= self.score_total {
+            return None;
+        }
+        // The first k with cum[k] > r lies in lo..hi; cum is non-decreasing
+        // (checked) and cum[mask_vertex_count - 1] = score_total > r.
+        let (mut lo, mut hi) = (0u32, self.mask_vertex_count);
+        // Each step halves hi - lo ≤ u32::MAX: 32 steps empty it, 33 bound the loop.
+        for _ in 0..33 {
+            if lo >= hi {
+                break;
+            }
+            // lo < hi ≤ u32::MAX, so neither form wraps; the wrapping forms
+            // leave no overflow check (a panic path) in a checked build.
+            let mid = lo.wrapping_add(hi.wrapping_sub(lo) >> 1);
+            if self.cumulative(mid)? > r {
+                hi = mid;
+            } else {
+                lo = mid.wrapping_add(1);
+            }
+        }
+        (lo < self.mask_vertex_count).then_some(lo)
+    }
+
+    /// Entry `k` of the score section (the running sum through mask vertex
+    /// `k`); `None` without a score section or for `k` outside the mask.
+    fn cumulative(&self, k: u32) -> Option<u32> {
+        if !self.scored() || k >= self.mask_vertex_count {
+            return None;
+        }
+        rd_u32(
+            self.bytes,
+            record_at(self.layout.off(SEC_SCORES), k, MASK_SCORE_BYTES)?,
+        )
+    }
 }
 
 /// The fixed start of the header: length, magic, a known version, the header
@@ -468,21 +572,20 @@ fn check_header(bytes: &[u8]) -> Result<(u32, usize), FailureCode> {
 }
 
 /// The section table against the layout implied by the counts, the total
-/// length, then each section's CRC.
+/// length, then each section's CRC: the entries the product's version has
+/// (six before version 3, seven in it).
 ///
 /// # Errors
 /// [`FailureCode::MapInconsistent`] (table or trailing bytes),
 /// [`FailureCode::MapTruncated`], [`FailureCode::MapCrcMismatch`].
-#[allow(
-    clippy::arithmetic_side_effects,
-    reason = "header offsets are constants of the layout (i < SECTIONS)"
-)]
 fn check_sections(bytes: &[u8], layout: &Layout) -> Result<(), FailureCode> {
     use FailureCode as F;
     let h = |off: usize| rd_u32(bytes, off).ok_or(F::MapTruncated);
-    for (i, s) in layout.sec.iter().enumerate() {
-        let e = OFF_SECTIONS + 12 * i;
-        if h(e)? as usize != s.off || h(e + 4)? as usize != s.len {
+    // Entry fields at e + 4 (length) and e + 8 (CRC) of an ENTRY_OFF constant:
+    // small, so wrapping never wraps (and leaves no overflow check behind).
+    let n = layout.entries();
+    for (s, e) in layout.sec.iter().zip(ENTRY_OFF).take(n) {
+        if h(e)? as usize != s.off || h(e.wrapping_add(4))? as usize != s.len {
             return Err(F::MapInconsistent);
         }
     }
@@ -492,16 +595,11 @@ fn check_sections(bytes: &[u8], layout: &Layout) -> Result<(), FailureCode> {
     if bytes.len() > layout.total {
         return Err(F::MapInconsistent);
     }
-    for (i, s) in layout.sec.iter().enumerate() {
+    for (s, e) in layout.sec.iter().zip(ENTRY_OFF).take(n) {
         let body = bytes
             .get(s.off..s.off.saturating_add(s.len))
             .ok_or(F::MapTruncated)?;
-        // i < SECTIONS: the header offset is a small constant.
-        if crc32(body)
-            != h(OFF_SECTIONS
-                .wrapping_add(12usize.wrapping_mul(i))
-                .wrapping_add(8))?
-        {
+        if crc32(body) != h(e.wrapping_add(8))? {
             return Err(F::MapCrcMismatch);
         }
     }

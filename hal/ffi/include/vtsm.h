@@ -104,6 +104,8 @@ enum VtsmFailure
     VTSM_MAP_UV_OUT_OF_RANGE = 780,
     // The map's origin is not finite or a coordinate exceeds config::MAX_MAP_ORIGIN_M; the map is not used (nothing is encoded).
     VTSM_MAP_ORIGIN_OUT_OF_RANGE = 781,
+    // The map's mask-vertex sampling scores are not a valid running sum (a step above 255, a decrease, or a zero total over the mask vertices); the map is not used (nothing is encoded).
+    VTSM_MAP_BAD_SCORES = 782,
     // The render window is empty, larger than the template cap or outside the guard band; nothing is drawn.
     VTSM_RASTER_WINDOW_INVALID = 1025,
     // A render target buffer is smaller than the window; nothing is drawn.

@@ -55,6 +55,8 @@ pub enum VtsmFailure {
     VTSM_MAP_UV_OUT_OF_RANGE = 0x030C,
     /// The map's origin is not finite or a coordinate exceeds config::MAX_MAP_ORIGIN_M; the map is not used (nothing is encoded).
     VTSM_MAP_ORIGIN_OUT_OF_RANGE = 0x030D,
+    /// The map's mask-vertex sampling scores are not a valid running sum (a step above 255, a decrease, or a zero total over the mask vertices); the map is not used (nothing is encoded).
+    VTSM_MAP_BAD_SCORES = 0x030E,
     /// The render window is empty, larger than the template cap or outside the guard band; nothing is drawn.
     VTSM_RASTER_WINDOW_INVALID = 0x0401,
     /// A render target buffer is smaller than the window; nothing is drawn.
@@ -196,6 +198,7 @@ pub(crate) fn c_name(code: u16) -> &'static CStr {
         0x030B => c"MAP_NO_SURFACE",
         0x030C => c"MAP_UV_OUT_OF_RANGE",
         0x030D => c"MAP_ORIGIN_OUT_OF_RANGE",
+        0x030E => c"MAP_BAD_SCORES",
         0x0401 => c"RASTER_WINDOW_INVALID",
         0x0402 => c"RASTER_BUFFER_TOO_SMALL",
         0x0403 => c"RASTER_POSE_INVALID",

@@ -231,7 +231,7 @@ fn reloc_block(d: &mut Digest, clock: &dyn Fn() -> u64) -> Summary {
         *px = v.clamp(0.0, 255.0) as u8;
     }
     let Ok(tex_view) = GrayView::new(&texture, TEX, TEX, TEX) else { return fail(1) };
-    let src = MapSource { vertices: &vertices, triangles: &triangles, uvs: &uvs, mask: &mask, texture: tex_view, tile_size_m: 0.5, origin: [0.0; 3] };
+    let src = MapSource { vertices: &vertices, triangles: &triangles, uvs: &uvs, mask: &mask, texture: tex_view, tile_size_m: 0.5, origin: [0.0; 3], vertex_scores: None };
     let mut map_bytes = [0u8; MAP_BYTES];
     let n = match vtsm_core::map::encode(&src, &mut map_bytes) {
         Ok(n) => n,

@@ -248,6 +248,7 @@ fn crop(
         texture,
         tile_size_m: map.tile_grid().2,
         origin: map.origin(),
+        vertex_scores: None,
     };
     let mut bytes = vec![0u8; vtsm_core::map::encoded_len(&src).map_err(|c| format!("{c:?}"))?];
     let n = vtsm_core::map::encode(&src, &mut bytes).map_err(|c| format!("encode: {c:?}"))?;

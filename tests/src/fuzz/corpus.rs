@@ -83,6 +83,7 @@ pub fn tiny_map_variant(variant: u32) -> Vec<u8> {
         texture: tex,
         tile_size_m: 1.0,
         origin: [0.0; 3],
+        vertex_scores: None,
     };
     let Ok(len) = vtsm_core::map::encoded_len(&src) else {
         return Vec::new();

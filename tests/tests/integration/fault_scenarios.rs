@@ -490,6 +490,7 @@ fn map_of_degenerate_triangles() {
         texture: vtsm_core::image::GrayView::new(&tex, 4, 4, 4).unwrap(),
         tile_size_m: 1.0,
         origin: [0.0; 3],
+        vertex_scores: None,
     };
     assert_eq!(
         map::encoded_len(&src).err(),

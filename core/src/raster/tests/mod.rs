@@ -51,6 +51,7 @@ impl Scene {
             texture: GrayView::new(&self.tex, self.tw, self.th, self.tw).unwrap(),
             tile_size_m,
             origin: [0.0; 3],
+            vertex_scores: None,
         };
         let mut out = vec![0u8; encoded_len(&src).unwrap()];
         let n = encode(&src, &mut out).unwrap();

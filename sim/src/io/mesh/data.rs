@@ -384,6 +384,7 @@ fn encode_with_core(mesh: &MeshData, tile_size_m: f32) -> Result<Vec<u8>> {
         texture,
         tile_size_m,
         origin: mesh.origin,
+        vertex_scores: None,
     };
     let len = map::encoded_len(&src).map_err(Error::from)?;
     let mut out = vec![0u8; len];
