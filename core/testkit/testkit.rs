@@ -107,6 +107,16 @@ pub fn build_map(seed: u64) -> Vec<u8> {
 
 /// [`build_map`] with triangle `i` in M̂ when `in_mask(i)`.
 pub fn build_map_with_mask(seed: u64, in_mask: impl Fn(usize) -> bool) -> Vec<u8> {
+    build_map_scored(seed, in_mask, None)
+}
+
+/// [`build_map_with_mask`] with vertex `v` scored `score(v)` for
+/// SamplePoint (a version-3 product), or unscored with `None`.
+pub fn build_map_scored(
+    seed: u64,
+    in_mask: impl Fn(usize) -> bool,
+    score: Option<&dyn Fn(usize) -> u8>,
+) -> Vec<u8> {
     let mut rng = Rng::new(seed);
     let bumps: Vec<(f32, f32, f32)> = (0..25)
         .map(|_| {
@@ -131,6 +141,7 @@ pub fn build_map_with_mask(seed: u64, in_mask: impl Fn(usize) -> bool) -> Vec<u8
         uvs,
     } = grid_mesh(GRID, EXTENT_M, height);
     let mask: Vec<bool> = (0..triangles.len()).map(in_mask).collect();
+    let scores: Option<Vec<u8>> = score.map(|f| (0..vertices.len()).map(f).collect());
     let mut acc = vec![128.0f32; TEX * TEX];
     value_noise(&mut rng, 64, 50.0, &mut acc);
     value_noise(&mut rng, 16, 40.0, &mut acc);
@@ -144,7 +155,7 @@ pub fn build_map_with_mask(seed: u64, in_mask: impl Fn(usize) -> bool) -> Vec<u8
         texture: GrayView::new(&texture, TEX, TEX, TEX).unwrap(),
         tile_size_m: 1.0,
         origin: [0.0; 3],
-        vertex_scores: None,
+        vertex_scores: scores.as_deref(),
     };
     let mut out = vec![0u8; vtsm_core::map::encoded_len(&src).unwrap()];
     let n = vtsm_core::map::encode(&src, &mut out).unwrap();

@@ -20,6 +20,7 @@ pub mod io;
 pub mod job;
 pub mod locate;
 pub mod mapping;
+pub mod mapscore;
 pub mod panel;
 pub mod progress;
 pub mod rectify;

@@ -21,7 +21,7 @@ use crate::devices::{
     RecordingSink,
 };
 use crate::error::{Error, Result};
-use crate::workers::ThreadPool;
+use crate::workers::{RecordingPool, SampleRecord, ThreadPool};
 use std::time::{Duration, Instant};
 use vtsm_core::config::{Params, PriorUncertainty};
 use vtsm_core::failure::FailureLog;
@@ -376,6 +376,11 @@ pub struct RunOptions<'h> {
     /// Stepping one stage at a time, each stage reported
     /// ([`Runner::run`]'s observer); the outcome is bit-identical.
     pub observe: Option<&'h mut dyn FnMut(StageEvent)>,
+    /// Every attempt reported in attempt order: the map point drawn and its
+    /// result ([`crate::workers::RecordingPool`], [`PairPath::Ram`] only;
+    /// without `between` and `observe`, which it takes the place of). The
+    /// outcome is bit-identical.
+    pub samples: Option<&'h mut dyn FnMut(SampleRecord)>,
 }
 
 impl Default for RunOptions<'_> {
@@ -387,6 +392,7 @@ impl Default for RunOptions<'_> {
             path: PairPath::Ram,
             between: None,
             observe: None,
+            samples: None,
         }
     }
 }
@@ -411,6 +417,14 @@ impl<'h> RunOptions<'h> {
     pub fn between(self, between: Between<'h>) -> Self {
         Self {
             between: Some(between),
+            ..self
+        }
+    }
+
+    /// The same options with each attempt reported to `samples`.
+    pub fn samples(self, samples: &'h mut dyn FnMut(SampleRecord)) -> Self {
+        Self {
+            samples: Some(samples),
             ..self
         }
     }
@@ -441,6 +455,7 @@ pub fn run(req: &Request<'_>, opts: RunOptions<'_>) -> Result<DeviceRun> {
         path,
         between,
         observe,
+        samples,
     } = opts;
     let (n, mut storage) = checked_storage(req)?;
     let sizes = storage.sizes;
@@ -483,8 +498,9 @@ pub fn run(req: &Request<'_>, opts: RunOptions<'_>) -> Result<DeviceRun> {
                 between,
             };
             start = Instant::now();
-            if req.threads > 1 && pair.between.is_none() && observe.is_none() {
-                run_threaded(&mut runner, &job, &mut map, pair, ws, req.threads)
+            if samples.is_some() || (req.threads > 1 && pair.between.is_none() && observe.is_none())
+            {
+                run_pooled(&mut runner, &job, &mut map, pair, ws, req.threads, samples)
             } else {
                 (runner.run(&job, &mut map, pair, ws, observe), None)
             }
@@ -507,23 +523,27 @@ pub fn run(req: &Request<'_>, opts: RunOptions<'_>) -> Result<DeviceRun> {
     })
 }
 
-/// [`Runner::run`] with the attempts on `threads` threads
-/// ([`crate::workers::ThreadPool`]): the same start, steps of the job's
+/// [`Runner::run`] with the attempts handed out as tickets: on `threads`
+/// threads ([`crate::workers::ThreadPool`]), or with `record`, on one
+/// worker in this thread that reports each attempt
+/// ([`crate::workers::RecordingPool`]). The same start, steps of the job's
 /// limits ([`vtsm_hal::runner::Session::step_pooled`]) and finish, so the
-/// outcome is the one of a single thread. Each thread's pipeline has its own
-/// workspace of the engine's sizes, allocated here.
-fn run_threaded(
+/// outcome is the one of a single thread. Each worker's pipeline has its
+/// own workspace of the engine's sizes, allocated here.
+fn run_pooled(
     runner: &mut SimRunner<'_>,
     job: &Job,
     map: &mut [u8],
     pair: RamPair<'_, '_>,
     ws: Workspace<'_>,
     threads: usize,
+    record: Option<&mut dyn FnMut(SampleRecord)>,
 ) -> (
     std::result::Result<(Outcome, RelocReport), FailureCode>,
     Option<u32>,
 ) {
     let sizes = ws.sizes();
+    let threads = if record.is_some() { 1 } else { threads };
     let mut stores: Vec<HeapStorage> = (0..threads).map(|_| HeapStorage::new(sizes)).collect();
     let mut slot = None;
     let started = runner.start(job, map, &mut slot, pair, ws, None);
@@ -546,19 +566,31 @@ fn run_threaded(
             Err(code) => return (Err(code), None),
         }
     }
-    let worked = std::thread::scope(|scope| {
-        let mut pool = ThreadPool::start(scope, workers);
-        // Bounded: the session counts its step calls against
-        // `job.limits.max_steps` and is done at the limit.
+    // Bounded: the session counts its step calls against
+    // `job.limits.max_steps` and is done at the limit.
+    let mut drive = |pool: &mut dyn AttemptPool| {
         for _ in 0..=job.limits.max_steps {
-            if session.step_pooled(job.limits.units_per_step, &mut pool) == StepStatus::Done {
+            if session.step_pooled(job.limits.units_per_step, pool) == StepStatus::Done {
                 break;
             }
         }
         pool.cancel();
-        pool.worked()
-    });
-    (Ok(session.finish()), Some(worked))
+    };
+    let worked = match (record, workers.pop()) {
+        (Some(record), Some(worker)) => {
+            drive(&mut RecordingPool::new(worker, record));
+            None
+        }
+        (_, last) => {
+            workers.extend(last);
+            Some(std::thread::scope(|scope| {
+                let mut pool = ThreadPool::start(scope, workers);
+                drive(&mut pool);
+                pool.worked()
+            }))
+        }
+    };
+    (Ok(session.finish()), worked)
 }
 
 /// The engine's caller-owned storage on the host heap, of the sizes

@@ -156,3 +156,65 @@ impl AttemptPool for ThreadPool {
         self.done.clear();
     }
 }
+
+/// What one attempt did, as [`RecordingPool`] reports it: the index into
+/// the mask M̂ of the vertex SamplePoint drew (`None`: none in view) and the
+/// attempt's correspondence or the code that rejected it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SampleRecord {
+    /// Index into M̂ ([`vtsm_core::map::MapView::mask_vertex`]).
+    pub mask_index: Option<u32>,
+    /// The attempt's result.
+    pub result: Result<vtsm_core::pose::Correspondence, vtsm_core::FailureCode>,
+}
+
+/// One worker on the caller's thread that reports every attempt taken back
+/// to `record`, in attempt order: a measurement of which map points match,
+/// with the outcome of one thread, bit for bit.
+pub struct RecordingPool<'p, 'a, 'w, F> {
+    attempt: vtsm_core::reloc::Pipeline<'a, 'w, F>,
+    record: &'p mut dyn FnMut(SampleRecord),
+    held: Option<(Option<u32>, Worked)>,
+}
+
+impl<'p, 'a, 'w, F> RecordingPool<'p, 'a, 'w, F> {
+    /// A pool of one over `attempt` (a twin of the engine's pipeline).
+    pub fn new(
+        attempt: vtsm_core::reloc::Pipeline<'a, 'w, F>,
+        record: &'p mut dyn FnMut(SampleRecord),
+    ) -> Self {
+        Self {
+            attempt,
+            record,
+            held: None,
+        }
+    }
+}
+
+impl<F: vtsm_core::frame::FrameSource> AttemptPool for RecordingPool<'_, '_, '_, F> {
+    fn capacity(&self) -> u32 {
+        1
+    }
+
+    fn in_flight(&self) -> u32 {
+        u32::from(self.held.is_some())
+    }
+
+    fn submit(&mut self, ticket: Ticket) {
+        let worked = work_ticket(&mut self.attempt, &ticket);
+        self.held = Some((self.attempt.last_sample(), worked));
+    }
+
+    fn next(&mut self) -> Option<Worked> {
+        let (mask_index, worked) = self.held.take()?;
+        (self.record)(SampleRecord {
+            mask_index,
+            result: worked.result,
+        });
+        Some(worked)
+    }
+
+    fn cancel(&mut self) {
+        self.held = None;
+    }
+}

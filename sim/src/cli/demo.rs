@@ -57,6 +57,9 @@ pub struct Args {
     /// `--threads N`: the threads the attempts run on (same result).
     #[command(flatten)]
     pub threads: super::ThreadsArg,
+    /// `--map-scores on|off`: the map with sampling scores.
+    #[command(flatten)]
+    pub map_scores: super::MapScoresArg,
     /// Output directory (default: the first free `vtsm-demo/run-N`).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -123,7 +126,10 @@ pub fn run(args: &Args) -> Result<u8> {
     let t0 = Instant::now();
     let scene = Scene::new(kind, args.seed, profile).with_map_coarse(args.map_coarse);
     let map_mesh = scene.map(&scene.lighting(MAP_HOURS));
-    let map_bytes = map_mesh.encode_map(0.5)?;
+    let scores = args.map_scores.on().then(|| {
+        crate::mapscore::score_vertices(&map_mesh, &crate::mapscore::ScoreOptions::default())
+    });
+    let map_bytes = map_mesh.encode_scored_map(0.5, scores.as_deref())?;
     let capture = Capture::from_index(args.stop, 0, 0.40);
     let live = scene.live(0.0, &change, args.seed);
     let (rig, truth, pair) = live.capture(&live.lighting(MAP_HOURS + args.hours), &capture);

@@ -38,6 +38,11 @@ pub struct Args {
     /// (default: the exact bounding-box centre).
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
     pub origin: Option<String>,
+    /// `--map-scores on|off`: score every mask vertex for how likely its
+    /// template is to match ([`crate::mapscore`]) and ship the scores
+    /// (a version-3 product).
+    #[command(flatten)]
+    pub map_scores: super::MapScoresArg,
 }
 
 /// Load, mask and encode: the product bytes and a one-line summary.
@@ -111,19 +116,26 @@ fn finish(
         }
         None => String::new(),
     };
+    let scores = args.map_scores.on().then(|| {
+        bar.set_message("scoring the mask vertices");
+        crate::mapscore::score_vertices(m, &crate::mapscore::ScoreOptions::default())
+    });
     bar.set_message(format!("encoding {} triangles", m.triangles.len()));
-    let bytes = m.encode_map(args.tile_size_m).map_err(|mut e| {
-        if e.file.is_none() {
-            e.file = Some(args.mesh.clone());
-        }
-        e
-    })?;
+    let bytes = m
+        .encode_scored_map(args.tile_size_m, scores.as_deref())
+        .map_err(|mut e| {
+            if e.file.is_none() {
+                e.file = Some(args.mesh.clone());
+            }
+            e
+        })?;
     let summary = format!(
-        "{}: {} vertices, {} triangles ({} in mask{mask_note}), texture {}x{}, origin ({}, {}, {}) m, {} bytes",
+        "{}: {} vertices, {} triangles ({} in mask{mask_note}{}), texture {}x{}, origin ({}, {}, {}) m, {} bytes",
         args.out.display(),
         m.vertices.len(),
         m.triangles.len(),
         m.mask_count(),
+        if scores.is_some() { ", scored" } else { "" },
         m.texture.width,
         m.texture.height,
         m.origin[0],

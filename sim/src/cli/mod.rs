@@ -75,6 +75,35 @@ pub struct FinalPairsArg {
     pub final_pairs: u16,
 }
 
+/// `--map-scores on|off` of `vtsm map build`, `demo` and `eval`: whether
+/// the map product carries sampling scores ([`crate::mapscore`]; version 3)
+/// that SamplePoint draws in proportion to.
+#[derive(Debug, Clone, Copy, Default, clap::Args)]
+pub struct MapScoresArg {
+    /// Score every mask vertex for how likely its template is to match and
+    /// ship the scores in the map (`on`), or draw mask vertices uniformly
+    /// as a version-2 product does (`off`).
+    #[arg(long = "map-scores", value_enum, ignore_case = true, default_value_t = OnOff::Off)]
+    pub map_scores: OnOff,
+}
+
+impl MapScoresArg {
+    /// Whether scores are asked for.
+    pub fn on(self) -> bool {
+        self.map_scores == OnOff::On
+    }
+}
+
+/// A switch on the command line.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum OnOff {
+    /// On.
+    On,
+    /// Off.
+    #[default]
+    Off,
+}
+
 /// `--threads N` of `vtsm relocalize` and `demo`: the threads one
 /// relocalization's attempts run on ([`crate::workers`]).
 #[derive(Debug, Clone, Copy, Default, clap::Args)]

@@ -185,6 +185,31 @@ pub struct EngineColumns {
     pub prior_dr_deg: f32,
 }
 
+/// Attempts and correct matches per decile of the map's sampling scores
+/// (`--score-deciles`): decile 0 holds the mask's lowest-scored tenth.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ScoreColumns {
+    /// Attempts whose SamplePoint drew a vertex of the decile.
+    pub attempts: [u32; 10],
+    /// Of those, attempts whose correspondence lies within
+    /// `max(3σ, 1 cm)` of the vertex's true position in the camera.
+    pub correct: [u32; 10],
+}
+
+/// Column names of [`ScoreColumns`]: attempts of decile k, then correct.
+const SCORE_NAMES: [[&str; 2]; 10] = [
+    ["score_d0_attempts", "score_d0_correct"],
+    ["score_d1_attempts", "score_d1_correct"],
+    ["score_d2_attempts", "score_d2_correct"],
+    ["score_d3_attempts", "score_d3_correct"],
+    ["score_d4_attempts", "score_d4_correct"],
+    ["score_d5_attempts", "score_d5_correct"],
+    ["score_d6_attempts", "score_d6_correct"],
+    ["score_d7_attempts", "score_d7_correct"],
+    ["score_d8_attempts", "score_d8_correct"],
+    ["score_d9_attempts", "score_d9_correct"],
+];
+
 /// What a caller's accuracy (`--accuracy`) saved.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct AccuracyColumns {
@@ -246,6 +271,8 @@ pub struct TrialColumns {
     pub accuracy: Option<AccuracyColumns>,
     /// Set when upset checks were asked for.
     pub verify: Option<VerifyColumns>,
+    /// Set by a VTSM relocalization under `--score-deciles`.
+    pub scores: Option<ScoreColumns>,
     /// Set by the feature baseline.
     pub features: Option<FeatureColumns>,
 }
@@ -299,6 +326,14 @@ impl TrialColumns {
                 ("verify_repeat_solve", f64::from(u8::from(v.repeat_solve))),
                 ("verify_recheck_map", f64::from(u8::from(v.recheck_map))),
             ]);
+        }
+        if let Some(sc) = &self.scores {
+            for (k, [a, c]) in SCORE_NAMES.iter().enumerate() {
+                out.extend([
+                    (*a, f64::from(sc.attempts[k])),
+                    (*c, f64::from(sc.correct[k])),
+                ]);
+            }
         }
         if let Some(f) = &self.features {
             out.extend([

@@ -64,7 +64,7 @@ fn no_temp_files(d: &Path) -> bool {
         .all(|e| !e.unwrap().file_name().to_string_lossy().contains(".tmp."))
 }
 
-/// Verifies: VTSM-CLI-010, VTSM-CLI-011, VTSM-CLI-012
+/// Verifies: VTSM-CLI-010, VTSM-CLI-011, VTSM-CLI-012, VTSM-SIM-021
 #[test]
 fn map_build_writes_a_valid_product_and_refuses_to_overwrite() {
     let d = dir("build");
@@ -120,7 +120,39 @@ fn map_build_writes_a_valid_product_and_refuses_to_overwrite() {
         "--force",
     ]);
     assert_eq!(o.status.code(), Some(0));
-    assert!(MapView::new_checked(&std::fs::read(&out).unwrap()).is_ok());
+    let unscored = std::fs::read(&out).unwrap();
+    let v2 = MapView::new_checked(&unscored).unwrap();
+    assert_eq!((v2.version(), v2.scored()), (2, false));
+
+    // With scores: a version-3 product with the same content, one score per
+    // mask vertex, each drawable (the floor is 1).
+    let o = vtsm(&[
+        "map",
+        "build",
+        "--mesh",
+        s(&mesh),
+        "--out",
+        s(&out),
+        "--force",
+        "--map-scores",
+        "on",
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(String::from_utf8_lossy(&o.stdout).contains("scored"));
+    let scored = std::fs::read(&out).unwrap();
+    let v3 = MapView::new_checked(&scored).unwrap();
+    assert_eq!((v3.version(), v3.scored()), (3, true));
+    assert_eq!(v3.mask_vertex_count(), v2.mask_vertex_count());
+    assert_eq!(v3.texture_bytes(), v2.texture_bytes());
+    for k in 0..v3.mask_vertex_count() {
+        assert_eq!(v3.mask_vertex(k), v2.mask_vertex(k));
+        assert!(v3.mask_score(k).is_some_and(|s| s >= 1), "mask vertex {k}");
+    }
     assert!(no_temp_files(&d));
 }
 

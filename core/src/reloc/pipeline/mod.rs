@@ -65,6 +65,8 @@ pub struct Pipeline<'a, 'w, F = StereoPair<'a>> {
     /// The attempt under way accepts only gradient-domain variants
     /// ([`AttemptContext::gradient_only`]).
     gradient_only: bool,
+    /// Index into M̂ of the vertex the latest SamplePoint drew.
+    last_sample: Option<u32>,
 }
 
 /// Where a staged attempt stands between two of its stages.
@@ -81,6 +83,8 @@ enum Pending {
 /// A sampled vertex and its projections.
 #[derive(Clone, Copy)]
 struct Sample {
+    /// Index into M̂.
+    mask_index: u32,
     world: Vec3,
     cam: Vec3,
     left: [f32; 2],
@@ -137,7 +141,16 @@ impl<'a, 'w, F: FrameSource> Pipeline<'a, 'w, F> {
             ws,
             pending: Pending::None,
             gradient_only: false,
+            last_sample: None,
         }
+    }
+
+    /// Index into the mask M̂ ([`MapView::mask_vertex`]) of the vertex the
+    /// latest attempt's SamplePoint drew, `None` before any draw or when it
+    /// found no vertex in view: what a ground tool attributes an attempt's
+    /// result to (the correct-match rate per map score).
+    pub fn last_sample(&self) -> Option<u32> {
+        self.last_sample
     }
 }
 
@@ -165,6 +178,7 @@ impl<'a, F: FrameSource + Clone> Pipeline<'a, '_, F> {
             ws,
             pending: Pending::None,
             gradient_only: false,
+            last_sample: None,
         })
     }
 }
@@ -246,9 +260,10 @@ impl<F: FrameSource> Attempt for Pipeline<'_, '_, F> {
         self.pending = Pending::None;
         self.gradient_only = ctx.gradient_only;
         let vp_left = ctx.world_from_viewpoint;
-        let rendered = self
-            .sample(&vp_left.inverse(), rng, stats)
-            .and_then(|sample| Ok((sample, self.synthesize(&vp_left, &sample, stats)?)));
+        let sampled = self.sample(&vp_left.inverse(), rng, stats);
+        self.last_sample = sampled.as_ref().ok().map(|s| s.mask_index);
+        let rendered =
+            sampled.and_then(|sample| Ok((sample, self.synthesize(&vp_left, &sample, stats)?)));
         let ended = match rendered {
             Ok((sample, templates)) => {
                 let windows = self.search_windows(ctx, &sample);

@@ -14,7 +14,10 @@ use crate::reloc::PipelineStats;
 
 impl<F: FrameSource> Pipeline<'_, '_, F> {
     /// SamplePoint: a random mask vertex whose left and right projections lie
-    /// ℓ/2 inside both images.
+    /// ℓ/2 inside both images, drawn uniformly from M̂, or in proportion to
+    /// the map's scores when the product carries them (version 3). One
+    /// random number per draw either way, so the draw count per attempt is
+    /// the same bound, [`MAX_SAMPLE_TRIES`].
     pub(super) fn sample(
         &self,
         cam_from_world: &Pose,
@@ -22,9 +25,17 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
         stats: &mut PipelineStats,
     ) -> Result<Sample, FailureCode> {
         let n = self.map.mask_vertex_count();
+        let total = self.map.score_total();
         let margin = (self.template_px / 2) as f32;
         for _ in 0..MAX_SAMPLE_TRIES {
-            let k = rng.below(n);
+            let k = if self.map.scored() {
+                match self.map.draw_mask_index(rng.below(total)) {
+                    Some(k) => k,
+                    None => continue,
+                }
+            } else {
+                rng.below(n)
+            };
             let Some(world) = self.map.mask_vertex(k).and_then(|i| self.map.vertex(i)) else {
                 continue;
             };
@@ -35,6 +46,7 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
                         && self.rig.cam.contains(r[0], r[1], margin) =>
                 {
                     return Ok(Sample {
+                        mask_index: k,
                         world,
                         cam,
                         left: l,

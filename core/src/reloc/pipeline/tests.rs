@@ -14,7 +14,7 @@ use nalgebra::UnitQuaternion;
 use std::vec;
 use std::vec::Vec;
 
-use crate::testkit::{build_map, camera_pose, render_full, rig, test_params};
+use crate::testkit::{build_map, build_map_scored, camera_pose, render_full, rig, test_params};
 
 fn relocalize(map: &MapView, left: &[u8], right: &[u8], prior: &Pose, seed: u64) -> Outcome {
     relocalize_with(map, left, right, prior, seed, &test_params())
@@ -170,6 +170,64 @@ fn attempts_from_the_true_pose_give_consistent_correspondences() {
     let got = pipe.attempt(&sky, &mut Rng::new(1), &mut stats).err();
     assert_eq!(got, Some(FailureCode::RelocSampleOutOfView));
     assert_eq!(stats.out_of_view - before, MAX_SAMPLE_TRIES);
+}
+
+/// On a scored map (version 3) SamplePoint draws only vertices with a
+/// score, about in proportion to it, and reports which one it drew.
+/// Verifies: VTSM-MAP-011
+#[test]
+fn sample_point_draws_in_proportion_to_the_map_scores() {
+    // Even vertices 3, vertices divisible by 4 another 3: those draw twice
+    // as often as the other even ones; odd vertices never.
+    let score = |v: usize| -> u8 {
+        match (v % 2, v % 4) {
+            (0, 0) => 6,
+            (0, _) => 3,
+            _ => 0,
+        }
+    };
+    let bytes = build_map_scored(1, |_| true, Some(&score));
+    let truth = camera_pose(0.6, 0.2);
+    let map = MapView::new_checked(&bytes).unwrap();
+    assert!(map.scored());
+    let rig = rig();
+    let left = render_full(&map, &rig.cam, &truth, 0.85, 20.0);
+    let right = render_full(&map, &rig.cam, &rig.world_from_right(&truth), 0.85, 20.0);
+    let p = test_params();
+    let (mut b, mut w, mut r) = workspace_buffers(&TEST_WORKSPACE);
+    let ws = Workspace::new(TEST_WORKSPACE, &mut b, &mut w, &mut r).unwrap();
+    let lv = GrayView::new(&left, 640, 480, 640).unwrap();
+    let rv = GrayView::new(&right, 640, 480, 640).unwrap();
+    let mut engine = Setup::new(&map, lv, rv, &rig, &p, &truth, 0)
+        .build(ws)
+        .unwrap();
+    let pipe = engine.attempt_mut();
+    assert_eq!(pipe.last_sample(), None);
+    let mut stats = PipelineStats::default();
+    let ctx = attempt_at(truth);
+    let (mut fours, mut twos) = (0u32, 0u32);
+    for i in 0..300u32 {
+        let mut rng = Rng::new(5).fork(u64::from(i));
+        let got = pipe.attempt(&ctx, &mut rng, &mut stats);
+        let Some(k) = pipe.last_sample() else {
+            assert_eq!(got.err(), Some(FailureCode::RelocSampleOutOfView));
+            continue;
+        };
+        let v = map.mask_vertex(k).unwrap() as usize;
+        assert_eq!(v % 2, 0, "vertex {v} has no score and was drawn");
+        assert_eq!(map.mask_score(k), Some(score(v)));
+        if v % 4 == 0 {
+            fours += 1;
+        } else {
+            twos += 1;
+        }
+    }
+    // Expected 2:1 (equal numbers of each kind in view, 6 against 3).
+    assert!(fours + twos >= 200, "{} of 300 draws in view", fours + twos);
+    assert!(
+        fours > twos + twos / 2 && fours < 3 * twos,
+        "{fours} draws of score 6 against {twos} of score 3"
+    );
 }
 
 /// The right template is rendered only once a left match is accepted:

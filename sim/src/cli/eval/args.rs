@@ -188,6 +188,14 @@ pub struct Args {
     /// `--final-pairs N`: correspondences of every VTSM trial's last round.
     #[command(flatten)]
     pub final_pairs: super::super::FinalPairsArg,
+    /// `--map-scores on|off`: maps built with sampling scores.
+    #[command(flatten)]
+    pub map_scores: super::super::MapScoresArg,
+    /// Count each VTSM trial's attempts and correct matches per decile of
+    /// the map's sampling scores (columns `score_d<k>_attempts`,
+    /// `score_d<k>_correct`; the notes' decile table).
+    #[arg(long)]
+    pub score_deciles: bool,
     /// Live pairs in the physical form of `vtsm scene export --physical`
     /// (distorted, slightly rotated cameras, OpenCV calibration), rectified on
     /// the host as `vtsm relocalize` does; errors are those of the physical
@@ -274,6 +282,8 @@ impl Args {
             verify: super::super::VerifyArg::default(),
             accuracy: super::super::AccuracyArg::default(),
             final_pairs: super::super::FinalPairsArg::default(),
+            map_scores: super::super::MapScoresArg::default(),
+            score_deciles: false,
             physical: false,
             interp: Interp::Lanczos4,
             light_model: LightModelArg::Full,
@@ -344,6 +354,8 @@ pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
     cfg.verify = args.verify.checks();
     cfg.accuracy = args.accuracy.accuracy;
     cfg.final_pairs = args.final_pairs.final_pairs;
+    cfg.map_scores = args.map_scores.on();
+    cfg.score_deciles = args.score_deciles;
     cfg.physical = args.physical;
     cfg.interp = args.interp;
     cfg.light_model = args.light_model.into();

@@ -109,6 +109,13 @@ pub struct SuiteConfig {
     pub change: crate::terrain::DepotChange,
     /// The live camera's effects in every group (`--camera`).
     pub camera: crate::effects::CameraEffects,
+    /// Maps carry sampling scores (`--map-scores on`): version-3 products,
+    /// SamplePoint draws in proportion to them.
+    pub map_scores: bool,
+    /// Count every VTSM trial's attempts and correct matches per decile of
+    /// the map's scores (`--score-deciles`; scores computed whether or not
+    /// the map carries them).
+    pub score_deciles: bool,
     /// Run only this shard of the campaign's trials (`--shard K/N`).
     pub shard: Option<super::shard::Shard>,
     /// The data set directory (`dataset` only, `--data`).
@@ -145,6 +152,8 @@ impl SuiteConfig {
             map_coarse: 1,
             change: crate::terrain::DepotChange::NONE,
             camera: crate::effects::CameraEffects::NONE,
+            map_scores: false,
+            score_deciles: false,
             shard: None,
             data: None,
             panels: None,

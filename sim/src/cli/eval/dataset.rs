@@ -470,7 +470,7 @@ fn run_trial(sh: &Shared<'_>, gi: usize, k: usize) -> TrialOutcome {
     match g.method {
         Method::Features => trial::run_features(&mut o, &req, &inputs, &frame),
         Method::Vtsm => {
-            let ran = trial::run_vtsm(&mut o, cfg, &req, &inputs, &frame);
+            let ran = trial::run_vtsm(&mut o, cfg, &req, &inputs, &frame, None);
             if let (Some(dir), Some((pose, template_px)), 0) = (&cfg.panels, ran, k) {
                 if let Err(e) = write_panel(dir, sh, files, inp, &inputs, (pose, template_px)) {
                     eprintln!("vtsm: warning: no panel for {}: {e}", files.name);

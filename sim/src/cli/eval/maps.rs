@@ -4,6 +4,7 @@
 use super::protocol::TILE_M;
 use crate::error::{Error, Result};
 use crate::io::mesh::MeshData;
+use crate::mapscore;
 use std::borrow::Cow;
 use vtsm_core::geom::Pose;
 
@@ -15,16 +16,56 @@ pub struct MapEntry {
     pub views: Vec<Pose>,
     /// The map's origin (user frame = the scene offset by `--origin`).
     pub origin: [f64; 3],
+    /// The decile of each mask vertex's sampling score, by mask index
+    /// (empty unless asked for: `--score-deciles`).
+    pub deciles: Vec<u8>,
+}
+
+/// What a suite's maps carry beyond the mesh.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Scoring {
+    /// Ship sampling scores in the product (version 3).
+    pub scores: bool,
+    /// Keep each mask vertex's score decile ([`MapEntry::deciles`]).
+    pub deciles: bool,
+}
+
+impl Scoring {
+    /// What `cfg` asks for.
+    pub fn of(cfg: &super::config::SuiteConfig) -> Self {
+        Self {
+            scores: cfg.map_scores,
+            deciles: cfg.score_deciles,
+        }
+    }
 }
 
 impl MapEntry {
-    /// Encode `mesh` (offset by `offset` when given) with its mapping `views`.
-    pub fn encode(mesh: &MeshData, offset: Option<[f64; 3]>, views: Vec<Pose>) -> Self {
-        let (bytes, origin) = encode_entry(mesh, offset);
+    /// Encode `mesh` (offset by `offset` when given) with its mapping
+    /// `views`, scored as `scoring` asks.
+    pub fn encode(
+        mesh: &MeshData,
+        offset: Option<[f64; 3]>,
+        views: Vec<Pose>,
+        scoring: Scoring,
+    ) -> Self {
+        let terms = (scoring.scores || scoring.deciles)
+            .then(|| mapscore::vertex_terms(mesh, &mapscore::ScoreOptions::default()));
+        let scores = terms
+            .as_ref()
+            .filter(|_| scoring.scores)
+            .map(|t| mapscore::scale(mesh, t));
+        let deciles = terms
+            .as_ref()
+            .filter(|_| scoring.deciles)
+            .map(|t| mapscore::mask_deciles(mesh, t))
+            .unwrap_or_default();
+        let (bytes, origin) = encode_entry(mesh, offset, scores.as_deref());
         Self {
             bytes,
             views,
             origin,
+            deciles,
         }
     }
 }
@@ -59,6 +100,7 @@ pub fn offset_mesh(
 fn encode_entry(
     mesh: &MeshData,
     offset: Option<[f64; 3]>,
+    scores: Option<&[u8]>,
 ) -> (std::result::Result<Vec<u8>, String>, [f64; 3]) {
     let mesh = match offset {
         None => Cow::Borrowed(mesh),
@@ -68,7 +110,8 @@ fn encode_entry(
         },
     };
     (
-        mesh.encode_map(TILE_M).map_err(|e| e.to_string()),
+        mesh.encode_scored_map(TILE_M, scores)
+            .map_err(|e| e.to_string()),
         mesh.origin,
     )
 }

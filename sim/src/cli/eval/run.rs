@@ -8,7 +8,7 @@ use super::group::with_baseline_groups;
 use super::plot::Figure;
 use super::protocol::{MAP_VIEW_RANGE_M, PRIOR_MAX_DEG, TILE_M};
 use super::suites::SuiteDef;
-use super::tables::{integrity_table, side_by_side};
+use super::tables::{integrity_table, score_decile_table, side_by_side};
 use super::trial::{run_trial, Shared, Spec};
 use crate::cli::demo::MAP_HOURS;
 use crate::error::{Error, Result};
@@ -208,6 +208,7 @@ pub(super) fn finish(
     let plots = figures::all(cfg, &outcomes);
     let mut notes = cfg.suite.def().notes(&outcomes);
     notes.push_str(&integrity_table(&outcomes));
+    notes.push_str(&score_decile_table(&outcomes));
     if let Some(m) = cfg.baseline {
         notes = side_by_side(&summary, m) + &notes;
     }

@@ -180,3 +180,47 @@ pub fn range_table(outcomes: &[TrialOutcome]) -> String {
 pub fn view_dist_m(o: &TrialOutcome) -> f64 {
     o.columns.view.map_or(f64::NAN, |v| v.dist_m)
 }
+
+/// Correct matches per attempt by decile of the map's sampling scores
+/// (`--score-deciles`), one row per group: what the scores predict. Empty
+/// when no trial counted them.
+pub fn score_decile_table(outcomes: &[TrialOutcome]) -> String {
+    let mut groups: Vec<(&str, crate::eval::columns::ScoreColumns)> = Vec::new();
+    for o in outcomes {
+        let Some(sc) = &o.columns.scores else {
+            continue;
+        };
+        let at = match groups.iter().position(|(g, _)| *g == o.group) {
+            Some(i) => i,
+            None => {
+                groups.push((&o.group, Default::default()));
+                groups.len() - 1
+            }
+        };
+        let sum = &mut groups[at].1;
+        for k in 0..10 {
+            sum.attempts[k] += sc.attempts[k];
+            sum.correct[k] += sc.correct[k];
+        }
+    }
+    if groups.is_empty() {
+        return String::new();
+    }
+    let mut s = String::from(
+        "\nCorrect matches per attempt by decile of the map's sampling scores (d0: lowest tenth of the mask; attempts in parentheses):\n\n| group | d0 | d1 | d2 | d3 | d4 | d5 | d6 | d7 | d8 | d9 | d9 / d0 |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for (g, sc) in &groups {
+        let rate = |k: usize| f64::from(sc.correct[k]) / f64::from(sc.attempts[k].max(1));
+        let _ = write!(s, "| {g} |");
+        for k in 0..10 {
+            let _ = write!(s, " {:.2} ({}) |", rate(k), sc.attempts[k]);
+        }
+        let ratio = if rate(0) > 0.0 {
+            format!("{:.1}", rate(9) / rate(0))
+        } else {
+            "—".to_string()
+        };
+        let _ = writeln!(s, " {ratio} |");
+    }
+    s
+}

@@ -677,3 +677,70 @@ fn the_hard_suite_writes_the_envelope() {
         assert!(run_suite(&bad, "test").is_err());
     }
 }
+
+/// `--score-deciles` counts every attempt in one decile of the map's
+/// scores and changes no outcome; `--map-scores on` ships the scores in a
+/// version-3 product the trials draw from.
+///
+/// Verifies: VTSM-SIM-021
+#[test]
+fn score_deciles_count_the_attempts_and_change_nothing() {
+    let base = SuiteConfig {
+        terrains: vec![TerrainKind::Cfa6],
+        hours: vec![0.0],
+        ..small(Suite::Paper)
+    };
+    let plain = run_suite(&base, "test").unwrap();
+    let counted = run_suite(
+        &SuiteConfig {
+            score_deciles: true,
+            ..base.clone()
+        },
+        "test",
+    )
+    .unwrap();
+    let finals = |r: &SuiteRun| {
+        r.outcomes
+            .iter()
+            .map(|o| {
+                (
+                    o.final_t_mm.to_bits(),
+                    o.inliers,
+                    o.columns.engine.map(|e| e.attempts),
+                )
+            })
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(finals(&plain), finals(&counted));
+    for o in &counted.outcomes {
+        let sc = o.columns.scores.expect("decile columns");
+        let attempts: u32 = sc.attempts.iter().sum();
+        let engine = o.columns.engine.expect("engine columns").attempts;
+        // Every attempt that drew a vertex is in one decile (the others
+        // found none in view).
+        assert!(attempts > 0 && attempts <= engine, "{attempts} of {engine}");
+        assert!(sc.correct.iter().zip(&sc.attempts).all(|(c, a)| c <= a));
+        assert!(sc.correct.iter().sum::<u32>() > 0);
+    }
+    assert!(counted
+        .notes
+        .contains("by decile of the map's sampling scores"));
+    assert!(!plain
+        .notes
+        .contains("by decile of the map's sampling scores"));
+
+    let scored = run_suite(
+        &SuiteConfig {
+            map_scores: true,
+            ..base.clone()
+        },
+        "test",
+    )
+    .unwrap();
+    assert_ne!(
+        finals(&plain),
+        finals(&scored),
+        "the scores drew nothing else"
+    );
+    assert!(scored.outcomes.iter().all(|o| o.failure.is_none()));
+}

@@ -76,6 +76,12 @@ impl ErrorFrame {
         }
     }
 
+    /// The truth in the map's local frame (the simulator's suites: the
+    /// frame the engine works in), `None` without one.
+    pub(super) fn local_truth(&self) -> Option<Pose> {
+        self.truth
+    }
+
     /// Translation (m) and rotation (rad) error of `est` (NaN without a truth).
     pub(super) fn error(&self, est: &Pose) -> (f64, f64) {
         match (&self.truth_user, &self.truth) {
@@ -196,7 +202,9 @@ pub fn run_trial(sh: &Shared<'_>, s: &Spec) -> TrialOutcome {
     match g.method {
         Method::Features => run_features(&mut o, &req, &inputs, &frame),
         Method::Vtsm => {
-            run_vtsm(&mut o, cfg, &req, &inputs, &frame);
+            let deciles = (cfg.score_deciles && inputs.rectifier.is_none() && cfg.origin.is_none())
+                .then_some(map.deciles.as_slice());
+            run_vtsm(&mut o, cfg, &req, &inputs, &frame, deciles);
         }
     }
     o
@@ -320,15 +328,44 @@ pub(super) fn run_features(
 
 /// The paper's method: the core's engine through the runner; the final
 /// estimate of the core's (rectified) left camera and the template size ℓ,
-/// unless the request was refused.
+/// unless the request was refused. With `deciles` (each mask vertex's score
+/// decile; frames without rectification), every attempt is counted in its
+/// vertex's decile, and as correct when its correspondence is within
+/// `max(3σ, 1 cm)` of the truth.
 pub(super) fn run_vtsm(
     o: &mut TrialOutcome,
     cfg: &SuiteConfig,
     req: &Request<'_>,
     inputs: &Inputs,
     frame: &ErrorFrame,
+    deciles: Option<&[u8]>,
 ) -> Option<(Pose, u16)> {
-    let r = match locate::relocalize(req, RunOptions::default()) {
+    let mut counts = crate::eval::columns::ScoreColumns::default();
+    let truth = frame.local_truth();
+    let mut count = |s: crate::workers::SampleRecord| {
+        let (Some(dec), Some(k)) = (deciles, s.mask_index) else {
+            return;
+        };
+        let Some(d) = dec.get(k as usize).map(|d| usize::from(*d).min(9)) else {
+            return;
+        };
+        counts.attempts[d] += 1;
+        if let (Ok(c), Some(t)) = (s.result, truth) {
+            let want = t.inverse().transform_point(&c.world);
+            if (c.cam - want).norm() <= (3.0 * c.sigma_m).max(0.01) {
+                counts.correct[d] += 1;
+            }
+        }
+    };
+    let opts = match deciles {
+        Some(_) => RunOptions::default().samples(&mut count),
+        None => RunOptions::default(),
+    };
+    let r = locate::relocalize(req, opts);
+    if deciles.is_some() {
+        o.columns.scores = Some(counts);
+    }
+    let r = match r {
         Ok(r) => r,
         Err(e) => {
             o.failure = Some(format!("error: {e}"));

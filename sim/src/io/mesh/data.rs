@@ -316,6 +316,17 @@ impl MeshData {
     /// # Errors
     /// A failed [`MeshData::check`], a bad tile size, or the core encoder's failure code.
     pub fn encode_map(&self, tile_size_m: f32) -> Result<Vec<u8>> {
+        self.encode_scored_map(tile_size_m, None)
+    }
+
+    /// [`Self::encode_map`] with one sampling score per vertex
+    /// ([`crate::mapscore`]): a version-3 product whose SamplePoint draws
+    /// in proportion to them (`None`: version 2, as `encode_map`).
+    ///
+    /// # Errors
+    /// As `encode_map`; scores not one per vertex (`MAP_INCONSISTENT`) or
+    /// zero on every mask vertex (`MAP_BAD_SCORES`).
+    pub fn encode_scored_map(&self, tile_size_m: f32, scores: Option<&[u8]>) -> Result<Vec<u8>> {
         self.check().map_err(Error::msg)?;
         if !(tile_size_m.is_finite() && tile_size_m > 0.0) {
             return Err(Error::msg(format!(
@@ -323,7 +334,7 @@ impl MeshData {
             ))
             .with_code(FailureCode::MapTileSizeOutOfRange));
         }
-        encode_with_core(self, tile_size_m).map_err(|e| match e.code {
+        encode_with_core(self, tile_size_m, scores).map_err(|e| match e.code {
             Some(code) => self.explain(code, tile_size_m).unwrap_or(e),
             None => e,
         })
@@ -374,7 +385,7 @@ impl MeshData {
 }
 
 /// The map encoder of `vtsm_core::map`: sizes the buffer, encodes, trims.
-fn encode_with_core(mesh: &MeshData, tile_size_m: f32) -> Result<Vec<u8>> {
+fn encode_with_core(mesh: &MeshData, tile_size_m: f32, scores: Option<&[u8]>) -> Result<Vec<u8>> {
     let texture = mesh.texture.view().map_err(Error::from)?;
     let src = MapSource {
         vertices: &mesh.vertices,
@@ -384,7 +395,7 @@ fn encode_with_core(mesh: &MeshData, tile_size_m: f32) -> Result<Vec<u8>> {
         texture,
         tile_size_m,
         origin: mesh.origin,
-        vertex_scores: None,
+        vertex_scores: scores,
     };
     let len = map::encoded_len(&src).map_err(Error::from)?;
     let mut out = vec![0u8; len];

@@ -26,7 +26,7 @@ use crate::cli::demo::MAP_HOURS;
 use crate::cli::eval::config::SuiteConfig;
 use crate::cli::eval::depot::{mapped_mesh, Depot, World};
 use crate::cli::eval::group::Group;
-use crate::cli::eval::maps::MapEntry;
+use crate::cli::eval::maps::{MapEntry, Scoring};
 use crate::cli::eval::plot::{Figure, Kind, Series, Style};
 use crate::cli::eval::tables::confident_wrong;
 use crate::effects::{CameraEffects, REALISTIC};
@@ -292,7 +292,12 @@ impl SuiteDef for Hard {
         maps.par_extend(keys.par_iter().map(|&(t, (hours, k))| {
             let scene = depot.scenes[t].clone().with_map_coarse(k);
             let views = mapping_trajectory(&scene.terrain, Trajectory::Wave, 1);
-            MapEntry::encode(&mapped_mesh(cfg, &scene, hours), cfg.origin, views)
+            MapEntry::encode(
+                &mapped_mesh(cfg, &scene, hours),
+                cfg.origin,
+                views,
+                Scoring::of(cfg),
+            )
         }));
         maps
     }

@@ -7,7 +7,7 @@
 use super::config::{Suite, SuiteConfig};
 use super::depot::{Depot, World};
 use super::group::Group;
-use super::maps::MapEntry;
+use super::maps::{MapEntry, Scoring};
 use super::plot::{Figure, Style};
 use super::protocol::PRIOR_M;
 use crate::error::Result;
@@ -129,7 +129,7 @@ pub fn full_maps(cfg: &SuiteConfig, depot: &Depot) -> Vec<MapEntry> {
         .zip(&depot.meshes)
         .map(|(s, m)| {
             let views = mapping_trajectory(&s.terrain, Trajectory::Wave, 1);
-            MapEntry::encode(m, cfg.origin, views)
+            MapEntry::encode(m, cfg.origin, views, Scoring::of(cfg))
         })
         .collect()
 }

@@ -6,7 +6,7 @@ use crate::cli::eval::config::SuiteConfig;
 use crate::cli::eval::depot::Depot;
 use crate::cli::eval::figures;
 use crate::cli::eval::group::Group;
-use crate::cli::eval::maps::MapEntry;
+use crate::cli::eval::maps::{MapEntry, Scoring};
 use crate::cli::eval::plot::{Figure, Style};
 use crate::cli::eval::tables::{range_table, view_dist_m};
 use crate::cli::eval::views::restrict_to_views;
@@ -56,7 +56,7 @@ impl SuiteDef for Stepsize {
                 let s = &depot.scenes[t];
                 let views = mapping_trajectory(&s.terrain, traj, step);
                 let mesh = restrict_to_views(&depot.meshes[t], &s.camera(), &views);
-                MapEntry::encode(&mesh, cfg.origin, views)
+                MapEntry::encode(&mesh, cfg.origin, views, Scoring::of(cfg))
             })
             .collect()
     }
