@@ -48,6 +48,9 @@ pub struct MapSpec {
     pub origin: Option<[f64; 3]>,
     /// Tile edge, metres, of the product built from `mesh`.
     pub tile_size_m: f32,
+    /// Score the product built from `mesh` for SamplePoint
+    /// ([`crate::mapscore`], version 3; `--map-scores on`).
+    pub scores: bool,
 }
 
 /// One relocalization job besides its pairs.
@@ -154,12 +157,16 @@ pub fn load_map(spec: &MapSpec) -> Result<Vec<u8>> {
                 let geo = mesh::load_geometry(k)?;
                 m.apply_mask(&geo, k)?;
             }
-            m.encode_map(spec.tile_size_m).map_err(|mut e| {
-                if e.file.is_none() {
-                    e.file = Some(path.clone());
-                }
-                e
-            })
+            let scores = spec.scores.then(|| {
+                crate::mapscore::score_vertices(&m, &crate::mapscore::ScoreOptions::default())
+            });
+            m.encode_scored_map(spec.tile_size_m, scores.as_deref())
+                .map_err(|mut e| {
+                    if e.file.is_none() {
+                        e.file = Some(path.clone());
+                    }
+                    e
+                })
         }
         _ => Err(Error::msg("give exactly one of --mesh and --map")),
     }

@@ -14,6 +14,8 @@
 //!   turns the map-time shading (a smooth factor on the albedo) into a
 //!   smooth term that adds little gradient, so what is counted is mostly the
 //!   albedo's own texture. It enters as its square root;
+//! "Up" is the mesh's main facing (the dominant axis of its normals): a
+//! depot's vertical, a facade's outward normal.
 //! - **facing up**: a ramp on the vertex normal's vertical component. Rover
 //!   cameras look down at the depot from all sides: a surface facing up is
 //!   seen unforeshortened from every direction and its shading changes by a
@@ -109,13 +111,15 @@ pub fn score_vertices(mesh: &MeshData, opts: &ScoreOptions) -> Vec<u8> {
 pub fn vertex_terms(mesh: &MeshData, opts: &ScoreOptions) -> Vec<Terms> {
     let planes = Planes::of(&mesh.texture);
     let nv = mesh.vertices.len();
+    // In the frame of the mesh's main facing: "up" is where it is seen from.
+    let vertices = in_facing_frame(mesh);
     // Per vertex: its texel position (from the first mask triangle corner
     // naming it), the metres per texel there, and its area-weighted normal.
     let mut at: Vec<Option<([f32; 2], f32)>> = vec![None; nv];
     let mut normal = vec![[0f32; 3]; nv];
     let (tw, th) = (mesh.texture.width as f32, mesh.texture.height as f32);
     for ((t, uv), &m) in mesh.triangles.iter().zip(&mesh.uvs).zip(&mesh.mask) {
-        let p = t.map(|k| mesh.vertices.get(k as usize).copied().unwrap_or([0.0; 3]));
+        let p = t.map(|k| vertices.get(k as usize).copied().unwrap_or([0.0; 3]));
         let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
         let px = uv.map(|st| [st[0] * tw - 0.5, (1.0 - st[1]) * th - 0.5]);
         let m_per_texel = metres_per_texel(&p, &px);
@@ -134,7 +138,7 @@ pub fn vertex_terms(mesh: &MeshData, opts: &ScoreOptions) -> Vec<Terms> {
         }
     }
     let f = planes.factor as f32;
-    let heights = HeightGrid::of(mesh, 0.01);
+    let heights = HeightGrid::of(&vertices, &mesh.triangles, 0.01);
     (0..nv)
         .into_par_iter()
         .map(|k| {
@@ -153,7 +157,7 @@ pub fn vertex_terms(mesh: &MeshData, opts: &ScoreOptions) -> Vec<Terms> {
                 structure,
                 lit,
                 facing,
-                exposure: heights.exposure(mesh.vertices[k], opts),
+                exposure: heights.exposure(vertices[k], opts),
             }
         })
         .collect()
@@ -247,6 +251,92 @@ fn metres_per_texel(p: &[[f32; 3]; 3], px: &[[f32; 2]; 3]) -> Option<f32> {
     }
     let s = m / t;
     (s.is_finite() && s > 0.0).then_some(s)
+}
+
+/// The vertices in a frame whose third axis is the mesh's main facing
+/// ([`main_facing`]): a depot's up, a facade's outward normal. Facing and
+/// horizons are measured along it, so a map in any orientation is scored
+/// as it is seen.
+fn in_facing_frame(mesh: &MeshData) -> Vec<[f32; 3]> {
+    let d = main_facing(mesh);
+    // Any unit vector not along d, then two orthogonal to d.
+    let a = if d[0].abs() < 0.9 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    let u = normalized(cross(a, d));
+    let v = cross(d, u);
+    mesh.vertices
+        .iter()
+        .map(|p| [dot(*p, u), dot(*p, v), dot(*p, d)])
+        .collect()
+}
+
+/// The mesh's main facing: the dominant axis of its triangles'
+/// area-weighted normals (the leading eigenvector of `Σ n nᵀ / |n|`, `n`
+/// the unnormalized normal, by 64 steps of power iteration from the
+/// normals' sum), signed along that sum (the winding's outside); +z for a
+/// mesh without area.
+fn main_facing(mesh: &MeshData) -> [f32; 3] {
+    let mut m = [[0f64; 3]; 3];
+    let mut sum = [0f64; 3];
+    for t in &mesh.triangles {
+        let p = t.map(|k| mesh.vertices.get(k as usize).copied().unwrap_or([0.0; 3]));
+        let n = cross(sub(p[1], p[0]), sub(p[2], p[0])).map(f64::from);
+        let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        if !(len > 0.0 && len.is_finite()) {
+            continue;
+        }
+        // Weight by area: n nᵀ / |n| (|n| is twice the area).
+        for i in 0..3 {
+            sum[i] += n[i];
+            for j in 0..3 {
+                m[i][j] += n[i] * n[j] / len;
+            }
+        }
+    }
+    // From the normals' sum (a start no eigenvector can be orthogonal to
+    // unless the winding cancels), else from the largest diagonal's axis.
+    let start = {
+        let l = (sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]).sqrt();
+        if l > 0.0 && l.is_finite() {
+            sum.map(|c| c / l)
+        } else {
+            let k = (0..3)
+                .max_by(|&a, &b| m[a][a].total_cmp(&m[b][b]))
+                .unwrap_or(2);
+            [0, 1, 2].map(|i| f64::from(u8::from(i == k)))
+        }
+    };
+    let mut d = start;
+    for _ in 0..64 {
+        let next = [0, 1, 2].map(|i| m[i][0] * d[0] + m[i][1] * d[1] + m[i][2] * d[2]);
+        let len = (next[0] * next[0] + next[1] * next[1] + next[2] * next[2]).sqrt();
+        if !(len > 0.0 && len.is_finite()) {
+            return [0.0, 0.0, 1.0];
+        }
+        d = next.map(|c| c / len);
+    }
+    let sign = if sum[0] * d[0] + sum[1] * d[1] + sum[2] * d[2] < 0.0 {
+        -1.0
+    } else {
+        1.0
+    };
+    d.map(|c| (sign * c) as f32)
+}
+
+fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn normalized(a: [f32; 3]) -> [f32; 3] {
+    let l = dot(a, a).sqrt();
+    if l > 0.0 {
+        a.map(|c| c / l)
+    } else {
+        [0.0, 0.0, 1.0]
+    }
 }
 
 fn sub(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
@@ -400,8 +490,14 @@ struct HeightGrid {
 }
 
 impl HeightGrid {
-    fn of(mesh: &MeshData, cell_m: f32) -> Self {
-        let (lo, hi) = mesh.bounds().unwrap_or(([0.0; 3], [0.0; 3]));
+    fn of(vertices: &[[f32; 3]], triangles: &[[u32; 3]], cell_m: f32) -> Self {
+        let first = vertices.first().copied().unwrap_or([0.0; 3]);
+        let (lo, hi) = vertices.iter().fold((first, first), |(lo, hi), v| {
+            (
+                [lo[0].min(v[0]), lo[1].min(v[1]), lo[2].min(v[2])],
+                [hi[0].max(v[0]), hi[1].max(v[1]), hi[2].max(v[2])],
+            )
+        });
         let mut cell_m = cell_m;
         // At most 4096² cells.
         while ((hi[0] - lo[0]) / cell_m) * ((hi[1] - lo[1]) / cell_m) > 1.6e7 {
@@ -410,8 +506,8 @@ impl HeightGrid {
         let w = ((hi[0] - lo[0]) / cell_m).ceil() as usize + 1;
         let h = ((hi[1] - lo[1]) / cell_m).ceil() as usize + 1;
         let mut z = vec![f32::NEG_INFINITY; w * h];
-        for t in &mesh.triangles {
-            let p = t.map(|k| mesh.vertices.get(k as usize).copied().unwrap_or(lo));
+        for t in triangles {
+            let p = t.map(|k| vertices.get(k as usize).copied().unwrap_or(lo));
             let top = p[0][2].max(p[1][2]).max(p[2][2]);
             let cx = |x: f32| (((x - lo[0]) / cell_m) as usize).min(w - 1);
             let cy = |y: f32| (((y - lo[1]) / cell_m) as usize).min(h - 1);
@@ -518,23 +614,30 @@ mod tests {
     /// A flat 1 m square of 2×2 quads over a 100×100 texture: left half
     /// textured (checker), right half uniform.
     fn square(texture: Gray8, z_right: f32) -> MeshData {
+        strip(2, texture, z_right)
+    }
+
+    /// `cols` quads of 0.5 m along x by two along y, the last column of
+    /// vertices raised `z_right`; the texture spans the whole strip.
+    fn strip(cols: u32, texture: Gray8, z_right: f32) -> MeshData {
+        let w = cols + 1;
         let mut vertices = Vec::new();
         for j in 0..3 {
-            for i in 0..3 {
-                let z = if i == 2 { z_right } else { 0.0 };
+            for i in 0..w {
+                let z = if i == cols { z_right } else { 0.0 };
                 vertices.push([i as f32 * 0.5, j as f32 * 0.5, z]);
             }
         }
         let mut triangles = Vec::new();
         let mut uvs = Vec::new();
         for j in 0..2u32 {
-            for i in 0..2u32 {
-                let a = j * 3 + i;
-                for t in [[a, a + 1, a + 4], [a, a + 4, a + 3]] {
+            for i in 0..cols {
+                let a = j * w + i;
+                for t in [[a, a + 1, a + w + 1], [a, a + w + 1, a + w]] {
                     triangles.push(t);
                     uvs.push(t.map(|k| {
                         let v = vertices[k as usize];
-                        [v[0], v[1]]
+                        [v[0] / (0.5 * cols as f32), v[1]]
                     }));
                 }
             }
@@ -587,11 +690,16 @@ mod tests {
                 })
                 .collect(),
         };
-        let flat = vertex_terms(&square(tex.clone(), 0.0), &ScoreOptions::default());
-        let steep = vertex_terms(&square(tex, 2.0), &ScoreOptions::default());
-        // Vertex 2 is the top of a 2 m rise over 0.5 m: its normal is nearly horizontal.
-        assert!(flat[2].facing > 0.99);
-        assert!(steep[2].facing < 0.1, "facing {}", steep[2].facing);
+        // Ten columns, the last rising 2 m over 0.5 m: the flank is a
+        // minority of the surface, so the main facing stays up.
+        let flat = vertex_terms(&strip(10, tex.clone(), 0.0), &ScoreOptions::default());
+        let steep = vertex_terms(&strip(10, tex, 2.0), &ScoreOptions::default());
+        // Vertex 10 is the top of the rise: its normal is 76° from the
+        // vertical (the main facing leans some way towards the flank, which
+        // holds 30 % of the area).
+        assert!(flat[10].facing > 0.99);
+        assert!(steep[10].facing < 0.5, "facing {}", steep[10].facing);
+        assert!(steep[5].facing > 0.99, "facing {}", steep[5].facing);
     }
 
     /// Verifies: VTSM-SIM-021
@@ -627,6 +735,27 @@ mod tests {
         );
         // The wall's top sees over everything.
         assert_eq!(wall[2].exposure, 1.0);
+    }
+
+    /// Verifies: VTSM-SIM-021
+    #[test]
+    fn a_facade_is_scored_as_a_depot_is_whatever_its_orientation() {
+        // The same square stood up as a wall facing −y (x, y, z) → (x, −z, y):
+        // the terms must not depend on which way the map is "up".
+        let mesh = square(half_textured(), 0.3);
+        let wall = MeshData {
+            vertices: mesh.vertices.iter().map(|p| [p[0], -p[2], p[1]]).collect(),
+            ..mesh.clone()
+        };
+        let flat = vertex_terms(&mesh, &ScoreOptions::default());
+        let stood = vertex_terms(&wall, &ScoreOptions::default());
+        for (k, (a, b)) in flat.iter().zip(&stood).enumerate() {
+            assert!(
+                (a.facing - b.facing).abs() < 1e-3,
+                "vertex {k}: {a:?} {b:?}"
+            );
+            assert_eq!(a.exposure, b.exposure, "vertex {k}");
+        }
     }
 
     /// Verifies: VTSM-SIM-021

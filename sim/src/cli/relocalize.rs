@@ -71,6 +71,10 @@ pub struct Args {
     /// `--final-pairs N`: correspondences of the last round.
     #[command(flatten)]
     pub final_pairs: super::FinalPairsArg,
+    /// `--map-scores on|off`: score the product built from `--mesh`
+    /// (a product given with `--map` carries its own scores or none).
+    #[command(flatten)]
+    pub map_scores: super::MapScoresArg,
     /// `--threads N`: the threads each pair's attempts run on (same result).
     #[command(flatten)]
     pub threads: super::ThreadsArg,
@@ -104,12 +108,17 @@ pub struct Args {
 /// is given, and a map product already carries its mask.
 ///
 /// # Errors
-/// `--mask` without `--mesh`.
+/// `--mask` or `--map-scores on` without `--mesh`.
 pub fn check_args(args: &Args) -> Result<()> {
     if let (Some(k), None) = (&args.mask, &args.mesh) {
         return Err(Error::file(
             k,
             "--mask needs --mesh (a map product from --map already holds its mask)",
+        ));
+    }
+    if args.map_scores.on() && args.mesh.is_none() {
+        return Err(Error::msg(
+            "--map-scores on needs --mesh (a map product from --map carries its own scores or none)",
         ));
     }
     Ok(())
@@ -131,6 +140,7 @@ impl Args {
                 mask: self.mask.clone(),
                 origin: self.origin,
                 tile_size_m: self.tile_size_m,
+                scores: self.map_scores.on(),
             },
             verify: self.verify.checks(),
             accuracy: self.accuracy.accuracy,

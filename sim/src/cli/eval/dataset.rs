@@ -171,6 +171,7 @@ fn find_map(dir: &Path, files: &[PathBuf]) -> Result<MapSpec> {
             mask,
             origin: None,
             tile_size_m: TILE_M,
+            scores: false,
         }),
     }
 }
@@ -587,7 +588,8 @@ pub fn run(
         return Err(Error::msg("--trials must be at least 1"));
     }
     let t_setup = Instant::now();
-    let set = DataSet::find(dir)?;
+    let mut set = DataSet::find(dir)?;
+    set.map.scores = cfg.map_scores;
     let fingerprint = set.fingerprint()?;
     let bytes = job::load_map(&set.map)?;
     let map = job::check_map(&bytes, &set.map)?;
