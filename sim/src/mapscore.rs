@@ -6,7 +6,9 @@
 //! map is scored the same way. Output: one score per vertex, 0–255, that the
 //! core's SamplePoint draws mask vertices in proportion to.
 //!
-//! A score is the product of three terms:
+//! "Up" below is the mesh's main facing (the dominant axis of its normals):
+//! a depot's vertical, a facade's outward normal. A score is the product of
+//! three terms:
 //! - **structure**: the RMS gradient of the log-texture over the template's
 //!   ground footprint, counted on lit texels only (lit: not darker than 0.4
 //!   of the mean of its surroundings nor than a third of the texture's
@@ -14,8 +16,6 @@
 //!   turns the map-time shading (a smooth factor on the albedo) into a
 //!   smooth term that adds little gradient, so what is counted is mostly the
 //!   albedo's own texture. It enters as its square root;
-//! "Up" is the mesh's main facing (the dominant axis of its normals): a
-//! depot's vertical, a facade's outward normal.
 //! - **facing up**: a ramp on the vertex normal's vertical component. Rover
 //!   cameras look down at the depot from all sides: a surface facing up is
 //!   seen unforeshortened from every direction and its shading changes by a
