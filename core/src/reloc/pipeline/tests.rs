@@ -89,6 +89,24 @@ fn scene() -> (Vec<u8>, Pose) {
     (build_map(1), camera_pose(0.6, 0.2))
 }
 
+/// The engine's pipeline over the map `bytes` and a pair rendered from
+/// `truth` (gain 0.85, offset 20), handed to `f` with the checked map.
+fn with_pipeline_at(bytes: &[u8], truth: &Pose, f: impl FnOnce(&MapView, &mut Pipeline<'_, '_>)) {
+    let map = MapView::new_checked(bytes).unwrap();
+    let rig = rig();
+    let left = render_full(&map, &rig.cam, truth, 0.85, 20.0);
+    let right = render_full(&map, &rig.cam, &rig.world_from_right(truth), 0.85, 20.0);
+    let p = test_params();
+    let (mut b, mut w, mut r) = workspace_buffers(&TEST_WORKSPACE);
+    let ws = Workspace::new(TEST_WORKSPACE, &mut b, &mut w, &mut r).unwrap();
+    let lv = GrayView::new(&left, 640, 480, 640).unwrap();
+    let rv = GrayView::new(&right, 640, 480, 640).unwrap();
+    let mut engine = Setup::new(&map, lv, rv, &rig, &p, truth, 0)
+        .build(ws)
+        .unwrap();
+    f(&map, engine.attempt_mut());
+}
+
 fn workspace_buffers(s: &WorkspaceSizes) -> (Vec<u8>, Vec<u32>, Vec<Run>) {
     (
         vec![0u8; s.bytes],
@@ -114,18 +132,13 @@ fn attempt_at(viewpoint: Pose) -> AttemptContext {
 #[test]
 fn attempts_from_the_true_pose_give_consistent_correspondences() {
     let (bytes, truth) = scene();
-    let map = MapView::new_checked(&bytes).unwrap();
-    let rig = rig();
-    let left = render_full(&map, &rig.cam, &truth, 0.85, 20.0);
-    let right = render_full(&map, &rig.cam, &rig.world_from_right(&truth), 0.85, 20.0);
-    let p = test_params();
-    let (mut b, mut w, mut r) = workspace_buffers(&TEST_WORKSPACE);
-    let ws = Workspace::new(TEST_WORKSPACE, &mut b, &mut w, &mut r).unwrap();
-    let lv = GrayView::new(&left, 640, 480, 640).unwrap();
-    let rv = GrayView::new(&right, 640, 480, 640).unwrap();
-    let setup = Setup::new(&map, lv, rv, &rig, &p, &truth, 0);
-    let mut engine = setup.build(ws).unwrap();
-    let pipe = engine.attempt_mut();
+    with_pipeline_at(&bytes, &truth, |_, pipe| {
+        true_pose_attempts(pipe, &truth);
+    });
+}
+
+fn true_pose_attempts(pipe: &mut Pipeline<'_, '_>, truth: &Pose) {
+    let truth = *truth;
     let mut stats = PipelineStats::default();
     let ctx = attempt_at(truth);
     let cam_from_world = truth.inverse();
@@ -188,20 +201,19 @@ fn sample_point_draws_in_proportion_to_the_map_scores() {
     };
     let bytes = build_map_scored(1, |_| true, Some(&score));
     let truth = camera_pose(0.6, 0.2);
-    let map = MapView::new_checked(&bytes).unwrap();
+    with_pipeline_at(&bytes, &truth, |map, pipe| {
+        scored_draws(map, pipe, &truth, &score);
+    });
+}
+
+fn scored_draws(
+    map: &MapView,
+    pipe: &mut Pipeline<'_, '_>,
+    truth: &Pose,
+    score: &dyn Fn(usize) -> u8,
+) {
+    let truth = *truth;
     assert!(map.scored());
-    let rig = rig();
-    let left = render_full(&map, &rig.cam, &truth, 0.85, 20.0);
-    let right = render_full(&map, &rig.cam, &rig.world_from_right(&truth), 0.85, 20.0);
-    let p = test_params();
-    let (mut b, mut w, mut r) = workspace_buffers(&TEST_WORKSPACE);
-    let ws = Workspace::new(TEST_WORKSPACE, &mut b, &mut w, &mut r).unwrap();
-    let lv = GrayView::new(&left, 640, 480, 640).unwrap();
-    let rv = GrayView::new(&right, 640, 480, 640).unwrap();
-    let mut engine = Setup::new(&map, lv, rv, &rig, &p, &truth, 0)
-        .build(ws)
-        .unwrap();
-    let pipe = engine.attempt_mut();
     assert_eq!(pipe.last_sample(), None);
     let mut stats = PipelineStats::default();
     let ctx = attempt_at(truth);
