@@ -557,6 +557,8 @@ fn run_meta(
             "baseline": cfg.baseline.map(Method::name),
             "verify": verify_json(cfg),
             "accuracy": accuracy_json(cfg),
+            "final_pairs": cfg.final_pairs,
+            "map_scores": cfg.map_scores,
             "features": cfg.baseline.map(|_| {
                 per_width(&|w| format!("{:?}", crate::features::FeatureParams::for_width(w)))
             }),
