@@ -46,8 +46,9 @@ fn png(img: &vtsm_sim::io::image::Gray8) -> Vec<u8> {
 
 /// A small map product: a 9×9-vertex bumpy heightfield over [0, 4] × [-2, 2] m
 /// (the test kit's [`testkit::grid_mesh`]; 128 triangles, all in M̂; the last
-/// row of triangles outside it in `variant` 1), a 64×64 noise texture (16×16
-/// in variant 1), 1 m tiles.
+/// row of triangles outside it in variants 1 and 2), a 64×64 noise texture
+/// (16×16 in variants 1 and 2), 1 m tiles; variant 2 carries sampling
+/// scores (version 3).
 pub fn tiny_map_variant(variant: u32) -> Vec<u8> {
     let n = 9usize;
     let GridMesh {
@@ -75,6 +76,9 @@ pub fn tiny_map_variant(variant: u32) -> Vec<u8> {
     let Ok(tex) = GrayView::new(&texture, tex_side, tex_side, tex_side) else {
         return Vec::new();
     };
+    // Variant 2: variant 1 with sampling scores (a version-3 product),
+    // zero on every fifth vertex.
+    let scores: Vec<u8> = (0..vertices.len()).map(|k| (k % 5) as u8 * 60).collect();
     let src = MapSource {
         vertices: &vertices,
         triangles: &triangles,
@@ -83,7 +87,7 @@ pub fn tiny_map_variant(variant: u32) -> Vec<u8> {
         texture: tex,
         tile_size_m: 1.0,
         origin: [0.0; 3],
-        vertex_scores: None,
+        vertex_scores: (variant == 2).then_some(scores.as_slice()),
     };
     let Ok(len) = vtsm_core::map::encoded_len(&src) else {
         return Vec::new();
@@ -263,6 +267,7 @@ pub fn seeds() -> Vec<(&'static str, String, Vec<u8>)> {
         |t: &'static str, name: &str, bytes: Vec<u8>| out.push((t, name.to_string(), bytes));
     add("map", "tiny.vmap", tiny_map());
     add("map", "tiny-masked.vmap", tiny_map_variant(1));
+    add("map", "tiny-scored.vmap", tiny_map_variant(2));
     add("obj", "patch.obj", OBJ_TRI.as_bytes().to_vec());
     add("obj", "colour.obj", OBJ_COLOUR.as_bytes().to_vec());
     let join = |a: &[u8], b: &[u8]| [a, MTL_SEPARATOR, b].concat();
