@@ -475,11 +475,7 @@ fn write_header(
     let nv = src.vertices.len();
     let ts = src.tile_size_m;
     let header = header_len(src);
-    let version = if header == HEADER_LEN_V3 {
-        VERSION_SCORED
-    } else {
-        VERSION
-    };
+    let version = version_of(header);
     let real = Layout::new(
         header,
         nv,

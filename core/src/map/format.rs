@@ -155,6 +155,17 @@ pub(super) fn header_len_of(version: u32) -> Option<usize> {
     }
 }
 
+/// The version whose header is `header_len` bytes long (the inverse of
+/// [`header_len_of`]; any other length reads as version 2, as a checked
+/// layout never has one).
+pub(super) fn version_of(header_len: usize) -> u32 {
+    match header_len {
+        HEADER_LEN_V1 => 1,
+        HEADER_LEN_V3 => VERSION_SCORED,
+        _ => VERSION,
+    }
+}
+
 /// Entries of the section table in a header of `header_len` bytes: seven in
 /// version 3, six before.
 pub(super) fn entries_of(header_len: usize) -> usize {

@@ -336,11 +336,7 @@ impl<'a> MapView<'a> {
 
     /// Format version of the product (1, 2 or 3).
     pub fn version(&self) -> u32 {
-        match self.layout.header_len() {
-            HEADER_LEN_V1 => 1,
-            HEADER_LEN_V3 => VERSION_SCORED,
-            _ => VERSION,
-        }
+        version_of(self.layout.header_len())
     }
 
     /// Vertex `i` in local metres.
