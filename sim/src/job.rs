@@ -157,16 +157,12 @@ pub fn load_map(spec: &MapSpec) -> Result<Vec<u8>> {
                 let geo = mesh::load_geometry(k)?;
                 m.apply_mask(&geo, k)?;
             }
-            let scores = spec.scores.then(|| {
-                crate::mapscore::score_vertices(&m, &crate::mapscore::ScoreOptions::default())
-            });
-            m.encode_scored_map(spec.tile_size_m, scores.as_deref())
-                .map_err(|mut e| {
-                    if e.file.is_none() {
-                        e.file = Some(path.clone());
-                    }
-                    e
-                })
+            crate::mapscore::encode(&m, spec.tile_size_m, spec.scores).map_err(|mut e| {
+                if e.file.is_none() {
+                    e.file = Some(path.clone());
+                }
+                e
+            })
         }
         _ => Err(Error::msg("give exactly one of --mesh and --map")),
     }

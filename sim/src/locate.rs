@@ -576,19 +576,20 @@ fn run_pooled(
         }
         pool.cancel();
     };
-    let worked = match (record, workers.pop()) {
-        (Some(record), Some(worker)) => {
+    let worked = match record {
+        // One store, so one worker: the recording pool works in this thread.
+        Some(record) => {
+            let Some(worker) = workers.pop() else {
+                return (Err(FailureCode::ConfigCapacityTooSmall), None);
+            };
             drive(&mut RecordingPool::new(worker, record));
             None
         }
-        (_, last) => {
-            workers.extend(last);
-            Some(std::thread::scope(|scope| {
-                let mut pool = ThreadPool::start(scope, workers);
-                drive(&mut pool);
-                pool.worked()
-            }))
-        }
+        None => Some(std::thread::scope(|scope| {
+            let mut pool = ThreadPool::start(scope, workers);
+            drive(&mut pool);
+            pool.worked()
+        })),
     };
     (Ok(session.finish()), worked)
 }

@@ -100,6 +100,17 @@ impl Terms {
     }
 }
 
+/// The map product of `mesh` with tiles of `tile_size_m`: scored
+/// ([`score_vertices`], version 3) when `scored`, else version 2, as
+/// `--map-scores` asks of every command that builds a map from a mesh.
+///
+/// # Errors
+/// As [`MeshData::encode_scored_map`].
+pub fn encode(mesh: &MeshData, tile_size_m: f32, scored: bool) -> crate::Result<Vec<u8>> {
+    let scores = scored.then(|| score_vertices(mesh, &ScoreOptions::default()));
+    mesh.encode_scored_map(tile_size_m, scores.as_deref())
+}
+
 /// Score every vertex of `mesh` (0 for vertices outside the mask M̂).
 pub fn score_vertices(mesh: &MeshData, opts: &ScoreOptions) -> Vec<u8> {
     let terms = vertex_terms(mesh, opts);
@@ -192,12 +203,14 @@ pub fn mask_deciles(mesh: &MeshData, terms: &[Terms]) -> Vec<u8> {
     // Ties (a flat or fully exposed region scores the same) broken by a
     // hash of the index, not by vertex order: vertex order is position on
     // the map, and a decile of one region would measure the region.
-    let mix = |k: usize| vtsm_core::rng::Rng::new(k as u64).next_u32();
+    let mix: Vec<u32> = (0..raw.len())
+        .map(|k| vtsm_core::rng::Rng::new(k as u64).next_u32())
+        .collect();
     let mut order: Vec<usize> = (0..raw.len()).collect();
     order.sort_by(|&a, &b| {
         raw[a]
             .total_cmp(&raw[b])
-            .then(mix(a).cmp(&mix(b)))
+            .then(mix[a].cmp(&mix[b]))
             .then(a.cmp(&b))
     });
     let mut deciles = vec![0u8; raw.len()];
@@ -358,8 +371,6 @@ struct Planes {
     h: usize,
     /// Texture texels per analysis texel along each axis.
     factor: usize,
-    /// Lit mask per analysis texel (1 lit, 0 in shadow).
-    lit: Vec<u8>,
     /// Summed-area tables, `(w + 1) · (h + 1)`, row 0 and column 0 zero.
     sat_energy: Vec<f64>,
     sat_lit: Vec<f64>,
@@ -451,7 +462,6 @@ impl Planes {
             factor,
             sat_energy: summed(&energy, w, h),
             sat_lit: summed(&litf, w, h),
-            lit,
         }
     }
 
@@ -472,7 +482,6 @@ impl Planes {
         } else {
             0.0
         };
-        debug_assert!(self.lit.len() == w * h);
         (structure, (lit / area.max(1.0)) as f32)
     }
 }
@@ -491,13 +500,7 @@ struct HeightGrid {
 
 impl HeightGrid {
     fn of(vertices: &[[f32; 3]], triangles: &[[u32; 3]], cell_m: f32) -> Self {
-        let first = vertices.first().copied().unwrap_or([0.0; 3]);
-        let (lo, hi) = vertices.iter().fold((first, first), |(lo, hi), v| {
-            (
-                [lo[0].min(v[0]), lo[1].min(v[1]), lo[2].min(v[2])],
-                [hi[0].max(v[0]), hi[1].max(v[1]), hi[2].max(v[2])],
-            )
-        });
+        let (lo, hi) = crate::io::mesh::bounds_of(vertices).unwrap_or(([0.0; 3], [0.0; 3]));
         let mut cell_m = cell_m;
         // At most 4096² cells.
         while ((hi[0] - lo[0]) / cell_m) * ((hi[1] - lo[1]) / cell_m) > 1.6e7 {

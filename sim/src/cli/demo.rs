@@ -126,10 +126,7 @@ pub fn run(args: &Args) -> Result<u8> {
     let t0 = Instant::now();
     let scene = Scene::new(kind, args.seed, profile).with_map_coarse(args.map_coarse);
     let map_mesh = scene.map(&scene.lighting(MAP_HOURS));
-    let scores = args.map_scores.on().then(|| {
-        crate::mapscore::score_vertices(&map_mesh, &crate::mapscore::ScoreOptions::default())
-    });
-    let map_bytes = map_mesh.encode_scored_map(0.5, scores.as_deref())?;
+    let map_bytes = crate::mapscore::encode(&map_mesh, 0.5, args.map_scores.on())?;
     let capture = Capture::from_index(args.stop, 0, 0.40);
     let live = scene.live(0.0, &change, args.seed);
     let (rig, truth, pair) = live.capture(&live.lighting(MAP_HOURS + args.hours), &capture);

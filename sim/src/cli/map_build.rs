@@ -116,26 +116,25 @@ fn finish(
         }
         None => String::new(),
     };
-    let scores = args.map_scores.on().then(|| {
-        bar.set_message("scoring the mask vertices");
-        crate::mapscore::score_vertices(m, &crate::mapscore::ScoreOptions::default())
-    });
-    bar.set_message(format!("encoding {} triangles", m.triangles.len()));
-    let bytes = m
-        .encode_scored_map(args.tile_size_m, scores.as_deref())
-        .map_err(|mut e| {
-            if e.file.is_none() {
-                e.file = Some(args.mesh.clone());
-            }
-            e
-        })?;
+    let scored = args.map_scores.on();
+    bar.set_message(format!(
+        "{}encoding {} triangles",
+        if scored { "scoring and " } else { "" },
+        m.triangles.len()
+    ));
+    let bytes = crate::mapscore::encode(m, args.tile_size_m, scored).map_err(|mut e| {
+        if e.file.is_none() {
+            e.file = Some(args.mesh.clone());
+        }
+        e
+    })?;
     let summary = format!(
         "{}: {} vertices, {} triangles ({} in mask{mask_note}{}), texture {}x{}, origin ({}, {}, {}) m, {} bytes",
         args.out.display(),
         m.vertices.len(),
         m.triangles.len(),
         m.mask_count(),
-        if scores.is_some() { ", scored" } else { "" },
+        if scored { ", scored" } else { "" },
         m.texture.width,
         m.texture.height,
         m.origin[0],

@@ -302,13 +302,7 @@ impl MeshData {
 
     /// Axis-aligned bounds `(min, max)` of the vertices, `None` when empty.
     pub fn bounds(&self) -> Option<([f32; 3], [f32; 3])> {
-        let first = *self.vertices.first()?;
-        Some(self.vertices.iter().fold((first, first), |(lo, hi), v| {
-            (
-                [lo[0].min(v[0]), lo[1].min(v[1]), lo[2].min(v[2])],
-                [hi[0].max(v[0]), hi[1].max(v[1]), hi[2].max(v[2])],
-            )
-        }))
+        bounds_of(&self.vertices)
     }
 
     /// Encode the mesh as a map product (design §4) with tiles of `tile_size_m`.
@@ -382,6 +376,17 @@ impl MeshData {
         };
         Some(Error::msg(msg).with_code(code))
     }
+}
+
+/// Axis-aligned bounds `(min, max)` of `vertices`, `None` when empty.
+pub fn bounds_of(vertices: &[[f32; 3]]) -> Option<([f32; 3], [f32; 3])> {
+    let first = *vertices.first()?;
+    Some(vertices.iter().fold((first, first), |(lo, hi), v| {
+        (
+            [lo[0].min(v[0]), lo[1].min(v[1]), lo[2].min(v[2])],
+            [hi[0].max(v[0]), hi[1].max(v[1]), hi[2].max(v[2])],
+        )
+    }))
 }
 
 /// The map encoder of `vtsm_core::map`: sizes the buffer, encodes, trims.

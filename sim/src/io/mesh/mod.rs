@@ -34,6 +34,6 @@ pub mod data;
 pub mod load;
 pub mod raw;
 
-pub use data::{synthesize_atlas, MaskStats, MeshData, ATLAS_CELL_PX, MASK_MATCH_TOL_M};
+pub use data::{bounds_of, synthesize_atlas, MaskStats, MeshData, ATLAS_CELL_PX, MASK_MATCH_TOL_M};
 pub use load::{load_geometry, load_mesh, load_mesh_at, load_mesh_with_progress};
 pub use raw::{check_capacity, CornerUvs, RawMesh};
