@@ -379,10 +379,16 @@ fn relocalize_rejects_bad_inputs_before_writing_anything() {
         a.extend(["--mask".to_string(), s(&mesh).to_string()]);
         a
     };
+    let with_scores = {
+        let mut a = base(&left, &right, &prior, &map);
+        a.extend(["--map-scores".to_string(), "on".to_string()]);
+        a
+    };
     let cases = [
         (base(&left, &small, &prior, &map), "small.png", "32x23"),
         (with_calib(&huge_fx), "huge_fx.json", "`fx`: 1e300 px"),
         (with_mask, "m.obj", "--mask needs --mesh"),
+        (with_scores, "--map-scores on", "needs --mesh"),
         (
             base(&left, &right, &prior, &far_uv_map),
             "far_uv.vmap",
