@@ -74,6 +74,7 @@ fn stereo_pairs(
             cam: q.p_cam,
             sigma_m: q.sigma_z_m,
             variant: vtsm_core::pose::VARIANT_UNKNOWN,
+            mask_index: vtsm_core::pose::MASK_INDEX_UNKNOWN,
         });
     }
     v

@@ -793,6 +793,10 @@ pub struct Job {
     /// ([`Options::final_pairs`](vtsm_core::reloc::Options::final_pairs); 0:
     /// N_corr like every round).
     pub final_pairs: u16,
+    /// Revisit the last update's inliers first in the next round
+    /// ([`Options::revisit`](vtsm_core::reloc::Options::revisit); `true` is
+    /// the engine's default).
+    pub revisit: bool,
 }
 
 /// What a [`PairSource`] hands the runner after the capture: the engine's
@@ -1024,7 +1028,8 @@ fn build<'a, 'w, F: FrameSource>(
     let options = setup
         .options()
         .with_accuracy(job.accuracy)
-        .and_then(|o| o.with_final_pairs(job.final_pairs));
+        .and_then(|o| o.with_final_pairs(job.final_pairs))
+        .map(|o| o.with_revisit(job.revisit));
     options
         .and_then(|o| setup.with_options(o))
         .and_then(|s| s.build(ws))

@@ -434,6 +434,7 @@ fn step(
             cam: pt.p_cam,
             sigma_m: pt.sigma_z_m,
             variant: vtsm_core::pose::VARIANT_UNKNOWN,
+            mask_index: vtsm_core::pose::MASK_INDEX_UNKNOWN,
         });
     }
     let ns = corr.len();

@@ -552,6 +552,7 @@ mod tests {
                     cam,
                     sigma_m: 0.0,
                     variant: crate::pose::VARIANT_UNKNOWN,
+                    mask_index: crate::pose::MASK_INDEX_UNKNOWN,
                 }
             })
             .collect();
@@ -569,6 +570,7 @@ mod tests {
                         cam,
                         sigma_m: 0.0,
                         variant: crate::pose::VARIANT_UNKNOWN,
+                        mask_index: crate::pose::MASK_INDEX_UNKNOWN,
                     }
                 })
                 .collect()

@@ -72,10 +72,17 @@ pub struct Correspondence {
     /// [`VARIANT_UNKNOWN`]. The engine's final round keeps only
     /// gradient-domain pairs (VTSM-RELOC-041).
     pub variant: u8,
+    /// The map's mask vertex the pair measures
+    /// ([`MapView::mask_vertex`](crate::map::MapView::mask_vertex)), or
+    /// [`MASK_INDEX_UNKNOWN`]. Revisit draws the next round's first attempts
+    /// from the inliers' (VTSM-RELOC-046).
+    pub mask_index: u32,
 }
 
 /// [`Correspondence::variant`] of a pair that no template match produced.
 pub const VARIANT_UNKNOWN: u8 = u8::MAX;
+/// [`Correspondence::mask_index`] of a pair that no map vertex produced.
+pub const MASK_INDEX_UNKNOWN: u32 = u32::MAX;
 
 impl Correspondence {
     fn is_finite(&self) -> bool {
@@ -143,6 +150,7 @@ mod test_pairs {
                     cam,
                     sigma_m: 0.01,
                     variant: crate::pose::VARIANT_UNKNOWN,
+                    mask_index: crate::pose::MASK_INDEX_UNKNOWN,
                 }
             })
             .collect()

@@ -567,6 +567,7 @@ mod tests {
                 cam,
                 sigma_m: 0.01,
                 variant: crate::pose::VARIANT_UNKNOWN,
+                mask_index: crate::pose::MASK_INDEX_UNKNOWN,
             });
         }
         // Shuffle (Fisher–Yates) so inliers are not a prefix.
@@ -931,6 +932,7 @@ mod tests {
                     cam,
                     sigma_m: 0.0,
                     variant: crate::pose::VARIANT_UNKNOWN,
+                    mask_index: crate::pose::MASK_INDEX_UNKNOWN,
                 }
             })
             .collect();

@@ -646,6 +646,7 @@ mod tests {
                 cam: pt.p_cam,
                 sigma_m: pt.sigma_z_m,
                 variant: crate::pose::VARIANT_UNKNOWN,
+                mask_index: crate::pose::MASK_INDEX_UNKNOWN,
             });
         }
         out

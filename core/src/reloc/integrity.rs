@@ -134,6 +134,7 @@ mod tests {
             cam,
             sigma_m: 0.01,
             variant: crate::pose::VARIANT_UNKNOWN,
+            mask_index: crate::pose::MASK_INDEX_UNKNOWN,
         }
     }
 

@@ -46,6 +46,7 @@ pub struct Options {
     pub(super) focus: Focus,
     pub(super) final_gradient_only: bool,
     pub(super) final_pairs: u16,
+    pub(super) revisit: bool,
     pub(super) accuracy: Option<Accuracy>,
 }
 
@@ -297,6 +298,7 @@ impl Options {
             focus: Focus::for_params(params),
             final_gradient_only: true,
             final_pairs: 0,
+            revisit: true,
             accuracy: None,
         }
     }
@@ -388,6 +390,18 @@ impl Options {
     /// unchanged.
     pub const fn final_pairs(&self) -> u16 {
         self.final_pairs
+    }
+
+    /// Revisit (VTSM-RELOC-046): after a pose update, the next round's first
+    /// attempts draw, one each, the mask vertices of that update's inliers
+    /// that Reuse did not keep, from the round's new viewpoints; the
+    /// attempts after them draw as always. A vertex whose template matched
+    /// under this light is the likeliest to match again, and measured from a
+    /// viewpoint closer to the truth its pair is better. The draws and their
+    /// order follow from the attempt index, so every runner gives the same
+    /// answer.
+    pub const fn revisit(&self) -> bool {
+        self.revisit
     }
 
     /// The accuracy the caller needs, when it stated one: the rounds end as
@@ -522,6 +536,14 @@ impl Options {
     pub const fn with_final_gradient_only(self, on: bool) -> Self {
         Self {
             final_gradient_only: on,
+            ..self
+        }
+    }
+
+    /// With Revisit on or off ([`Self::revisit`]).
+    pub const fn with_revisit(self, on: bool) -> Self {
+        Self {
+            revisit: on,
             ..self
         }
     }

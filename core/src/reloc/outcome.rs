@@ -30,6 +30,11 @@ pub struct PipelineStats {
     pub occluded: u32,
     /// Successful triangulations.
     pub triangulations: u32,
+    /// Attempts that measured their revisit vertex
+    /// ([`Options::revisit`](crate::reloc::Options::revisit)).
+    pub revisited: u32,
+    /// Of those, the attempts that gave a correspondence.
+    pub revisit_pairs: u32,
 }
 
 impl PipelineStats {
@@ -48,6 +53,8 @@ impl PipelineStats {
         self.out_of_view = self.out_of_view.saturating_add(other.out_of_view);
         self.occluded = self.occluded.saturating_add(other.occluded);
         self.triangulations = self.triangulations.saturating_add(other.triangulations);
+        self.revisited = self.revisited.saturating_add(other.revisited);
+        self.revisit_pairs = self.revisit_pairs.saturating_add(other.revisit_pairs);
     }
 }
 

@@ -155,6 +155,7 @@ mod tests {
                     cam,
                     sigma_m: 0.005,
                     variant: crate::pose::VARIANT_UNKNOWN,
+                    mask_index: crate::pose::MASK_INDEX_UNKNOWN,
                 }
             })
             .collect();
@@ -207,6 +208,7 @@ mod tests {
                     cam,
                     sigma_m: 0.01,
                     variant: crate::pose::VARIANT_UNKNOWN,
+                    mask_index: crate::pose::MASK_INDEX_UNKNOWN,
                 }
             })
             .collect();
@@ -266,6 +268,7 @@ mod tests {
                 cam: pt.p_cam,
                 sigma_m: pt.sigma_z_m,
                 variant: crate::pose::VARIANT_UNKNOWN,
+                mask_index: crate::pose::MASK_INDEX_UNKNOWN,
             })
         }
     }

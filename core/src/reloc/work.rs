@@ -37,6 +37,10 @@ pub struct AttemptContext {
     /// Accept only gradient-domain matches (Sobel, Laplacian): set in the
     /// final round under [`Options::final_gradient_only`](super::Options::final_gradient_only).
     pub gradient_only: bool,
+    /// Revisit (VTSM-RELOC-046): the mask vertex SamplePoint tries first, an
+    /// inlier of the last pose update that Reuse did not keep; `None` draws
+    /// as always.
+    pub revisit: Option<u32>,
     /// Global attempt index (for logging).
     pub index: u32,
     /// Round index (iterations, Stall / Reseed rounds and seeds all count).

@@ -1109,6 +1109,8 @@ unsafe fn create(
             verify,
             accuracy,
             final_pairs: cfg.final_pairs,
+            // The C configuration has no switch: the engine's default.
+            revisit: true,
         },
         prior,
         map: cfg.map,

@@ -54,6 +54,9 @@ pub struct Args {
     /// `--final-pairs N`: correspondences of the last round.
     #[command(flatten)]
     pub final_pairs: super::FinalPairsArg,
+    /// `--revisit on|off`: measure the last update's inliers again first.
+    #[command(flatten)]
+    pub revisit: super::RevisitArg,
     /// `--threads N`: the threads the attempts run on (same result).
     #[command(flatten)]
     pub threads: super::ThreadsArg,
@@ -151,6 +154,7 @@ pub fn run(args: &Args) -> Result<u8> {
         .with_verify(args.verify.checks())
         .with_accuracy(args.accuracy.accuracy)
         .with_final_pairs(args.final_pairs.final_pairs)
+        .with_revisit(args.revisit.on())
         .with_threads(args.threads.threads());
     let report = locate::relocalize(&req, RunOptions::default())?;
     let o = &report.outcome;

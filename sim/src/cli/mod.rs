@@ -75,6 +75,31 @@ pub struct FinalPairsArg {
     pub final_pairs: u16,
 }
 
+/// `--revisit on|off` of `vtsm relocalize`, `demo` and `eval`: whether each
+/// round after a pose update first measures again the inliers Reuse did not
+/// keep ([`Options::revisit`](vtsm_core::reloc::Options::revisit)).
+#[derive(Debug, Clone, Copy, clap::Args)]
+pub struct RevisitArg {
+    /// Measure the last update's inliers again first in the next round
+    /// (`on`, the default), or draw every attempt's vertex (`off`)
+    /// (`fsw-docs/eval/revisit.md`).
+    #[arg(long = "revisit", value_enum, ignore_case = true, default_value_t = OnOff::On)]
+    pub revisit: OnOff,
+}
+
+impl Default for RevisitArg {
+    fn default() -> Self {
+        Self { revisit: OnOff::On }
+    }
+}
+
+impl RevisitArg {
+    /// Whether Revisit is on.
+    pub fn on(&self) -> bool {
+        self.revisit == OnOff::On
+    }
+}
+
 /// `--map-scores on|off` of `vtsm map build`, `demo` and `eval`: whether
 /// the map product carries sampling scores ([`crate::mapscore`]; version 3)
 /// that SamplePoint draws in proportion to.

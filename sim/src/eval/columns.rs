@@ -165,6 +165,12 @@ pub struct ViewColumns {
 pub struct EngineColumns {
     /// Correspondence attempts.
     pub attempts: u32,
+    /// Correspondences collected.
+    pub pairs: u32,
+    /// Attempts that measured their revisit vertex (VTSM-RELOC-046).
+    pub revisited: u32,
+    /// Of those, the ones that gave a correspondence.
+    pub revisit_pairs: u32,
     /// Stalled iterations.
     pub stalls: u16,
     /// Reseeds.
@@ -296,6 +302,9 @@ impl TrialColumns {
         if let Some(e) = &self.engine {
             out.extend([
                 ("attempts", f64::from(e.attempts)),
+                ("pairs", f64::from(e.pairs)),
+                ("revisited", f64::from(e.revisited)),
+                ("revisit_pairs", f64::from(e.revisit_pairs)),
                 ("stalls", f64::from(e.stalls)),
                 ("reseeds", f64::from(e.reseeds)),
                 ("focused_rounds", f64::from(e.focused_rounds)),

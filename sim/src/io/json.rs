@@ -348,6 +348,10 @@ pub struct WorkStats {
     pub reseeds: u64,
     /// Correspondences reused from the previous round.
     pub reused: u64,
+    /// Revisit attempts that gave a correspondence (VTSM-RELOC-046).
+    pub revisit_pairs: u64,
+    /// Attempts that measured their revisit vertex (VTSM-RELOC-046).
+    pub revisited: u64,
     /// Rounds.
     pub rounds: u64,
     /// Pose updates not made because the caller's accuracy (`--accuracy`)
@@ -394,6 +398,8 @@ impl From<&vtsm_core::reloc::Stats> for WorkStats {
             renders: p.renders.into(),
             reseeds: s.reseeds.into(),
             reused: s.reused.into(),
+            revisit_pairs: p.revisit_pairs.into(),
+            revisited: p.revisited.into(),
             rounds: s.rounds.into(),
             rounds_saved: s.rounds_saved.into(),
             samples_occluded: p.occluded.into(),

@@ -79,6 +79,7 @@ fn args(dir: &Path, prior: &str, origin: Option<&str>) -> Args {
         verify: Default::default(),
         accuracy: Default::default(),
         final_pairs: Default::default(),
+        revisit: Default::default(),
         map_scores: Default::default(),
         threads: Default::default(),
         out: None,

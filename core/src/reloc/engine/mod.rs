@@ -88,6 +88,9 @@ pub struct Relocalizer<A, S> {
     phase: Phase,
     pairs: heapless::Vec<Correspondence, MAX_CORR>,
     inlier_mask: [bool; MAX_CORR],
+    /// Mask vertices of the last update's inliers that Reuse did not keep:
+    /// the first attempts of the next round ([`Options::revisit`]).
+    revisit: heapless::Vec<u32, MAX_CORR>,
     /// Inliers of the repeated final solve.
     verify_mask: [bool; MAX_CORR],
     candidates: heapless::Vec<Candidate, MAX_POSE_CANDIDATES>,
@@ -171,6 +174,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             phase: Phase::Collect,
             pairs: heapless::Vec::new(),
             inlier_mask: [false; MAX_CORR],
+            revisit: heapless::Vec::new(),
             verify_mask: [false; MAX_CORR],
             candidates: heapless::Vec::new(),
             round: 0,

@@ -112,20 +112,26 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         // Into the final round only gradient-domain pairs (the success just
         // counted makes the next round the final one).
         let gradient_only = self.final_round();
+        let revisit = self.opts.revisit;
+        self.revisit.clear();
         let mut write = 0usize;
         for read in 0..self.pairs.len() {
-            if write >= keep {
+            if write >= keep && !revisit {
                 break;
             }
             let inlier = self.inlier_mask.get(read).copied().unwrap_or(false);
-            let p = self.pairs.get(read).copied();
-            let p = p
-                .filter(|p| !gradient_only || crate::reloc::policy::is_gradient_variant(p.variant));
-            if let (true, Some(p)) = (inlier, p) {
+            let Some(p) = self.pairs.get(read).copied().filter(|_| inlier) else {
+                continue;
+            };
+            let usable = !gradient_only || crate::reloc::policy::is_gradient_variant(p.variant);
+            if write < keep && usable {
                 if let Some(slot) = self.pairs.get_mut(write) {
                     *slot = p;
                 }
                 write += 1;
+            } else if revisit && p.mask_index != crate::pose::MASK_INDEX_UNKNOWN {
+                // At most one entry per pair read: fits MAX_CORR.
+                let _ = self.revisit.push(p.mask_index);
             }
         }
         self.pairs.truncate(write);
@@ -137,6 +143,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
 
     pub(super) fn round_failed(&mut self, code: FailureCode, now: u64) {
         self.pairs.clear();
+        self.revisit.clear();
         if self.stats.successes == 0 {
             // A focused round that failed: back to the stated uncertainty.
             self.t_m = self.params.t0_m;

@@ -116,10 +116,23 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             t_m: self.t_m,
             r_rad: self.r_rad,
             gradient_only: self.final_round(),
+            revisit: self.revisit_vertex(index),
             index,
             round: self.round,
         };
         (ctx, rng)
+    }
+
+    /// Revisit (VTSM-RELOC-046): attempt `index`'s vertex when it is among
+    /// the round's first attempts, one per vertex of the revisit list in its
+    /// order; `None` otherwise or with [`Options::revisit`](crate::reloc::Options::revisit) off.
+    fn revisit_vertex(&self, index: u32) -> Option<u32> {
+        if !self.opts.revisit {
+            return None;
+        }
+        let round_start = self.stats.attempts.saturating_sub(self.round_attempts);
+        let k = index.checked_sub(round_start)?;
+        self.revisit.get(usize::try_from(k).ok()?).copied()
     }
 
     /// Whether the engine is between attempts of a round, so that its next

@@ -85,6 +85,9 @@ enum Pending {
 struct Sample {
     /// Index into M̂.
     mask_index: u32,
+    /// The context's revisit vertex (counted in `revisit_pairs` when it
+    /// gives a pair).
+    revisit: bool,
     world: Vec3,
     cam: Vec3,
     left: [f32; 2],
@@ -221,11 +224,15 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
             self.policy.min_disparity_px,
         )?;
         stats.triangulations = stats.triangulations.saturating_add(1);
+        if s.revisit {
+            stats.revisit_pairs = stats.revisit_pairs.saturating_add(1);
+        }
         Ok(Correspondence {
             world: s.world,
             cam: p.p_cam,
             sigma_m: p.sigma_z_m,
             variant,
+            mask_index: s.mask_index,
         })
     }
 }
@@ -260,7 +267,7 @@ impl<F: FrameSource> Attempt for Pipeline<'_, '_, F> {
         self.pending = Pending::None;
         self.gradient_only = ctx.gradient_only;
         let vp_left = ctx.world_from_viewpoint;
-        let sampled = self.sample(&vp_left.inverse(), rng, stats);
+        let sampled = self.sample(&vp_left.inverse(), ctx.revisit, rng, stats);
         self.last_sample = sampled.as_ref().ok().map(|s| s.mask_index);
         let rendered =
             sampled.and_then(|sample| Ok((sample, self.synthesize(&vp_left, &sample, stats)?)));

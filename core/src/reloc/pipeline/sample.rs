@@ -18,15 +18,28 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
     /// the map's scores when the product carries them (version 3). One
     /// random number per draw either way, so the draw count per attempt is
     /// the same bound, [`MAX_SAMPLE_TRIES`].
+    ///
+    /// With `revisit` (the context's [`AttemptContext::revisit`](crate::reloc::AttemptContext::revisit)) that mask
+    /// vertex is tried first, without a random number; out of view, the
+    /// draws follow as without it.
     pub(super) fn sample(
         &self,
         cam_from_world: &Pose,
+        revisit: Option<u32>,
         rng: &mut crate::rng::Rng,
         stats: &mut PipelineStats,
     ) -> Result<Sample, FailureCode> {
+        if let Some(k) = revisit {
+            match self.sample_vertex(cam_from_world, k) {
+                Some(s) => {
+                    stats.revisited = stats.revisited.saturating_add(1);
+                    return Ok(Sample { revisit: true, ..s });
+                }
+                None => stats.out_of_view = stats.out_of_view.saturating_add(1),
+            }
+        }
         let n = self.map.mask_vertex_count();
         let total = self.map.score_total();
-        let margin = (self.template_px / 2) as f32;
         for _ in 0..MAX_SAMPLE_TRIES {
             let k = if self.map.scored() {
                 match self.map.draw_mask_index(rng.below(total)) {
@@ -36,27 +49,31 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
             } else {
                 rng.below(n)
             };
-            let Some(world) = self.map.mask_vertex(k).and_then(|i| self.map.vertex(i)) else {
-                continue;
-            };
-            let cam = cam_from_world.transform_point(&world);
-            match self.rig.project_stereo(&cam) {
-                Some((l, r))
-                    if self.rig.cam.contains(l[0], l[1], margin)
-                        && self.rig.cam.contains(r[0], r[1], margin) =>
-                {
-                    return Ok(Sample {
-                        mask_index: k,
-                        world,
-                        cam,
-                        left: l,
-                        right: r,
-                    });
-                }
-                _ => stats.out_of_view = stats.out_of_view.saturating_add(1),
+            match self.sample_vertex(cam_from_world, k) {
+                Some(s) => return Ok(s),
+                None => stats.out_of_view = stats.out_of_view.saturating_add(1),
             }
         }
         Err(FailureCode::RelocSampleOutOfView)
+    }
+
+    /// Mask vertex `k` as a sample when it exists and its left and right
+    /// projections lie ℓ/2 inside both images.
+    fn sample_vertex(&self, cam_from_world: &Pose, k: u32) -> Option<Sample> {
+        let margin = (self.template_px / 2) as f32;
+        let world = self.map.mask_vertex(k).and_then(|i| self.map.vertex(i))?;
+        let cam = cam_from_world.transform_point(&world);
+        let (l, r) = self.rig.project_stereo(&cam)?;
+        let inside =
+            self.rig.cam.contains(l[0], l[1], margin) && self.rig.cam.contains(r[0], r[1], margin);
+        inside.then_some(Sample {
+            mask_index: k,
+            revisit: false,
+            world,
+            cam,
+            left: l,
+            right: r,
+        })
     }
 
     /// Synthesize (§III-C): render the ℓ×ℓ left template centred on the

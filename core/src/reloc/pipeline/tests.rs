@@ -123,6 +123,7 @@ fn attempt_at(viewpoint: Pose) -> AttemptContext {
         t_m: 0.05,
         r_rad: 0.01,
         gradient_only: false,
+        revisit: None,
         index: 0,
         round: 0,
     }
@@ -240,6 +241,72 @@ fn scored_draws(
         fours > twos + twos / 2 && fours < 3 * twos,
         "{fours} draws of score 6 against {twos} of score 3"
     );
+}
+
+/// Revisit: an attempt whose context names a mask vertex in view measures
+/// that vertex, without a random number, and counts it; a vertex out of
+/// view or not in the mask falls back to the draws, counted out of view.
+/// Verifies: VTSM-RELOC-046
+#[test]
+fn sample_point_measures_the_revisit_vertex_first() {
+    let (bytes, truth) = scene();
+    with_pipeline_at(&bytes, &truth, |map, pipe| {
+        let mut stats = PipelineStats::default();
+        let drawn = |pipe: &mut Pipeline<'_, '_>, ctx: &AttemptContext, stats: &mut _| {
+            let mut rng = Rng::new(3);
+            let got = pipe.attempt(ctx, &mut rng, stats);
+            (
+                pipe.last_sample(),
+                got.ok().map(|c| c.mask_index),
+                rng.next_u32(),
+            )
+        };
+        let plain = attempt_at(truth);
+        let (k0, _, after_draw) = drawn(pipe, &plain, &mut stats);
+        let plain_out_of_view = stats.out_of_view;
+        let k0 = k0.expect("a vertex in view");
+        assert_eq!(stats.revisited, 0);
+        // A vertex in view other than the one the stream draws.
+        let other = (0..map.mask_vertex_count())
+            .find(|&k| {
+                k != k0 && {
+                    let mut s = PipelineStats::default();
+                    let ctx = AttemptContext {
+                        revisit: Some(k),
+                        ..plain
+                    };
+                    drawn(pipe, &ctx, &mut s).0 == Some(k)
+                }
+            })
+            .expect("another vertex in view");
+        let ctx = AttemptContext {
+            revisit: Some(other),
+            ..plain
+        };
+        let (k, pair, after_revisit) = drawn(pipe, &ctx, &mut stats);
+        assert_eq!(k, Some(other));
+        assert_eq!(stats.revisited, 1);
+        match pair {
+            Some(m) => {
+                assert_eq!(m, other, "the pair names the vertex it measures");
+                assert_eq!(stats.revisit_pairs, 1);
+            }
+            None => assert_eq!(stats.revisit_pairs, 0),
+        }
+        // No random number spent on the revisit vertex: the stream is where
+        // a plain attempt's draw of one vertex leaves it, less that draw.
+        assert_ne!(after_revisit, after_draw);
+        // Not in the mask: the draws as without it, one more out of view.
+        let before = stats.out_of_view;
+        let ctx = AttemptContext {
+            revisit: Some(u32::MAX - 1),
+            ..plain
+        };
+        let (k, _, _) = drawn(pipe, &ctx, &mut stats);
+        assert_eq!(k, Some(k0));
+        assert_eq!(stats.out_of_view, before + plain_out_of_view + 1);
+        assert_eq!(stats.revisited, 1);
+    });
 }
 
 /// The right template is rendered only once a left match is accepted:

@@ -188,6 +188,10 @@ pub struct Args {
     /// `--final-pairs N`: correspondences of every VTSM trial's last round.
     #[command(flatten)]
     pub final_pairs: super::super::FinalPairsArg,
+    /// `--revisit on|off`: every VTSM trial measures the last update's
+    /// inliers again first.
+    #[command(flatten)]
+    pub revisit: super::super::RevisitArg,
     /// `--map-scores on|off`: maps built with sampling scores.
     #[command(flatten)]
     pub map_scores: super::super::MapScoresArg,
@@ -282,6 +286,7 @@ impl Args {
             verify: super::super::VerifyArg::default(),
             accuracy: super::super::AccuracyArg::default(),
             final_pairs: super::super::FinalPairsArg::default(),
+            revisit: super::super::RevisitArg::default(),
             map_scores: super::super::MapScoresArg::default(),
             score_deciles: false,
             physical: false,
@@ -354,6 +359,7 @@ pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
     cfg.verify = args.verify.checks();
     cfg.accuracy = args.accuracy.accuracy;
     cfg.final_pairs = args.final_pairs.final_pairs;
+    cfg.revisit = args.revisit.on();
     cfg.map_scores = args.map_scores.on();
     cfg.score_deciles = args.score_deciles;
     cfg.physical = args.physical;

@@ -91,6 +91,8 @@ pub struct SuiteConfig {
     /// Correspondences of every VTSM trial's last round (`--final-pairs`; 0:
     /// N_corr).
     pub final_pairs: u16,
+    /// Revisit in every VTSM trial (`--revisit`; on by default).
+    pub revisit: bool,
     /// Live pairs in the physical form, rectified on the host (`--physical`).
     pub physical: bool,
     /// Kernel of that rectification (`--interp`).
@@ -144,6 +146,7 @@ impl SuiteConfig {
             verify: VerifyChecks::OFF,
             accuracy: None,
             final_pairs: 0,
+            revisit: true,
             physical: false,
             interp: Interp::default(),
             light_model: LightModel::Full,

@@ -558,6 +558,7 @@ fn run_meta(
             "verify": verify_json(cfg),
             "accuracy": accuracy_json(cfg),
             "final_pairs": cfg.final_pairs,
+            "revisit": cfg.revisit,
             "map_scores": cfg.map_scores,
             "features": cfg.baseline.map(|_| {
                 per_width(&|w| format!("{:?}", crate::features::FeatureParams::for_width(w)))

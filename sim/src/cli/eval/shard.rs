@@ -228,6 +228,18 @@ fn columns_from(entries: &[(String, u64)]) -> std::result::Result<TrialColumns, 
     if has("attempts") {
         c.engine = Some(EngineColumns {
             attempts: v("attempts")? as u32,
+            // Columns a campaign recorded before Revisit lack: 0.
+            pairs: if has("pairs") { v("pairs")? as u32 } else { 0 },
+            revisited: if has("revisited") {
+                v("revisited")? as u32
+            } else {
+                0
+            },
+            revisit_pairs: if has("revisit_pairs") {
+                v("revisit_pairs")? as u32
+            } else {
+                0
+            },
             stalls: v("stalls")? as u16,
             reseeds: v("reseeds")? as u16,
             focused_rounds: v("focused_rounds")? as u16,
@@ -643,6 +655,9 @@ mod tests {
                 }),
                 engine: Some(EngineColumns {
                     attempts: 9,
+                    pairs: 6,
+                    revisited: 4,
+                    revisit_pairs: 3,
                     stalls: 1,
                     reseeds: 2,
                     focused_rounds: 3,

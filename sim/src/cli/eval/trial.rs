@@ -295,6 +295,7 @@ pub(super) fn request<'a>(
         .with_verify(cfg.verify)
         .with_accuracy(cfg.accuracy)
         .with_final_pairs(cfg.final_pairs)
+        .with_revisit(cfg.revisit)
 }
 
 /// The local-feature baseline on the same request.
@@ -415,6 +416,9 @@ fn engine_columns(out: &vtsm_core::reloc::Outcome, prior: &Pose) -> EngineColumn
     let (dt, dr) = vtsm_core::reloc::integrity::distance_to(prior, &out.pose);
     EngineColumns {
         attempts: out.stats.attempts,
+        pairs: out.stats.correspondences,
+        revisited: out.stats.pipeline.revisited,
+        revisit_pairs: out.stats.pipeline.revisit_pairs,
         stalls: out.stats.stalls,
         reseeds: out.stats.reseeds,
         focused_rounds: out.stats.focused_rounds,

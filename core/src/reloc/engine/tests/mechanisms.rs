@@ -361,3 +361,53 @@ fn the_last_round_collects_its_own_count_of_pairs() {
     let solver = FakeSolver::new(|_, pairs, mask| Ok(even_inliers(at_x(0.0), pairs, mask)));
     assert!(Relocalizer::new(FakeAttempt::ok(), solver, &p, &low, &at_x(0.0), 5).is_err());
 }
+
+/// Revisit: after a pose update, the next round's first attempts carry, one
+/// each and in collection order, the mask vertices of that update's inliers
+/// that Reuse did not keep; the round's other attempts, the first round's
+/// and every attempt with Revisit off carry none.
+/// Verifies: VTSM-RELOC-046
+#[test]
+fn revisit_hands_the_unkept_inliers_to_the_next_rounds_first_attempts() {
+    for on in [true, false] {
+        let p = small_params();
+        let o = opts(&p).with_revisit(on);
+        let solver = FakeSolver::new(|call, pairs, mask| {
+            Ok(even_inliers(at_x(0.1 * (call + 1) as f32), pairs, mask))
+        });
+        let mut r = Relocalizer::new(FakeAttempt::ok(), solver, &p, &o, &at_x(0.0), 5).unwrap();
+        let out = r.run_to_completion(0);
+        assert!(out.failure.is_none(), "{:?}", out.failure);
+        let calls = &r.solver_ref().calls;
+        assert_eq!(calls.len(), usize::from(p.n_iter));
+        let contexts = &r.attempt_ref().contexts;
+        let mut rounds: Vec<u32> = contexts.iter().map(|c| c.round).collect();
+        rounds.dedup();
+        assert_eq!(rounds.len(), calls.len());
+        let mut revisited = 0u32;
+        for (k, round) in rounds.iter().enumerate() {
+            // The fake gives every pair a fresh id (its mask index): the
+            // pairs of solve k − 1 still in solve k are the ones Reuse kept.
+            let expected: Vec<u32> = match k.checked_sub(1) {
+                Some(prev) if on => calls[prev]
+                    .iter()
+                    .filter(|c| c.mask_index % 2 == 0)
+                    .filter(|c| calls[k].iter().all(|q| q.mask_index != c.mask_index))
+                    .map(|c| c.mask_index)
+                    .collect(),
+                _ => Vec::new(),
+            };
+            let given: Vec<Option<u32>> = contexts
+                .iter()
+                .filter(|c| c.round == *round)
+                .map(|c| c.revisit)
+                .collect();
+            assert!(given.len() > expected.len());
+            for (i, g) in given.iter().enumerate() {
+                assert_eq!(*g, expected.get(i).copied(), "{on} round {k} attempt {i}");
+            }
+            revisited += expected.len() as u32;
+        }
+        assert_eq!(revisited > 0, on);
+    }
+}

@@ -88,6 +88,7 @@ impl Attempt for FakeAttempt {
                 cam,
                 sigma_m: 0.01,
                 variant,
+                mask_index: id,
             });
         }
         let v = ctx.world_from_viewpoint.translation();
@@ -97,6 +98,7 @@ impl Attempt for FakeAttempt {
             cam: v,
             sigma_m: 0.01,
             variant,
+            mask_index: id,
         })
     }
 

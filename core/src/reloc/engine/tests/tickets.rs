@@ -41,6 +41,7 @@ impl Attempt for PureAttempt {
             cam,
             sigma_m: 0.01,
             variant: (ctx.index % 3) as u8,
+            mask_index: crate::pose::MASK_INDEX_UNKNOWN,
         })
     }
 }
