@@ -229,17 +229,9 @@ fn columns_from(entries: &[(String, u64)]) -> std::result::Result<TrialColumns, 
         c.engine = Some(EngineColumns {
             attempts: v("attempts")? as u32,
             // Columns a campaign recorded before Revisit lack: 0.
-            pairs: if has("pairs") { v("pairs")? as u32 } else { 0 },
-            revisited: if has("revisited") {
-                v("revisited")? as u32
-            } else {
-                0
-            },
-            revisit_pairs: if has("revisit_pairs") {
-                v("revisit_pairs")? as u32
-            } else {
-                0
-            },
+            pairs: get("pairs").unwrap_or(0.0) as u32,
+            revisited: get("revisited").unwrap_or(0.0) as u32,
+            revisit_pairs: get("revisit_pairs").unwrap_or(0.0) as u32,
             stalls: v("stalls")? as u16,
             reseeds: v("reseeds")? as u16,
             focused_rounds: v("focused_rounds")? as u16,
