@@ -119,7 +119,7 @@
 //!
 //! let job = Job { rig, params: testkit::test_params(), seed: 7,
 //!                 limits: DriveLimits::UNLIMITED, verify: VerifyChecks::ALL, accuracy: None,
-//!                 final_pairs: 0, revisit: true };
+//!                 final_pairs: 0, search: vtsm_core::reloc::Search::DEFAULT };
 //! let (outcome, report) = runner.run(&job, &mut [], RamPair::new(&mut l, &mut r), ws, None)?;
 //!
 //! assert!(outcome.failure.is_none(), "{:?}", outcome.failure);

@@ -793,10 +793,10 @@ pub struct Job {
     /// ([`Options::final_pairs`](vtsm_core::reloc::Options::final_pairs); 0:
     /// N_corr like every round).
     pub final_pairs: u16,
-    /// Revisit the last update's inliers first in the next round
-    /// ([`Options::revisit`](vtsm_core::reloc::Options::revisit); `true` is
-    /// the engine's default).
-    pub revisit: bool,
+    /// The search mechanisms, Revisit and Near
+    /// ([`Search`](vtsm_core::reloc::Search); `Search::DEFAULT` is the
+    /// engine's default).
+    pub search: vtsm_core::reloc::Search,
 }
 
 /// What a [`PairSource`] hands the runner after the capture: the engine's
@@ -1029,7 +1029,7 @@ fn build<'a, 'w, F: FrameSource>(
         .options()
         .with_accuracy(job.accuracy)
         .and_then(|o| o.with_final_pairs(job.final_pairs))
-        .map(|o| o.with_revisit(job.revisit));
+        .and_then(|o| o.with_search(job.search));
     options
         .and_then(|o| setup.with_options(o))
         .and_then(|s| s.build(ws))

@@ -69,8 +69,8 @@ pub struct Spec {
     pub accuracy: Option<vtsm_core::reloc::Accuracy>,
     /// Correspondences of each pair's last round (`--final-pairs`; 0: N_corr).
     pub final_pairs: u16,
-    /// Revisit the last update's inliers first (`--revisit`; on by default).
-    pub revisit: bool,
+    /// The search mechanisms (`--revisit`, on by default; `--near`, off).
+    pub search: vtsm_core::reloc::Search,
     /// Threads each pair's attempts run on (`--threads`; pairs run one
     /// after another). Same outcome for every number.
     pub threads: usize,
@@ -219,8 +219,9 @@ pub struct Inputs {
     /// Correspondences of the last round (0 from [`load_inputs`]; a job
     /// sets its [`Spec::final_pairs`]).
     pub final_pairs: u16,
-    /// Revisit (on from [`load_inputs`]; a job sets its [`Spec::revisit`]).
-    pub revisit: bool,
+    /// The search mechanisms (the default from [`load_inputs`]; a job sets
+    /// its [`Spec::search`]).
+    pub search: vtsm_core::reloc::Search,
     /// Threads the attempts run on (1 from [`load_inputs`]; a job sets its
     /// [`Spec::threads`]).
     pub threads: usize,
@@ -272,7 +273,7 @@ pub fn load_inputs(
         verify,
         accuracy: None,
         final_pairs: 0,
-        revisit: true,
+        search: vtsm_core::reloc::Search::DEFAULT,
         threads: 1,
         physical,
         origin,
@@ -336,7 +337,7 @@ pub fn run_engine(map: MapView<'_>, inputs: &Inputs) -> Result<Ran> {
     .with_verify(inputs.verify)
     .with_accuracy(inputs.accuracy)
     .with_final_pairs(inputs.final_pairs)
-    .with_revisit(inputs.revisit)
+    .with_search(inputs.search)
     .with_threads(inputs.threads);
     let report = locate::relocalize(&req, RunOptions::default())?;
     let mut outcome = Outcome {
@@ -451,7 +452,7 @@ pub fn run_pair(
     let inputs = Inputs {
         accuracy: spec.accuracy,
         final_pairs: spec.final_pairs,
-        revisit: spec.revisit,
+        search: spec.search,
         threads: spec.threads,
         ..load_inputs(&map, calib, pair, spec.verify)?
     };

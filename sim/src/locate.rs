@@ -119,8 +119,8 @@ pub struct Request<'a> {
     pub accuracy: Option<vtsm_core::reloc::Accuracy>,
     /// Correspondences of the last round ([`Job::final_pairs`](vtsm_hal::runner::Job::final_pairs); 0: N_corr).
     pub final_pairs: u16,
-    /// Revisit the last update's inliers first ([`Job::revisit`](vtsm_hal::runner::Job::revisit)).
-    pub revisit: bool,
+    /// The search mechanisms, Revisit and Near ([`Job::search`](vtsm_hal::runner::Job::search)).
+    pub search: vtsm_core::reloc::Search,
     /// Threads the attempts run on ([`crate::workers`]); 1: the runner's
     /// own pipeline in the caller's thread. Same outcome for every number.
     pub threads: usize,
@@ -150,7 +150,7 @@ impl<'a> Request<'a> {
             verify: VerifyChecks::OFF,
             accuracy: None,
             final_pairs: 0,
-            revisit: true,
+            search: vtsm_core::reloc::Search::DEFAULT,
             threads: 1,
         }
     }
@@ -194,9 +194,9 @@ impl<'a> Request<'a> {
         }
     }
 
-    /// The same request with Revisit on or off.
-    pub fn with_revisit(self, revisit: bool) -> Self {
-        Self { revisit, ..self }
+    /// The same request with the search mechanisms `search`.
+    pub fn with_search(self, search: vtsm_core::reloc::Search) -> Self {
+        Self { search, ..self }
     }
 
     /// The same request with the prior's stated uncertainty.
@@ -477,7 +477,7 @@ pub fn run(req: &Request<'_>, opts: RunOptions<'_>) -> Result<DeviceRun> {
         verify: req.verify,
         accuracy: req.accuracy,
         final_pairs: req.final_pairs,
-        revisit: req.revisit,
+        search: req.search,
     };
     // RAM for the map only when it must be read from storage (bytes, not
     // memory-mapped); a checked view is used where it is.

@@ -961,3 +961,52 @@ fn encoder_rejects_bad_scores() {
         Err(FailureCode::MapEncodeBufferTooSmall)
     );
 }
+
+/// Every triangle lies in the tile `tile_at` gives for its centroid, every
+/// mask vertex is found at its own index and no other vertex is, and points
+/// off the grid or not finite have no tile.
+///
+/// Verifies: VTSM-RELOC-047
+#[test]
+fn tile_at_and_mask_index_of_invert_the_products_layout() {
+    let mesh = Mesh::grid(9, 0.3);
+    let bytes = mesh.encode(0.5);
+    let map = MapView::new_checked(&bytes).unwrap();
+    let (tx, ty, size) = map.tile_grid();
+    assert!(
+        tx > 2 && ty > 2,
+        "a grid of several tiles: {tx}×{ty} of {size} m"
+    );
+    let mut seen = 0u32;
+    for t in 0..map.tile_count() {
+        let tile = map.tile(t).unwrap();
+        for i in tile.first_triangle..tile.first_triangle + tile.triangle_count {
+            let [a, b, c] = map.triangle_vertices(i).unwrap();
+            let g = (a + b + c) / 3.0;
+            assert_eq!(map.tile_at(g.x, g.y), Some(t), "triangle {i}");
+            seen += 1;
+        }
+    }
+    assert_eq!(seen, map.triangle_count());
+    let (lo, hi) = map.bounds();
+    for (x, y) in [
+        (lo.x - 0.01, lo.y),
+        (lo.x, lo.y - 0.01),
+        (lo.x + size * tx as f32 + 0.01, hi.y),
+        (f32::NAN, lo.y),
+        (lo.x, f32::INFINITY),
+    ] {
+        assert_eq!(map.tile_at(x, y), None, "({x}, {y})");
+    }
+    let mask: BTreeSet<u32> = (0..map.mask_vertex_count())
+        .map(|k| map.mask_vertex(k).unwrap())
+        .collect();
+    assert!(!mask.is_empty() && mask.len() < mesh.vertices.len());
+    for v in 0..map.vertex_count() + 3 {
+        match map.mask_index_of(v) {
+            Some(k) => assert_eq!(map.mask_vertex(k), Some(v)),
+            None => assert!(!mask.contains(&v), "mask vertex {v} not found"),
+        }
+    }
+    assert_eq!(map.mask_index_of(u32::MAX), None);
+}

@@ -488,6 +488,52 @@ impl<'a> MapView<'a> {
         self.score_total
     }
 
+    /// The tile whose x-y cell holds the point (`x`, `y`), local metres
+    /// (cells of [`Self::tile_grid`] from the bounds' minimum corner, as the
+    /// encoder assigns triangles by centroid); `None` outside the grid or
+    /// for a non-finite coordinate.
+    #[allow(
+        clippy::cast_possible_truncation,
+        clippy::cast_sign_loss,
+        reason = "the cell coordinates are checked finite and inside 0..tiles before the casts"
+    )]
+    pub fn tile_at(&self, x: f32, y: f32) -> Option<u32> {
+        let cx = libm::floorf((x - self.min.x) / self.tile_size_m);
+        let cy = libm::floorf((y - self.min.y) / self.tile_size_m);
+        let inside = |c: f32, n: u32| c.is_finite() && c >= 0.0 && c < n as f32;
+        if !(inside(cx, self.tiles_x) && inside(cy, self.tiles_y)) {
+            return None;
+        }
+        (cy as u32)
+            .checked_mul(self.tiles_x)?
+            .checked_add(cx as u32)
+            .filter(|&t| t < self.tile_count)
+    }
+
+    /// The index `k` in M̂ of vertex `v` (so that `mask_vertex(k) == Some(v)`),
+    /// `None` when `v` is not a mask vertex. A binary search of at most 33
+    /// steps over the strictly increasing mask.
+    pub fn mask_index_of(&self, v: u32) -> Option<u32> {
+        let (mut lo, mut hi) = (0u32, self.mask_vertex_count);
+        // Each step halves hi - lo ≤ u32::MAX: 32 steps empty it, 33 bound the loop.
+        for _ in 0..33 {
+            if lo >= hi {
+                break;
+            }
+            let mid = lo.wrapping_add(hi.wrapping_sub(lo) >> 1);
+            let m = self.mask_vertex(mid)?;
+            if m == v {
+                return Some(mid);
+            }
+            if m < v {
+                lo = mid.wrapping_add(1);
+            } else {
+                hi = mid;
+            }
+        }
+        None
+    }
+
     /// The mask vertex (its index `k` in the mask, as for [`Self::mask_vertex`])
     /// drawn by `r`, uniform in `0..score_total()`: the `k` whose running sums
     /// enclose it, `cum[k-1] ≤ r < cum[k]` (`cum[-1] = 0`), so each `k` is hit

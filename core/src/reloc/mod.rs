@@ -67,9 +67,9 @@ pub use workspace::{
 
 pub use crate::pose::{Candidate, Correspondence};
 pub use options::{
-    first_fix_sigma_scale, footprint_scale, Accuracy, Budget, Focus, Gates, Options, Verify,
-    DEFAULT_FIRST_FIX_ROUNDS, DEFAULT_FOCUS_RADIUS_M, DEFAULT_FOCUS_VOTES, DEFAULT_PRIOR_FACTOR,
-    MAX_FIRST_FIX_SIGMA_SCALE,
+    first_fix_sigma_scale, footprint_scale, Accuracy, Budget, Focus, Gates, Near, Options, Search,
+    Verify, DEFAULT_FIRST_FIX_ROUNDS, DEFAULT_FOCUS_RADIUS_M, DEFAULT_FOCUS_VOTES,
+    DEFAULT_NEAR_RADIUS_M, DEFAULT_PRIOR_FACTOR, MAX_FIRST_FIX_SIGMA_SCALE,
 };
 pub use outcome::{IterationRecord, Outcome, PipelineStats, Quality, Stats, MATCH_VARIANTS};
 pub use work::{

@@ -47,7 +47,85 @@ pub struct Options {
     pub(super) final_gradient_only: bool,
     pub(super) final_pairs: u16,
     pub(super) revisit: bool,
+    pub(super) near: Near,
     pub(super) accuracy: Option<Accuracy>,
+}
+
+/// Radius of [`Near::ON`], metres: half a 0.5 m map tile, a few
+/// template footprints at the working distances.
+pub const DEFAULT_NEAR_RADIUS_M: f32 = 0.25;
+
+/// The search mechanisms a caller may turn on or off, carried as one value
+/// from every front door (`Job`, the host's request, the CLI's
+/// `--revisit` and `--near`) to [`Options::with_search`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Search {
+    /// Revisit ([`Options::revisit`]).
+    pub revisit: bool,
+    /// Near ([`Near`]).
+    pub near: Near,
+}
+
+impl Search {
+    /// The engine's default: Revisit on, Near off (it trades accuracy for
+    /// attempts; `fsw-docs/eval/near.md`).
+    pub const DEFAULT: Self = Self {
+        revisit: true,
+        near: Near::OFF,
+    };
+
+    /// Both off: every attempt draws its vertex anywhere in the map.
+    pub const OFF: Self = Self {
+        revisit: false,
+        near: Near::OFF,
+    };
+}
+
+impl Default for Search {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// Near (VTSM-RELOC-047): in the rounds after a pose update, the last one
+/// excepted, a share of the drawn attempts look for their vertex near the
+/// vertex of a pair that agreed with that update (an inlier, reused or to be
+/// revisited) instead of anywhere in the map. Under a changed light whole
+/// regions of the depot stop matching (a moved shadow, a slope now lit from
+/// behind) while others keep matching; the neighbours of a vertex that
+/// matched share its light. The last round draws anywhere: the final pose
+/// rests on pairs spread over the view, not clustered where earlier rounds
+/// matched (clustered pairs share their templates' bias under the new light
+/// and average less of it away; measured in `fsw-docs/eval/near.md`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Near {
+    /// Share of the drawn attempts that look near an agreeing vertex, in
+    /// 1/256 (0 = off, 256 = every drawn attempt).
+    pub share_256: u16,
+    /// How far from the agreeing vertex a drawn vertex may lie, metres
+    /// (0, 10].
+    pub radius_m: f32,
+}
+
+impl Near {
+    /// Near off: every drawn attempt draws from the whole map.
+    pub const OFF: Self = Self {
+        share_256: 0,
+        radius_m: DEFAULT_NEAR_RADIUS_M,
+    };
+
+    /// Near on as measured (`fsw-docs/eval/near.md`): every drawn attempt
+    /// of the middle rounds looks within [`DEFAULT_NEAR_RADIUS_M`] of an
+    /// agreeing vertex.
+    pub const ON: Self = Self {
+        share_256: 256,
+        radius_m: DEFAULT_NEAR_RADIUS_M,
+    };
+
+    /// Whether the share and radius are in range.
+    pub fn validate(&self) -> bool {
+        self.share_256 <= 256 && self.radius_m > 0.0 && self.radius_m <= 10.0
+    }
 }
 
 /// The accuracy a caller needs: the run ends after the first pose update
@@ -298,7 +376,8 @@ impl Options {
             focus: Focus::for_params(params),
             final_gradient_only: true,
             final_pairs: 0,
-            revisit: true,
+            revisit: Search::DEFAULT.revisit,
+            near: Search::DEFAULT.near,
             accuracy: None,
         }
     }
@@ -402,6 +481,12 @@ impl Options {
     /// answer.
     pub const fn revisit(&self) -> bool {
         self.revisit
+    }
+
+    /// Near ([`Near`]): the share of drawn attempts that look near an
+    /// agreeing vertex, and how near.
+    pub const fn near(&self) -> Near {
+        self.near
     }
 
     /// The accuracy the caller needs, when it stated one: the rounds end as
@@ -546,6 +631,35 @@ impl Options {
             revisit: on,
             ..self
         }
+    }
+
+    /// The search mechanisms as one value ([`Search`]).
+    pub const fn search(&self) -> Search {
+        Search {
+            revisit: self.revisit,
+            near: self.near,
+        }
+    }
+
+    /// With the search mechanisms `search` (Revisit and Near at once).
+    ///
+    /// # Errors
+    /// [`FailureCode::ConfigParamOutOfRange`] for a Near out of range
+    /// ([`Self::with_near`]).
+    pub fn with_search(self, search: Search) -> Result<Self, FailureCode> {
+        self.with_revisit(search.revisit).with_near(search.near)
+    }
+
+    /// With Near `near` ([`Self::near`]).
+    ///
+    /// # Errors
+    /// [`FailureCode::ConfigParamOutOfRange`] for a share above 256 or a
+    /// radius out of (0, 10] m.
+    pub fn with_near(self, near: Near) -> Result<Self, FailureCode> {
+        if !near.validate() {
+            return Err(FailureCode::ConfigParamOutOfRange);
+        }
+        Ok(Self { near, ..self })
     }
 
     /// With the last round collecting `final_pairs` correspondences

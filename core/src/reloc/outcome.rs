@@ -35,6 +35,11 @@ pub struct PipelineStats {
     pub revisited: u32,
     /// Of those, the attempts that gave a correspondence.
     pub revisit_pairs: u32,
+    /// Attempts whose vertex was drawn near an agreeing vertex
+    /// ([`Options::near`](crate::reloc::Options::near)).
+    pub near_drawn: u32,
+    /// Of those, the attempts that gave a correspondence.
+    pub near_pairs: u32,
 }
 
 impl PipelineStats {
@@ -55,6 +60,8 @@ impl PipelineStats {
         self.triangulations = self.triangulations.saturating_add(other.triangulations);
         self.revisited = self.revisited.saturating_add(other.revisited);
         self.revisit_pairs = self.revisit_pairs.saturating_add(other.revisit_pairs);
+        self.near_drawn = self.near_drawn.saturating_add(other.near_drawn);
+        self.near_pairs = self.near_pairs.saturating_add(other.near_pairs);
     }
 }
 

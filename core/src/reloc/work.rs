@@ -41,6 +41,12 @@ pub struct AttemptContext {
     /// inlier of the last pose update that Reuse did not keep; `None` draws
     /// as always.
     pub revisit: Option<u32>,
+    /// Near (VTSM-RELOC-047): a mask vertex that agreed with the last pose
+    /// update; SamplePoint draws its vertex within `near_radius_m` of it
+    /// (bounded draws, then anywhere as always). `None` draws as always.
+    pub near: Option<u32>,
+    /// How far from `near` the drawn vertex may lie, metres.
+    pub near_radius_m: f32,
     /// Global attempt index (for logging).
     pub index: u32,
     /// Round index (iterations, Stall / Reseed rounds and seeds all count).

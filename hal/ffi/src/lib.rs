@@ -1110,7 +1110,7 @@ unsafe fn create(
             accuracy,
             final_pairs: cfg.final_pairs,
             // The C configuration has no switch: the engine's default.
-            revisit: true,
+            search: vtsm_core::reloc::Search::DEFAULT,
         },
         prior,
         map: cfg.map,

@@ -54,9 +54,9 @@ pub struct Args {
     /// `--final-pairs N`: correspondences of the last round.
     #[command(flatten)]
     pub final_pairs: super::FinalPairsArg,
-    /// `--revisit on|off`: measure the last update's inliers again first.
+    /// `--revisit on|off`, `--near on|off`: the search mechanisms.
     #[command(flatten)]
-    pub revisit: super::RevisitArg,
+    pub search: super::SearchArgs,
     /// `--threads N`: the threads the attempts run on (same result).
     #[command(flatten)]
     pub threads: super::ThreadsArg,
@@ -154,7 +154,7 @@ pub fn run(args: &Args) -> Result<u8> {
         .with_verify(args.verify.checks())
         .with_accuracy(args.accuracy.accuracy)
         .with_final_pairs(args.final_pairs.final_pairs)
-        .with_revisit(args.revisit.on())
+        .with_search(args.search.search())
         .with_threads(args.threads.threads());
     let report = locate::relocalize(&req, RunOptions::default())?;
     let o = &report.outcome;

@@ -75,28 +75,45 @@ pub struct FinalPairsArg {
     pub final_pairs: u16,
 }
 
-/// `--revisit on|off` of `vtsm relocalize`, `demo` and `eval`: whether each
-/// round after a pose update first measures again the inliers Reuse did not
-/// keep ([`Options::revisit`](vtsm_core::reloc::Options::revisit)).
+/// `--revisit on|off` and `--near on|off` of `vtsm relocalize`, `demo` and
+/// `eval`: the search mechanisms ([`Search`](vtsm_core::reloc::Search)),
+/// Revisit on and Near off by default.
 #[derive(Debug, Clone, Copy, clap::Args)]
-pub struct RevisitArg {
+pub struct SearchArgs {
     /// Measure the last update's inliers again first in the next round
     /// (`on`, the default), or draw every attempt's vertex (`off`)
     /// (`fsw-docs/eval/revisit.md`).
     #[arg(long = "revisit", value_enum, ignore_case = true, default_value_t = OnOff::On)]
     pub revisit: OnOff,
+    /// In the rounds after a pose update but the last, draw each attempt's
+    /// vertex near one that agreed with the update (`on`: fewer attempts
+    /// under a large lighting change, a less exact pose), or anywhere in the
+    /// map (`off`, the default) (`fsw-docs/eval/near.md`).
+    #[arg(long = "near", value_enum, ignore_case = true, default_value_t = OnOff::Off)]
+    pub near: OnOff,
 }
 
-impl Default for RevisitArg {
+impl Default for SearchArgs {
     fn default() -> Self {
-        Self { revisit: OnOff::On }
+        Self {
+            revisit: OnOff::On,
+            near: OnOff::Off,
+        }
     }
 }
 
-impl RevisitArg {
-    /// Whether Revisit is on.
-    pub fn on(&self) -> bool {
-        self.revisit == OnOff::On
+impl SearchArgs {
+    /// The engine's search mechanisms these flags ask for.
+    pub fn search(&self) -> vtsm_core::reloc::Search {
+        use vtsm_core::reloc::{Near, Search};
+        Search {
+            revisit: self.revisit == OnOff::On,
+            near: if self.near == OnOff::On {
+                Near::ON
+            } else {
+                Near::OFF
+            },
+        }
     }
 }
 

@@ -71,9 +71,9 @@ pub struct Args {
     /// `--final-pairs N`: correspondences of the last round.
     #[command(flatten)]
     pub final_pairs: super::FinalPairsArg,
-    /// `--revisit on|off`: measure the last update's inliers again first.
+    /// `--revisit on|off`, `--near on|off`: the search mechanisms.
     #[command(flatten)]
-    pub revisit: super::RevisitArg,
+    pub search: super::SearchArgs,
     /// `--map-scores on|off`: score the product built from `--mesh`
     /// (a product given with `--map` carries its own scores or none).
     #[command(flatten)]
@@ -148,7 +148,7 @@ impl Args {
             verify: self.verify.checks(),
             accuracy: self.accuracy.accuracy,
             final_pairs: self.final_pairs.final_pairs,
-            revisit: self.revisit.on(),
+            search: self.search.search(),
             threads: self.threads.threads(),
             force: self.force,
         })
@@ -209,7 +209,7 @@ pub fn with_inputs<R>(
     let inputs = Inputs {
         accuracy: spec.accuracy,
         final_pairs: spec.final_pairs,
-        revisit: spec.revisit,
+        search: spec.search,
         threads: spec.threads,
         ..job::load_inputs(&map, &calib, &pair, spec.verify)?
     };

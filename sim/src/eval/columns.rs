@@ -171,6 +171,10 @@ pub struct EngineColumns {
     pub revisited: u32,
     /// Of those, the ones that gave a correspondence.
     pub revisit_pairs: u32,
+    /// Attempts whose vertex was drawn near an agreeing one (VTSM-RELOC-047).
+    pub near_drawn: u32,
+    /// Of those, the ones that gave a correspondence.
+    pub near_pairs: u32,
     /// Stalled iterations.
     pub stalls: u16,
     /// Reseeds.
@@ -305,6 +309,8 @@ impl TrialColumns {
                 ("pairs", f64::from(e.pairs)),
                 ("revisited", f64::from(e.revisited)),
                 ("revisit_pairs", f64::from(e.revisit_pairs)),
+                ("near_drawn", f64::from(e.near_drawn)),
+                ("near_pairs", f64::from(e.near_pairs)),
                 ("stalls", f64::from(e.stalls)),
                 ("reseeds", f64::from(e.reseeds)),
                 ("focused_rounds", f64::from(e.focused_rounds)),

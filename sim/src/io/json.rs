@@ -334,6 +334,10 @@ pub struct WorkStats {
     pub ncc_matches: u64,
     /// NCC positions scored.
     pub ncc_positions: u64,
+    /// Attempts whose vertex was drawn near an agreeing one (VTSM-RELOC-047).
+    pub near_drawn: u64,
+    /// Of those, the ones that gave a correspondence (VTSM-RELOC-047).
+    pub near_pairs: u64,
     /// RANSAC iterations.
     pub ransac_iterations: u64,
     /// Refinement steps accepted.
@@ -391,6 +395,8 @@ impl From<&vtsm_core::reloc::Stats> for WorkStats {
             ncc_macs: p.ncc_macs,
             ncc_matches: sum(&p.matches),
             ncc_positions: p.ncc_positions,
+            near_drawn: p.near_drawn.into(),
+            near_pairs: p.near_pairs.into(),
             ransac_iterations: s.ransac_iterations.into(),
             refine_accepted: s.refine.accepted.into(),
             refine_iterations: s.refine.iterations.into(),

@@ -77,7 +77,7 @@ pub fn run(clock: &dyn Fn() -> u64) -> FlightSummary {
     let storage = unsafe { &mut *addr_of_mut!(STORAGE) };
     let Ok(ws) = storage.workspace(WS) else { return fail(4) };
     let limits = DriveLimits { units_per_step: 16, max_steps: u32::MAX, budget_ticks: u64::MAX };
-    let job = Job { rig, params: PARAMS, seed: scene::SEED, limits, verify: VerifyChecks::OFF, accuracy: None, final_pairs: 0, revisit: true };
+    let job = Job { rig, params: PARAMS, seed: scene::SEED, limits, verify: VerifyChecks::OFF, accuracy: None, final_pairs: 0, search: vtsm_core::reloc::Search::DEFAULT };
     let (out, report) = match runner.run(&job, &mut [], InStore, ws, None) {
         Ok(r) => r,
         Err(e) => return fail(e.code()),

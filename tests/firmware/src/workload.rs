@@ -273,7 +273,7 @@ fn reloc_block(d: &mut Digest, clock: &dyn Fn() -> u64) -> Summary {
     let mut storage = Storage::<{ WS.bytes }, { WS.words }, { WS.runs }>::new();
     let Ok(ws) = storage.workspace(WS) else { return fail(8) };
     let limits = DriveLimits { units_per_step: 16, max_steps: u32::MAX, budget_ticks: u64::MAX };
-    let job = Job { rig, params: p, seed: 2026, limits, verify: VerifyChecks::OFF, accuracy: None, final_pairs: 0, revisit: true };
+    let job = Job { rig, params: p, seed: 2026, limits, verify: VerifyChecks::OFF, accuracy: None, final_pairs: 0, search: vtsm_core::reloc::Search::DEFAULT };
     let (out, report) = match runner.run(&job, map_buf, RamPair::new(&mut left, &mut right), ws, None) {
         Ok(r) => r,
         Err(e) => return fail(e.code()),

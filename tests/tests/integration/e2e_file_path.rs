@@ -65,7 +65,7 @@ fn args(dir: &Path, prior: &str, out: Option<PathBuf>) -> Args {
         verify: Default::default(),
         accuracy: Default::default(),
         final_pairs: Default::default(),
-        revisit: Default::default(),
+        search: Default::default(),
         map_scores: Default::default(),
         threads: Default::default(),
         out,

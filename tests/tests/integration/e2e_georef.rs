@@ -79,7 +79,7 @@ fn args(dir: &Path, prior: &str, origin: Option<&str>) -> Args {
         verify: Default::default(),
         accuracy: Default::default(),
         final_pairs: Default::default(),
-        revisit: Default::default(),
+        search: Default::default(),
         map_scores: Default::default(),
         threads: Default::default(),
         out: None,

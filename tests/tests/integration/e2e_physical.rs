@@ -41,7 +41,7 @@ fn args(dir: &Path) -> Args {
         verify: Default::default(),
         accuracy: Default::default(),
         final_pairs: Default::default(),
-        revisit: Default::default(),
+        search: Default::default(),
         map_scores: Default::default(),
         threads: Default::default(),
         out: None,

@@ -78,7 +78,7 @@ fn args(dir: &Path, prior: Option<&str>, out: Option<PathBuf>) -> Args {
         verify: Default::default(),
         accuracy: Default::default(),
         final_pairs: Default::default(),
-        revisit: Default::default(),
+        search: Default::default(),
         map_scores: Default::default(),
         threads: Default::default(),
     }

@@ -148,6 +148,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             self.stats.gradient_rounds = self.stats.gradient_rounds.saturating_add(1);
         }
         self.round_attempts = 0;
+        self.round_kept = u16::try_from(self.pairs.len()).unwrap_or(u16::MAX);
         self.phase = Phase::Collect;
     }
 }

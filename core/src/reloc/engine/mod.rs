@@ -91,6 +91,9 @@ pub struct Relocalizer<A, S> {
     /// Mask vertices of the last update's inliers that Reuse did not keep:
     /// the first attempts of the next round ([`Options::revisit`]).
     revisit: heapless::Vec<u32, MAX_CORR>,
+    /// Pairs Reuse kept at the front of `pairs` when the round started:
+    /// with `revisit`, the agreeing vertices Near draws around.
+    round_kept: u16,
     /// Inliers of the repeated final solve.
     verify_mask: [bool; MAX_CORR],
     candidates: heapless::Vec<Candidate, MAX_POSE_CANDIDATES>,
@@ -175,6 +178,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             pairs: heapless::Vec::new(),
             inlier_mask: [false; MAX_CORR],
             revisit: heapless::Vec::new(),
+            round_kept: 0,
             verify_mask: [false; MAX_CORR],
             candidates: heapless::Vec::new(),
             round: 0,

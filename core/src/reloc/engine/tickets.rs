@@ -111,12 +111,21 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         } else {
             self.center
         };
+        let world_from_viewpoint = randomize(&center, self.t_m, self.r_rad, planar, &mut rng);
+        let revisit = self.revisit_vertex(index);
+        let near = if revisit.is_none() {
+            self.near_vertex(&mut rng)
+        } else {
+            None
+        };
         let ctx = AttemptContext {
-            world_from_viewpoint: randomize(&center, self.t_m, self.r_rad, planar, &mut rng),
+            world_from_viewpoint,
             t_m: self.t_m,
             r_rad: self.r_rad,
             gradient_only: self.final_round(),
-            revisit: self.revisit_vertex(index),
+            revisit,
+            near,
+            near_radius_m: self.opts.near.radius_m,
             index,
             round: self.round,
         };
@@ -133,6 +142,38 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         let round_start = self.stats.attempts.saturating_sub(self.round_attempts);
         let k = index.checked_sub(round_start)?;
         self.revisit.get(usize::try_from(k).ok()?).copied()
+    }
+
+    /// Near (VTSM-RELOC-047): for a drawn attempt of a round after a pose
+    /// update, the last round excepted, with probability `share_256`/256 an
+    /// agreeing vertex to draw near, picked uniformly from the round's
+    /// revisit list and the pairs Reuse kept (both fixed for the round, so a
+    /// ticket draws the same). Two draws from the attempt's stream when Near
+    /// applies and there is evidence, none otherwise.
+    fn near_vertex(&self, rng: &mut Rng) -> Option<u32> {
+        let share = u32::from(self.opts.near.share_256);
+        if share == 0 || self.seeding || self.stats.successes == 0 || self.last_round() {
+            return None;
+        }
+        let kept = self
+            .pairs
+            .get(..usize::from(self.round_kept))
+            .unwrap_or(&[]);
+        let known = |c: &&Correspondence| c.mask_index != crate::pose::MASK_INDEX_UNKNOWN;
+        let kept_n = kept.iter().filter(known).count();
+        let total = u32::try_from(self.revisit.len().saturating_add(kept_n)).ok()?;
+        if total == 0 || rng.below(256) >= share {
+            return None;
+        }
+        let j = usize::try_from(rng.below(total)).ok()?;
+        match self.revisit.get(j) {
+            Some(&k) => Some(k),
+            None => kept
+                .iter()
+                .filter(known)
+                .nth(j.saturating_sub(self.revisit.len()))
+                .map(|c| c.mask_index),
+        }
     }
 
     /// Whether the engine is between attempts of a round, so that its next

@@ -40,6 +40,9 @@ mod window;
 
 /// Vertex draws per attempt before the attempt is rejected as out of view.
 pub const MAX_SAMPLE_TRIES: u32 = 16;
+/// Vertex draws per attempt looking for one near its Near vertex
+/// ([`AttemptContext::near`]) before it draws anywhere.
+pub const MAX_NEAR_TRIES: u32 = 16;
 /// Occlusion tolerance: a vertex is hidden when the rendered depth at its pixel
 /// is nearer by more than this plus [`OCCLUSION_REL`] of its depth, metres.
 pub const OCCLUSION_ABS_M: f32 = 0.03;
@@ -88,6 +91,8 @@ struct Sample {
     /// The context's revisit vertex (counted in `revisit_pairs` when it
     /// gives a pair).
     revisit: bool,
+    /// Drawn near the context's Near vertex (counted in `near_pairs`).
+    near: bool,
     world: Vec3,
     cam: Vec3,
     left: [f32; 2],
@@ -227,6 +232,9 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
         if s.revisit {
             stats.revisit_pairs = stats.revisit_pairs.saturating_add(1);
         }
+        if s.near {
+            stats.near_pairs = stats.near_pairs.saturating_add(1);
+        }
         Ok(Correspondence {
             world: s.world,
             cam: p.p_cam,
@@ -267,7 +275,7 @@ impl<F: FrameSource> Attempt for Pipeline<'_, '_, F> {
         self.pending = Pending::None;
         self.gradient_only = ctx.gradient_only;
         let vp_left = ctx.world_from_viewpoint;
-        let sampled = self.sample(&vp_left.inverse(), ctx.revisit, rng, stats);
+        let sampled = self.sample(&vp_left.inverse(), ctx, rng, stats);
         self.last_sample = sampled.as_ref().ok().map(|s| s.mask_index);
         let rendered =
             sampled.and_then(|sample| Ok((sample, self.synthesize(&vp_left, &sample, stats)?)));

@@ -2,7 +2,8 @@
 //! images, and its ℓ×ℓ virtual template rendered with depth and masked.
 
 use super::{
-    round_i32, Pipeline, Sample, Templates, MAX_SAMPLE_TRIES, OCCLUSION_ABS_M, OCCLUSION_REL,
+    round_i32, Pipeline, Sample, Templates, MAX_NEAR_TRIES, MAX_SAMPLE_TRIES, OCCLUSION_ABS_M,
+    OCCLUSION_REL,
 };
 use crate::failure::FailureCode;
 use crate::frame::FrameSource;
@@ -10,7 +11,7 @@ use crate::geom::{Camera, Pose};
 use crate::image::Rect;
 use crate::map::MapView;
 use crate::raster::{self, Target};
-use crate::reloc::PipelineStats;
+use crate::reloc::{AttemptContext, PipelineStats};
 
 impl<F: FrameSource> Pipeline<'_, '_, F> {
     /// SamplePoint: a random mask vertex whose left and right projections lie
@@ -25,11 +26,11 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
     pub(super) fn sample(
         &self,
         cam_from_world: &Pose,
-        revisit: Option<u32>,
+        ctx: &AttemptContext,
         rng: &mut crate::rng::Rng,
         stats: &mut PipelineStats,
     ) -> Result<Sample, FailureCode> {
-        if let Some(k) = revisit {
+        if let Some(k) = ctx.revisit {
             match self.sample_vertex(cam_from_world, k) {
                 Some(s) => {
                     stats.revisited = stats.revisited.saturating_add(1);
@@ -38,16 +39,24 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
                 None => stats.out_of_view = stats.out_of_view.saturating_add(1),
             }
         }
-        let n = self.map.mask_vertex_count();
-        let total = self.map.score_total();
-        for _ in 0..MAX_SAMPLE_TRIES {
-            let k = if self.map.scored() {
-                match self.map.draw_mask_index(rng.below(total)) {
-                    Some(k) => k,
-                    None => continue,
+        let anchor = ctx
+            .near
+            .and_then(|a| self.map.mask_vertex(a))
+            .and_then(|i| self.map.vertex(i));
+        if let Some(anchor) = anchor {
+            for _ in 0..MAX_NEAR_TRIES {
+                let Some(k) = self.draw_near(anchor, ctx.near_radius_m, rng) else {
+                    continue;
+                };
+                if let Some(s) = self.sample_vertex(cam_from_world, k) {
+                    stats.near_drawn = stats.near_drawn.saturating_add(1);
+                    return Ok(Sample { near: true, ..s });
                 }
-            } else {
-                rng.below(n)
+            }
+        }
+        for _ in 0..MAX_SAMPLE_TRIES {
+            let Some(k) = self.draw_mask_index(rng) else {
+                continue;
             };
             match self.sample_vertex(cam_from_world, k) {
                 Some(s) => return Ok(s),
@@ -55,6 +64,46 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
             }
         }
         Err(FailureCode::RelocSampleOutOfView)
+    }
+
+    /// One draw of a mask index: uniform over M̂, or in proportion to the
+    /// map's scores (version 3); one random number either way.
+    fn draw_mask_index(&self, rng: &mut crate::rng::Rng) -> Option<u32> {
+        if self.map.scored() {
+            self.map.draw_mask_index(rng.below(self.map.score_total()))
+        } else {
+            Some(rng.below(self.map.mask_vertex_count()))
+        }
+    }
+
+    /// One Near draw (VTSM-RELOC-047): a point uniform in the x-y square of
+    /// half-side `radius_m` about `anchor`, a triangle uniform in the map
+    /// tile holding it, one of its corners uniform; that corner's mask index
+    /// when it is a mask vertex within `radius_m` of `anchor`. Four random
+    /// numbers, a binary search of the mask.
+    fn draw_near(
+        &self,
+        anchor: crate::geom::Vec3,
+        radius_m: f32,
+        rng: &mut crate::rng::Rng,
+    ) -> Option<u32> {
+        let x = anchor.x + rng.uniform(-radius_m, radius_m);
+        let y = anchor.y + rng.uniform(-radius_m, radius_m);
+        let pick = rng.next_u32();
+        let corner = rng.below(3);
+        let tile = self.map.tile(self.map.tile_at(x, y)?)?;
+        if tile.triangle_count == 0 {
+            return None;
+        }
+        let t = tile
+            .first_triangle
+            .checked_add(((u64::from(pick) * u64::from(tile.triangle_count)) >> 32) as u32)?;
+        let v = *self.map.triangle(t)?.v.get(corner as usize)?;
+        let w = self.map.vertex(v)?;
+        if (w - anchor).norm_squared() > radius_m * radius_m {
+            return None;
+        }
+        self.map.mask_index_of(v)
     }
 
     /// Mask vertex `k` as a sample when it exists and its left and right
@@ -69,6 +118,7 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
         inside.then_some(Sample {
             mask_index: k,
             revisit: false,
+            near: false,
             world,
             cam,
             left: l,

@@ -124,6 +124,8 @@ fn attempt_at(viewpoint: Pose) -> AttemptContext {
         r_rad: 0.01,
         gradient_only: false,
         revisit: None,
+        near: None,
+        near_radius_m: 0.25,
         index: 0,
         round: 0,
     }
@@ -780,4 +782,73 @@ fn a_frame_source_that_fails_ends_the_run_with_its_code() {
     let (early, _) = run(3);
     assert_eq!(early.failure, Some(FailureCode::RelocFrameReadFailed));
     assert_eq!(early.stats.attempts, 0);
+}
+
+/// Near: with a Near vertex in view, SamplePoint takes a mask vertex within
+/// the radius of it (counted in `near_drawn`, and in `near_pairs` when it
+/// gives a pair); a radius too small for any other vertex, or a Near vertex
+/// not in the mask, falls back to the draws anywhere, uncounted.
+/// Verifies: VTSM-RELOC-047
+#[test]
+fn sample_point_draws_near_the_near_vertex() {
+    let (bytes, truth) = scene();
+    with_pipeline_at(&bytes, &truth, |map, pipe| {
+        let plain = attempt_at(truth);
+        let world = |k: u32| map.vertex(map.mask_vertex(k).unwrap()).unwrap();
+        let mut rng = Rng::new(3);
+        let mut s = PipelineStats::default();
+        let _ = pipe.attempt(&plain, &mut rng, &mut s);
+        let anchor = pipe.last_sample().expect("a vertex in view");
+        let (mut near, mut pairs, mut far) = (0u32, 0u32, 0u32);
+        let mut stats = PipelineStats::default();
+        for seed in 0..40u64 {
+            for (radius, want_near) in [(0.2f32, true), (1.0e-4, false)] {
+                let ctx = AttemptContext {
+                    near: Some(anchor),
+                    near_radius_m: radius,
+                    ..plain
+                };
+                let before = stats;
+                let mut rng = Rng::new(100 + seed);
+                let got = pipe.attempt(&ctx, &mut rng, &mut stats);
+                let Some(k) = pipe.last_sample() else {
+                    continue;
+                };
+                let d = (world(k) - world(anchor)).norm();
+                if stats.near_drawn > before.near_drawn {
+                    assert!(
+                        d <= radius + 1e-6,
+                        "vertex {k} at {d} m from the Near vertex"
+                    );
+                    // A radius of 0.1 mm holds the Near vertex alone.
+                    assert!(want_near || k == anchor, "radius {radius}: vertex {k}");
+                    near += u32::from(want_near);
+                    if got.is_ok() {
+                        pairs += 1;
+                        assert_eq!(stats.near_pairs, before.near_pairs + 1);
+                    }
+                } else {
+                    far += u32::from(d > 0.2);
+                }
+            }
+        }
+        // The test map's 0.5 m tiles are wide against 0.2 m: some attempts
+        // find no vertex near within their draws.
+        assert!(near >= 10, "near draws {near} of 40");
+        assert!(pairs > 0 && far > 0, "pairs {pairs}, far {far}");
+        assert_eq!(stats.near_pairs, pairs);
+        // A Near vertex not in the mask: draws as without it.
+        let ctx = AttemptContext {
+            near: Some(u32::MAX - 1),
+            ..plain
+        };
+        let mut a = Rng::new(9);
+        let mut b = Rng::new(9);
+        let mut s = PipelineStats::default();
+        let _ = pipe.attempt(&ctx, &mut a, &mut s);
+        let k = pipe.last_sample();
+        let _ = pipe.attempt(&plain, &mut b, &mut PipelineStats::default());
+        assert_eq!(k, pipe.last_sample());
+        assert_eq!(s.near_drawn, 0);
+    });
 }

@@ -188,10 +188,10 @@ pub struct Args {
     /// `--final-pairs N`: correspondences of every VTSM trial's last round.
     #[command(flatten)]
     pub final_pairs: super::super::FinalPairsArg,
-    /// `--revisit on|off`: every VTSM trial measures the last update's
-    /// inliers again first.
+    /// `--revisit on|off`, `--near on|off`: the search mechanisms of every
+    /// VTSM trial.
     #[command(flatten)]
-    pub revisit: super::super::RevisitArg,
+    pub search: super::super::SearchArgs,
     /// `--map-scores on|off`: maps built with sampling scores.
     #[command(flatten)]
     pub map_scores: super::super::MapScoresArg,
@@ -286,7 +286,7 @@ impl Args {
             verify: super::super::VerifyArg::default(),
             accuracy: super::super::AccuracyArg::default(),
             final_pairs: super::super::FinalPairsArg::default(),
-            revisit: super::super::RevisitArg::default(),
+            search: super::super::SearchArgs::default(),
             map_scores: super::super::MapScoresArg::default(),
             score_deciles: false,
             physical: false,
@@ -359,7 +359,7 @@ pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
     cfg.verify = args.verify.checks();
     cfg.accuracy = args.accuracy.accuracy;
     cfg.final_pairs = args.final_pairs.final_pairs;
-    cfg.revisit = args.revisit.on();
+    cfg.search = args.search.search();
     cfg.map_scores = args.map_scores.on();
     cfg.score_deciles = args.score_deciles;
     cfg.physical = args.physical;

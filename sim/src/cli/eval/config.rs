@@ -91,8 +91,9 @@ pub struct SuiteConfig {
     /// Correspondences of every VTSM trial's last round (`--final-pairs`; 0:
     /// N_corr).
     pub final_pairs: u16,
-    /// Revisit in every VTSM trial (`--revisit`; on by default).
-    pub revisit: bool,
+    /// The search mechanisms of every VTSM trial (`--revisit`, on by
+    /// default; `--near`, off).
+    pub search: vtsm_core::reloc::Search,
     /// Live pairs in the physical form, rectified on the host (`--physical`).
     pub physical: bool,
     /// Kernel of that rectification (`--interp`).
@@ -146,7 +147,7 @@ impl SuiteConfig {
             verify: VerifyChecks::OFF,
             accuracy: None,
             final_pairs: 0,
-            revisit: true,
+            search: vtsm_core::reloc::Search::DEFAULT,
             physical: false,
             interp: Interp::default(),
             light_model: LightModel::Full,

@@ -558,7 +558,8 @@ fn run_meta(
             "verify": verify_json(cfg),
             "accuracy": accuracy_json(cfg),
             "final_pairs": cfg.final_pairs,
-            "revisit": cfg.revisit,
+            "revisit": cfg.search.revisit,
+            "near": cfg.search.near.share_256 > 0,
             "map_scores": cfg.map_scores,
             "features": cfg.baseline.map(|_| {
                 per_width(&|w| format!("{:?}", crate::features::FeatureParams::for_width(w)))

@@ -279,7 +279,8 @@ fn run_meta(cfg: &SuiteConfig, def: &dyn SuiteDef, depot: &Depot, command: &str)
             "verify": verify_json(cfg),
             "accuracy": accuracy_json(cfg),
             "final_pairs": cfg.final_pairs,
-            "revisit": cfg.revisit,
+            "revisit": cfg.search.revisit,
+            "near": cfg.search.near.share_256 > 0,
             "map_scores": cfg.map_scores,
             "score_deciles": cfg.score_deciles,
             "features": cfg.baseline.map(|_| {

@@ -295,7 +295,7 @@ pub(super) fn request<'a>(
         .with_verify(cfg.verify)
         .with_accuracy(cfg.accuracy)
         .with_final_pairs(cfg.final_pairs)
-        .with_revisit(cfg.revisit)
+        .with_search(cfg.search)
 }
 
 /// The local-feature baseline on the same request.
@@ -419,6 +419,8 @@ fn engine_columns(out: &vtsm_core::reloc::Outcome, prior: &Pose) -> EngineColumn
         pairs: out.stats.correspondences,
         revisited: out.stats.pipeline.revisited,
         revisit_pairs: out.stats.pipeline.revisit_pairs,
+        near_drawn: out.stats.pipeline.near_drawn,
+        near_pairs: out.stats.pipeline.near_pairs,
         stalls: out.stats.stalls,
         reseeds: out.stats.reseeds,
         focused_rounds: out.stats.focused_rounds,

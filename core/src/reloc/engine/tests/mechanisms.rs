@@ -362,6 +362,24 @@ fn the_last_round_collects_its_own_count_of_pairs() {
     assert!(Relocalizer::new(FakeAttempt::ok(), solver, &p, &low, &at_x(0.0), 5).is_err());
 }
 
+/// A successful run of `p` and `o` whose every attempt makes a pair and
+/// whose solves keep the even pairs as inliers at a pose moving 0.1 m per
+/// call: the engine, its outcome and the rounds its attempts ran in.
+fn run_moving(
+    p: &Params,
+    o: &Options,
+) -> (Relocalizer<FakeAttempt, FakeSolver>, Outcome, Vec<u32>) {
+    let solver = FakeSolver::new(|call, pairs, mask| {
+        Ok(even_inliers(at_x(0.1 * (call + 1) as f32), pairs, mask))
+    });
+    let mut r = Relocalizer::new(FakeAttempt::ok(), solver, p, o, &at_x(0.0), 5).unwrap();
+    let out = r.run_to_completion(0);
+    assert!(out.failure.is_none(), "{:?}", out.failure);
+    let mut rounds: Vec<u32> = r.attempt_ref().contexts.iter().map(|c| c.round).collect();
+    rounds.dedup();
+    (r, out, rounds)
+}
+
 /// Revisit: after a pose update, the next round's first attempts carry, one
 /// each and in collection order, the mask vertices of that update's inliers
 /// that Reuse did not keep; the round's other attempts, the first round's
@@ -371,18 +389,10 @@ fn the_last_round_collects_its_own_count_of_pairs() {
 fn revisit_hands_the_unkept_inliers_to_the_next_rounds_first_attempts() {
     for on in [true, false] {
         let p = small_params();
-        let o = opts(&p).with_revisit(on);
-        let solver = FakeSolver::new(|call, pairs, mask| {
-            Ok(even_inliers(at_x(0.1 * (call + 1) as f32), pairs, mask))
-        });
-        let mut r = Relocalizer::new(FakeAttempt::ok(), solver, &p, &o, &at_x(0.0), 5).unwrap();
-        let out = r.run_to_completion(0);
-        assert!(out.failure.is_none(), "{:?}", out.failure);
+        let (r, _, rounds) = run_moving(&p, &opts(&p).with_revisit(on));
         let calls = &r.solver_ref().calls;
         assert_eq!(calls.len(), usize::from(p.n_iter));
         let contexts = &r.attempt_ref().contexts;
-        let mut rounds: Vec<u32> = contexts.iter().map(|c| c.round).collect();
-        rounds.dedup();
         assert_eq!(rounds.len(), calls.len());
         let mut revisited = 0u32;
         for (k, round) in rounds.iter().enumerate() {
@@ -409,5 +419,88 @@ fn revisit_hands_the_unkept_inliers_to_the_next_rounds_first_attempts() {
             revisited += expected.len() as u32;
         }
         assert_eq!(revisited > 0, on);
+    }
+}
+
+/// Near: in the rounds after a pose update but the last, a drawn attempt
+/// (no revisit vertex) carries, with the stated share, a vertex of a pair
+/// that agreed with that update (an inlier of the previous solve, kept by
+/// Reuse or not); never in the first or the last round, never with Near off.
+/// Verifies: VTSM-RELOC-047
+#[test]
+fn near_draws_around_the_vertices_that_agreed() {
+    let near = |share_256| Near {
+        share_256,
+        radius_m: 0.25,
+    };
+    for share in [256, 128, 0] {
+        let p = small_params();
+        let (r, out, rounds) = run_moving(&p, &opts(&p).with_near(near(share)).unwrap());
+        let calls = &r.solver_ref().calls;
+        let contexts = &r.attempt_ref().contexts;
+        assert_eq!(rounds.len(), calls.len());
+        assert!(rounds.len() >= 3, "a first, a middle and a last round");
+        let (mut with, mut without) = (0u32, 0u32);
+        for (k, round) in rounds.iter().enumerate() {
+            // Every attempt makes a pair whose mask index is its own id.
+            let agreed: Vec<u32> = match k.checked_sub(1) {
+                Some(prev) => calls[prev]
+                    .iter()
+                    .filter(|c| c.mask_index % 2 == 0)
+                    .map(|c| c.mask_index)
+                    .collect(),
+                None => Vec::new(),
+            };
+            let middle = k > 0 && k + 1 < rounds.len();
+            for c in contexts.iter().filter(|c| c.round == *round) {
+                match c.near {
+                    Some(v) => {
+                        assert!(
+                            middle,
+                            "share {share} round {k}: Near outside the middle rounds"
+                        );
+                        assert!(
+                            c.revisit.is_none(),
+                            "a revisit attempt draws no Near vertex"
+                        );
+                        assert_eq!(c.near_radius_m, 0.25);
+                        assert!(agreed.contains(&v), "share {share} round {k}: vertex {v}");
+                        with += 1;
+                    }
+                    None if middle && c.revisit.is_none() => without += 1,
+                    None => {}
+                }
+            }
+        }
+        assert_eq!(out.stats.pipeline.near_drawn, 0, "the fake counts no draws");
+        match share {
+            0 => assert_eq!(with, 0),
+            256 => assert!(with > 0 && without == 0, "{with} {without}"),
+            // Half, within a wide margin on a few dozen draws.
+            _ => assert!(with > 0 && without > 0 && with.abs_diff(without) < (with + without) / 2),
+        }
+    }
+    // Refused: a share above 256, a radius out of (0, 10] m.
+    let p = small_params();
+    for bad in [
+        near(257),
+        Near {
+            radius_m: 0.0,
+            ..near(1)
+        },
+        Near {
+            radius_m: f32::NAN,
+            ..near(1)
+        },
+        Near {
+            radius_m: 10.5,
+            ..near(1)
+        },
+    ] {
+        assert_eq!(
+            opts(&p).with_near(bad),
+            Err(FailureCode::ConfigParamOutOfRange),
+            "{bad:?}"
+        );
     }
 }

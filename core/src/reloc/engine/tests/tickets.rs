@@ -25,6 +25,7 @@ impl Attempt for PureAttempt {
     ) -> Result<Correspondence, FailureCode> {
         stats.renders += 1;
         stats.ncc_macs += u64::from(ctx.index % 7);
+        stats.near_drawn += u32::from(ctx.near.is_some());
         if rng.next_f32() < self.p_fail {
             return Err(FailureCode::NccLowScore);
         }
@@ -34,14 +35,15 @@ impl Attempt for PureAttempt {
             2.0 + 2.0 * rng.next_f32(),
         );
         // The viewpoint moves the point a little, so Focus and Distribute
-        // change what later attempts see.
+        // change what later attempts see; so does a Near vertex.
+        let near = ctx.near.map_or(0.0, |k| (k % 5) as f32 * 0.001);
         let v = ctx.world_from_viewpoint.translation() * 0.01;
         Ok(Correspondence {
-            world: self.truth.transform_point(&cam) + v,
+            world: self.truth.transform_point(&cam) + v + Vec3::new(near, 0.0, 0.0),
             cam,
             sigma_m: 0.01,
             variant: (ctx.index % 3) as u8,
-            mask_index: crate::pose::MASK_INDEX_UNKNOWN,
+            mask_index: ctx.index,
         })
     }
 }
@@ -163,22 +165,38 @@ fn same(a: &Outcome, b: &Outcome) {
 fn tickets_on_any_number_of_workers_give_the_one_worker_outcome() {
     let mut focused = 0;
     let mut any_dropped = 0;
-    for (k, seeds, t0, units) in [
-        (1u64, 0u16, 0.5f32, u32::MAX),
-        (2, 2, 0.5, u32::MAX),
-        (3, 0, DEFAULT_T0_M, u32::MAX),
-        (4, 0, 0.5, 40),
+    let mut near_drawn = 0;
+    let nears = [
+        Near::OFF,
+        Near {
+            share_256: 256,
+            radius_m: 0.25,
+        },
+        Near {
+            share_256: 128,
+            radius_m: 0.25,
+        },
+    ];
+    for (k, seeds, t0, units, near) in [
+        (1u64, 0u16, 0.5f32, u32::MAX, 0usize),
+        (2, 2, 0.5, u32::MAX, 0),
+        (3, 0, DEFAULT_T0_M, u32::MAX, 0),
+        (4, 0, 0.5, 40, 0),
+        (5, 0, 0.5, u32::MAX, 1),
+        (6, 2, DEFAULT_T0_M, u32::MAX, 1),
+        (7, 0, 0.5, u32::MAX, 2),
     ] {
         let mut p = small_params();
         p.seeds = seeds;
         p.t0_m = t0;
-        let mut o = opts(&p);
+        let mut o = opts(&p).with_near(nears[near]).unwrap();
         o.budget = Budget {
             max_work_units: units,
             ..Budget::UNLIMITED
         };
         let one = engine(&p, &o, k).run_to_completion(0);
         focused += one.stats.focused_rounds;
+        near_drawn += one.stats.pipeline.near_drawn;
         for (workers, window) in [(1usize, 1u32), (2, 2), (3, 6), (8, 16)] {
             let mut r = engine(&p, &o, k);
             any_dropped += drive_tickets(&mut r, workers, window, k * 31 + workers as u64);
@@ -188,8 +206,9 @@ fn tickets_on_any_number_of_workers_give_the_one_worker_outcome() {
             assert_eq!(one.failure, Some(FailureCode::RelocBudgetExhausted));
         }
     }
-    // The cases exercise Focus and work thrown away as stale.
+    // The cases exercise Focus, Near and work thrown away as stale.
     assert!(focused > 0);
+    assert!(near_drawn > 0);
     assert!(any_dropped > 0);
 }
 
