@@ -59,6 +59,7 @@ pub const DEFAULT_NEAR_RADIUS_M: f32 = 0.25;
 /// from every front door (`Job`, the host's request, the CLI's
 /// `--revisit` and `--near`) to [`Options::with_search`].
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Search {
     /// Revisit ([`Options::revisit`]).
     pub revisit: bool,
@@ -98,6 +99,7 @@ impl Default for Search {
 /// matched (clustered pairs share their templates' bias under the new light
 /// and average less of it away; measured in `fsw-docs/eval/near.md`).
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Near {
     /// Share of the drawn attempts that look near an agreeing vertex, in
     /// 1/256 (0 = off, 256 = every drawn attempt).
