@@ -23,6 +23,12 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
     /// With `revisit` (the context's [`AttemptContext::revisit`](crate::reloc::AttemptContext::revisit)) that mask
     /// vertex is tried first, without a random number; out of view, the
     /// draws follow as without it.
+    ///
+    /// With a Near vertex ([`AttemptContext::near`], never beside a revisit
+    /// vertex) up to [`MAX_NEAR_TRIES`] Near draws come first, each four
+    /// random numbers; the first that gives a mask vertex near it and in
+    /// view is taken (counted in `near_drawn`), and if none does the draws
+    /// anywhere follow as without it.
     pub(super) fn sample(
         &self,
         cam_from_world: &Pose,
@@ -87,6 +93,8 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
         radius_m: f32,
         rng: &mut crate::rng::Rng,
     ) -> Option<u32> {
+        // All four numbers are drawn before any check, so every Near draw
+        // moves the stream by the same count.
         let x = anchor.x + rng.uniform(-radius_m, radius_m);
         let y = anchor.y + rng.uniform(-radius_m, radius_m);
         let pick = rng.next_u32();
