@@ -160,7 +160,12 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             .get(..usize::from(self.round_kept))
             .unwrap_or(&[]);
         let known = |c: &&Correspondence| c.mask_index != crate::pose::MASK_INDEX_UNKNOWN;
-        let kept_n = kept.iter().filter(known).count();
+        // Counted and indexed with saturating steps: `Iterator::count` and
+        // `nth` would bring overflow-checked arithmetic (a panic path).
+        let kept_n = kept
+            .iter()
+            .filter(known)
+            .fold(0usize, |n, _| n.saturating_add(1));
         let total = u32::try_from(self.revisit.len().saturating_add(kept_n)).ok()?;
         if total == 0 || rng.below(256) >= share {
             return None;
@@ -168,11 +173,17 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         let j = usize::try_from(rng.below(total)).ok()?;
         match self.revisit.get(j) {
             Some(&k) => Some(k),
-            None => kept
-                .iter()
-                .filter(known)
-                .nth(j.saturating_sub(self.revisit.len()))
-                .map(|c| c.mask_index),
+            None => {
+                let mut skip = j.saturating_sub(self.revisit.len());
+                kept.iter()
+                    .filter(known)
+                    .find(|_| {
+                        let hit = skip == 0;
+                        skip = skip.saturating_sub(1);
+                        hit
+                    })
+                    .map(|c| c.mask_index)
+            }
         }
     }
 

@@ -103,9 +103,9 @@ impl<F: FrameSource> Pipeline<'_, '_, F> {
         if tile.triangle_count == 0 {
             return None;
         }
-        let t = tile
-            .first_triangle
-            .checked_add(((u64::from(pick) * u64::from(tile.triangle_count)) >> 32) as u32)?;
+        let t = tile.first_triangle.checked_add(
+            (u64::from(pick).wrapping_mul(u64::from(tile.triangle_count)) >> 32) as u32,
+        )?;
         let v = *self.map.triangle(t)?.v.get(corner as usize)?;
         let w = self.map.vertex(v)?;
         if (w - anchor).norm_squared() > radius_m * radius_m {
