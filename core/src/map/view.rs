@@ -514,24 +514,8 @@ impl<'a> MapView<'a> {
     /// `None` when `v` is not a mask vertex. A binary search of at most 33
     /// steps over the strictly increasing mask.
     pub fn mask_index_of(&self, v: u32) -> Option<u32> {
-        let (mut lo, mut hi) = (0u32, self.mask_vertex_count);
-        // Each step halves hi - lo ≤ u32::MAX: 32 steps empty it, 33 bound the loop.
-        for _ in 0..33 {
-            if lo >= hi {
-                break;
-            }
-            let mid = lo.wrapping_add(hi.wrapping_sub(lo) >> 1);
-            let m = self.mask_vertex(mid)?;
-            if m == v {
-                return Some(mid);
-            }
-            if m < v {
-                lo = mid.wrapping_add(1);
-            } else {
-                hi = mid;
-            }
-        }
-        None
+        let k = partition_point(self.mask_vertex_count, |k| Some(self.mask_vertex(k)? < v))?;
+        (self.mask_vertex(k)? == v).then_some(k)
     }
 
     /// The mask vertex (its index `k` in the mask, as for [`Self::mask_vertex`])
@@ -544,24 +528,10 @@ impl<'a> MapView<'a> {
         if !self.scored() || r >= self.score_total {
             return None;
         }
-        // The first k with cum[k] > r lies in lo..hi; cum is non-decreasing
-        // (checked) and cum[mask_vertex_count - 1] = score_total > r.
-        let (mut lo, mut hi) = (0u32, self.mask_vertex_count);
-        // Each step halves hi - lo ≤ u32::MAX: 32 steps empty it, 33 bound the loop.
-        for _ in 0..33 {
-            if lo >= hi {
-                break;
-            }
-            // lo < hi ≤ u32::MAX, so neither form wraps; the wrapping forms
-            // leave no overflow check (a panic path) in a checked build.
-            let mid = lo.wrapping_add(hi.wrapping_sub(lo) >> 1);
-            if self.cumulative(mid)? > r {
-                hi = mid;
-            } else {
-                lo = mid.wrapping_add(1);
-            }
-        }
-        (lo < self.mask_vertex_count).then_some(lo)
+        // The first k with cum[k] > r: cum is non-decreasing (checked) and
+        // cum[mask_vertex_count - 1] = score_total > r.
+        let k = partition_point(self.mask_vertex_count, |k| Some(self.cumulative(k)? <= r))?;
+        (k < self.mask_vertex_count).then_some(k)
     }
 
     /// Entry `k` of the score section (the running sum through mask vertex
@@ -575,6 +545,28 @@ impl<'a> MapView<'a> {
             record_at(self.layout.off(SEC_SCORES), k, MASK_SCORE_BYTES)?,
         )
     }
+}
+
+/// The first `k` in `0..n` for which `below(k)` is false, or `n` when it holds
+/// for all of them, for a `below` that holds on a prefix of `0..n` and fails
+/// after it; `None` as soon as `below` does. A binary search of at most 33
+/// steps: each halves `hi - lo ≤ u32::MAX`, so 32 empty it.
+fn partition_point(n: u32, mut below: impl FnMut(u32) -> Option<bool>) -> Option<u32> {
+    let (mut lo, mut hi) = (0u32, n);
+    for _ in 0..33 {
+        if lo >= hi {
+            break;
+        }
+        // lo < hi ≤ u32::MAX, so neither form wraps; the wrapping forms leave
+        // no overflow check (a panic path) in a checked build.
+        let mid = lo.wrapping_add(hi.wrapping_sub(lo) >> 1);
+        if below(mid)? {
+            lo = mid.wrapping_add(1);
+        } else {
+            hi = mid;
+        }
+    }
+    Some(lo)
 }
 
 /// The fixed start of the header: length, magic, a known version, the header

@@ -46,8 +46,7 @@ pub struct Options {
     pub(super) focus: Focus,
     pub(super) final_gradient_only: bool,
     pub(super) final_pairs: u16,
-    pub(super) revisit: bool,
-    pub(super) near: Near,
+    pub(super) search: Search,
     pub(super) accuracy: Option<Accuracy>,
 }
 
@@ -378,8 +377,7 @@ impl Options {
             focus: Focus::for_params(params),
             final_gradient_only: true,
             final_pairs: 0,
-            revisit: Search::DEFAULT.revisit,
-            near: Search::DEFAULT.near,
+            search: Search::DEFAULT,
             accuracy: None,
         }
     }
@@ -482,13 +480,13 @@ impl Options {
     /// order follow from the attempt index, so every runner gives the same
     /// answer.
     pub const fn revisit(&self) -> bool {
-        self.revisit
+        self.search.revisit
     }
 
     /// Near ([`Near`]): the share of drawn attempts that look near an
     /// agreeing vertex, and how near.
     pub const fn near(&self) -> Near {
-        self.near
+        self.search.near
     }
 
     /// The accuracy the caller needs, when it stated one: the rounds end as
@@ -630,17 +628,17 @@ impl Options {
     /// With Revisit on or off ([`Self::revisit`]).
     pub const fn with_revisit(self, on: bool) -> Self {
         Self {
-            revisit: on,
+            search: Search {
+                revisit: on,
+                ..self.search
+            },
             ..self
         }
     }
 
     /// The search mechanisms as one value ([`Search`]).
     pub const fn search(&self) -> Search {
-        Search {
-            revisit: self.revisit,
-            near: self.near,
-        }
+        self.search
     }
 
     /// With the search mechanisms `search` (Revisit and Near at once).
@@ -649,7 +647,10 @@ impl Options {
     /// [`FailureCode::ConfigParamOutOfRange`] for a Near out of range
     /// ([`Self::with_near`]).
     pub fn with_search(self, search: Search) -> Result<Self, FailureCode> {
-        self.with_revisit(search.revisit).with_near(search.near)
+        if !search.near.validate() {
+            return Err(FailureCode::ConfigParamOutOfRange);
+        }
+        Ok(Self { search, ..self })
     }
 
     /// With Near `near` ([`Self::near`]).
@@ -658,10 +659,10 @@ impl Options {
     /// [`FailureCode::ConfigParamOutOfRange`] for a share above 256 or a
     /// radius out of (0, 10] m.
     pub fn with_near(self, near: Near) -> Result<Self, FailureCode> {
-        if !near.validate() {
-            return Err(FailureCode::ConfigParamOutOfRange);
-        }
-        Ok(Self { near, ..self })
+        self.with_search(Search {
+            near,
+            ..self.search
+        })
     }
 
     /// With the last round collecting `final_pairs` correspondences

@@ -83,21 +83,25 @@ pub struct SearchArgs {
     /// Measure the last update's inliers again first in the next round
     /// (`on`, the default), or draw every attempt's vertex (`off`)
     /// (`fsw-docs/eval/revisit.md`).
-    #[arg(long = "revisit", value_enum, ignore_case = true, default_value_t = OnOff::On)]
+    #[arg(long = "revisit", value_enum, ignore_case = true,
+          default_value_t = SearchArgs::default().revisit)]
     pub revisit: OnOff,
     /// In the rounds after a pose update but the last, draw each attempt's
     /// vertex near one that agreed with the update (`on`: fewer attempts
     /// under a large lighting change, a less exact pose), or anywhere in the
     /// map (`off`, the default) (`fsw-docs/eval/near.md`).
-    #[arg(long = "near", value_enum, ignore_case = true, default_value_t = OnOff::Off)]
+    #[arg(long = "near", value_enum, ignore_case = true,
+          default_value_t = SearchArgs::default().near)]
     pub near: OnOff,
 }
 
 impl Default for SearchArgs {
+    /// The flags of the engine's default, [`Search::DEFAULT`](vtsm_core::reloc::Search::DEFAULT).
     fn default() -> Self {
+        let s = vtsm_core::reloc::Search::DEFAULT;
         Self {
-            revisit: OnOff::On,
-            near: OnOff::Off,
+            revisit: OnOff::of(s.revisit),
+            near: OnOff::of(s.near.share_256 > 0),
         }
     }
 }
@@ -144,6 +148,17 @@ pub enum OnOff {
     /// Off.
     #[default]
     Off,
+}
+
+impl OnOff {
+    /// `On` for `true`, `Off` for `false`.
+    pub const fn of(on: bool) -> Self {
+        if on {
+            Self::On
+        } else {
+            Self::Off
+        }
+    }
 }
 
 /// `--threads N` of `vtsm relocalize` and `demo`: the threads one

@@ -112,7 +112,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
         // Into the final round only gradient-domain pairs (the success just
         // counted makes the next round the final one).
         let gradient_only = self.final_round();
-        let revisit = self.opts.revisit;
+        let revisit = self.opts.search.revisit;
         self.revisit.clear();
         let mut write = 0usize;
         for read in 0..self.pairs.len() {

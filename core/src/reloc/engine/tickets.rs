@@ -125,7 +125,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
             gradient_only: self.final_round(),
             revisit,
             near,
-            near_radius_m: self.opts.near.radius_m,
+            near_radius_m: self.opts.search.near.radius_m,
             index,
             round: self.round,
         };
@@ -136,7 +136,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
     /// the round's first attempts, one per vertex of the revisit list in its
     /// order; `None` otherwise or with [`Options::revisit`](crate::reloc::Options::revisit) off.
     fn revisit_vertex(&self, index: u32) -> Option<u32> {
-        if !self.opts.revisit {
+        if !self.opts.search.revisit {
             return None;
         }
         let round_start = self.stats.attempts.saturating_sub(self.round_attempts);
@@ -151,7 +151,7 @@ impl<A: Attempt, S: Solver> Relocalizer<A, S> {
     /// ticket draws the same). Two draws from the attempt's stream when Near
     /// applies and there is evidence, none otherwise.
     fn near_vertex(&self, rng: &mut Rng) -> Option<u32> {
-        let share = u32::from(self.opts.near.share_256);
+        let share = u32::from(self.opts.search.near.share_256);
         if share == 0 || self.seeding || self.stats.successes == 0 || self.last_round() {
             return None;
         }
