@@ -215,6 +215,33 @@ int main(void) {
     if (rc != VTSM_OK || more.failure != VTSM_OK || more.stats.attempts <= out.stats.attempts)
         failed++;
 
+    /* The search mechanisms: the default (zeroed fields) runs Revisit and
+     * not Near; Revisit off measures no revisit vertex; Near on draws near
+     * agreeing vertices. Each is a success on this scene. */
+    VtsmConfig plain = cfg;
+    plain.revisit_off = 1u;
+    VtsmOutcome off;
+    rc = vtsm_engine_create(storage, sizeof storage, &plain, &engine);
+    if (rc == VTSM_OK) rc = vtsm_engine_run(engine, &limits, &off);
+    printf("VTSM-C-REVISIT-OFF %s: %s, revisited %lu (default: %lu), near %lu, %lu attempts (default: %lu)\n",
+           vtsm_failure_name(rc), vtsm_failure_name(off.failure), (unsigned long)off.stats.revisited,
+           (unsigned long)out.stats.revisited, (unsigned long)off.stats.near_drawn,
+           (unsigned long)off.stats.attempts, (unsigned long)out.stats.attempts);
+    if (rc != VTSM_OK || off.failure != VTSM_OK || off.stats.revisited != 0 || out.stats.revisited == 0 ||
+        out.stats.near_drawn != 0 || off.stats.near_drawn != 0)
+        failed++;
+    VtsmConfig nearby = cfg;
+    nearby.near = 1u;
+    VtsmOutcome near;
+    rc = vtsm_engine_create(storage, sizeof storage, &nearby, &engine);
+    if (rc == VTSM_OK) rc = vtsm_engine_run(engine, &limits, &near);
+    printf("VTSM-C-NEAR %s: %s, near %lu, revisited %lu, %lu attempts (default: %lu)\n",
+           vtsm_failure_name(rc), vtsm_failure_name(near.failure), (unsigned long)near.stats.near_drawn,
+           (unsigned long)near.stats.revisited, (unsigned long)near.stats.attempts,
+           (unsigned long)out.stats.attempts);
+    if (rc != VTSM_OK || near.failure != VTSM_OK || near.stats.near_drawn == 0 || near.stats.revisited == 0)
+        failed++;
+
     failed += bad_input_tests(storage, sizeof storage);
 
     uint64_t cpp_digest = 0;

@@ -478,6 +478,13 @@ typedef struct VtsmConfig {
     // (`Options::final_pairs`; fewer than N_corr is refused with
     // `VTSM_CONFIG_PARAM_OUT_OF_RANGE`).
     uint16_t final_pairs;
+    // Revisit (VTSM-RELOC-046; `Options::revisit`): 0 on, the engine's
+    // default; 1 off (every attempt draws its vertex anywhere in the map).
+    uint8_t revisit_off;
+    // Near (VTSM-RELOC-047; `Near`): 0 off, the engine's default; 1 on
+    // (`Near::ON`: fewer attempts under a large lighting change, a less
+    // exact pose). A zeroed configuration runs `Search::DEFAULT`.
+    uint8_t near;
     // The devices.
     struct VtsmIo io;
 } VtsmConfig;
@@ -513,6 +520,12 @@ typedef struct VtsmStats {
     uint32_t ransac_iterations;
     // Templates rendered.
     uint32_t renders;
+    // Attempts that measured a Revisit vertex (VTSM-RELOC-046; 0 with
+    // [`VtsmConfig::revisit_off`]).
+    uint32_t revisited;
+    // Attempts whose vertex Near drew near an agreeing one (VTSM-RELOC-047;
+    // 0 unless [`VtsmConfig::near`]).
+    uint32_t near_drawn;
     // NCC multiply-accumulates.
     uint64_t ncc_macs;
     // Successful iterations (pose updates).

@@ -55,7 +55,7 @@ use vtsm_core::image::Rect;
 use vtsm_core::map::MapView;
 use vtsm_core::nalgebra::{Quaternion, UnitQuaternion};
 use vtsm_core::ncc::Run;
-use vtsm_core::reloc::{Accuracy, MatchPolicy, Outcome, Workspace, WorkspaceSizes};
+use vtsm_core::reloc::{Accuracy, MatchPolicy, Near, Outcome, Search, Workspace, WorkspaceSizes};
 use vtsm_core::FailureCode;
 use vtsm_hal::prior::{Covariance, PriorEstimate};
 use vtsm_hal::runner::{
@@ -450,6 +450,13 @@ pub struct VtsmConfig {
     /// (`Options::final_pairs`; fewer than N_corr is refused with
     /// `VTSM_CONFIG_PARAM_OUT_OF_RANGE`).
     pub final_pairs: u16,
+    /// Revisit (VTSM-RELOC-046; `Options::revisit`): 0 on, the engine's
+    /// default; 1 off (every attempt draws its vertex anywhere in the map).
+    pub revisit_off: u8,
+    /// Near (VTSM-RELOC-047; `Near`): 0 off, the engine's default; 1 on
+    /// (`Near::ON`: fewer attempts under a large lighting change, a less
+    /// exact pose). A zeroed configuration runs `Search::DEFAULT`.
+    pub near: u8,
     /// The devices.
     pub io: VtsmIo,
 }
@@ -489,6 +496,12 @@ pub struct VtsmStats {
     pub ransac_iterations: u32,
     /// Templates rendered.
     pub renders: u32,
+    /// Attempts that measured a Revisit vertex (VTSM-RELOC-046; 0 with
+    /// [`VtsmConfig::revisit_off`]).
+    pub revisited: u32,
+    /// Attempts whose vertex Near drew near an agreeing one (VTSM-RELOC-047;
+    /// 0 unless [`VtsmConfig::near`]).
+    pub near_drawn: u32,
     /// NCC multiply-accumulates.
     pub ncc_macs: u64,
     /// Successful iterations (pose updates).
@@ -558,6 +571,8 @@ impl VtsmOutcome {
                 solves: 0,
                 ransac_iterations: 0,
                 renders: 0,
+                revisited: 0,
+                near_drawn: 0,
                 ncc_macs: 0,
                 successes: 0,
                 stalls: 0,
@@ -596,6 +611,8 @@ impl VtsmOutcome {
                 solves: s.solves,
                 ransac_iterations: s.ransac_iterations,
                 renders: s.pipeline.renders,
+                revisited: s.pipeline.revisited,
+                near_drawn: s.pipeline.near_drawn,
                 ncc_macs: s.pipeline.ncc_macs,
                 successes: s.successes,
                 stalls: s.stalls,
@@ -1068,6 +1085,10 @@ unsafe fn create(
     if cfg.final_pairs != 0 && !(params.n_corr..=max_pairs).contains(&cfg.final_pairs) {
         return Err(FailureCode::ConfigParamOutOfRange);
     }
+    let search = Search {
+        revisit: !flag(cfg.revisit_off)?,
+        near: if flag(cfg.near)? { Near::ON } else { Near::OFF },
+    };
     if cfg.map_len == 0 || u32::try_from(cfg.map_len).is_err() {
         return Err(FailureCode::HalMapTooLarge);
     }
@@ -1109,8 +1130,7 @@ unsafe fn create(
             verify,
             accuracy,
             final_pairs: cfg.final_pairs,
-            // The C configuration has no switch: the engine's default.
-            search: vtsm_core::reloc::Search::DEFAULT,
+            search,
         },
         prior,
         map: cfg.map,
