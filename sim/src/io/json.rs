@@ -13,6 +13,7 @@ use serde::{Deserialize, Serialize};
 use std::path::Path;
 use vtsm_core::config::{PriorUncertainty, MAX_IMAGE_DIM, MAX_R0_DEG, MAX_T0_M};
 use vtsm_core::geom::{self, Camera, Pose, StereoRig};
+use vtsm_core::reloc::MATCH_VARIANTS;
 use vtsm_core::FailureCode;
 
 /// Largest accepted deviation of a quaternion's norm from 1.
@@ -309,8 +310,9 @@ pub struct ResultFile {
 }
 
 /// The engine's work counters as `result.json` writes them (`stats`): the
-/// core's [`vtsm_core::reloc::Stats`] with its pipeline counters, summed over
-/// match variants where the core keeps one counter per variant. Fields in
+/// core's [`vtsm_core::reloc::Stats`] with its pipeline counters; the NCC
+/// matches and acceptances both summed over the match variants and per
+/// variant. Fields in
 /// name order, the order of the file. A reader takes a missing counter as 0
 /// and ignores one it does not know (files of other versions).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -328,10 +330,16 @@ pub struct WorkStats {
     pub gradient_rounds: u64,
     /// NCC matches accepted, over every variant.
     pub ncc_accepted: u64,
+    /// NCC matches accepted per variant, in the order of the core's
+    /// `Variant::index`: gray, Sobel, Laplacian at ℓ, then the same at ℓ/2.
+    pub ncc_accepted_by_variant: [u64; MATCH_VARIANTS],
     /// NCC multiply-accumulates.
     pub ncc_macs: u64,
     /// NCC matches made, over every variant.
     pub ncc_matches: u64,
+    /// NCC matches made per variant (left and right searches), in the
+    /// order of `ncc_accepted_by_variant`.
+    pub ncc_matches_by_variant: [u64; MATCH_VARIANTS],
     /// NCC positions scored.
     pub ncc_positions: u64,
     /// Attempts whose vertex was drawn near an agreeing one (VTSM-RELOC-047).
@@ -392,8 +400,10 @@ impl From<&vtsm_core::reloc::Stats> for WorkStats {
             focused_rounds: s.focused_rounds.into(),
             gradient_rounds: s.gradient_rounds.into(),
             ncc_accepted: sum(&p.accepted),
+            ncc_accepted_by_variant: p.accepted.map(u64::from),
             ncc_macs: p.ncc_macs,
             ncc_matches: sum(&p.matches),
+            ncc_matches_by_variant: p.matches.map(u64::from),
             ncc_positions: p.ncc_positions,
             near_drawn: p.near_drawn.into(),
             near_pairs: p.near_pairs.into(),

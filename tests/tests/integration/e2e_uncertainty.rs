@@ -113,7 +113,38 @@ fn far_prior_stating_its_uncertainty_relocalizes_within_5_cm() {
     // One start: the multi-seed mode stays off.
     assert_eq!(r.stats.seeds_tried, 0);
     assert!(r.stats.focused_rounds >= 1, "{:?}", r.stats);
+    // The per-variant NCC counters add up to the totals; the default policy
+    // runs Sobel and gray at ℓ and ℓ/2, never a Laplacian (indices 2 and 5).
+    let st = &r.stats;
+    assert_eq!(
+        st.ncc_matches_by_variant.iter().sum::<u64>(),
+        st.ncc_matches
+    );
+    assert_eq!(
+        st.ncc_accepted_by_variant.iter().sum::<u64>(),
+        st.ncc_accepted
+    );
+    for (m, a) in st
+        .ncc_matches_by_variant
+        .iter()
+        .zip(&st.ncc_accepted_by_variant)
+    {
+        assert!(a <= m, "{st:?}");
+    }
+    assert!(st.ncc_accepted_by_variant[1] > 0, "{st:?}");
+    assert_eq!(
+        (st.ncc_matches_by_variant[2], st.ncc_matches_by_variant[5]),
+        (0, 0)
+    );
     let text = std::fs::read_to_string(&out).unwrap();
+    // A file written before the per-variant counters reads them as 0.
+    let mut older: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let stats = older["stats"].as_object_mut().unwrap();
+    stats.remove("ncc_matches_by_variant").unwrap();
+    stats.remove("ncc_accepted_by_variant").unwrap();
+    let older = json::parse_result(older.to_string().as_bytes(), &out).unwrap();
+    assert_eq!(older.stats.ncc_matches_by_variant, [0; 6]);
+    assert_eq!(older.stats.ncc_matches, st.ncc_matches);
     assert!(
         text.contains("\"prior_uncertainty\": {\n    \"t_m\": 0.5,\n    \"r_deg\": 1.5\n  }"),
         "{text}"
