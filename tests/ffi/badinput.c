@@ -83,8 +83,8 @@ int bad_input_tests(uint8_t *storage, size_t storage_len) {
     expect("create: verify flag 2", create_with(storage, storage_len, &c), VTSM_CONFIG_PARAM_OUT_OF_RANGE);
     c = good; c.revisit_off = 2;
     expect("create: revisit_off 2", create_with(storage, storage_len, &c), VTSM_CONFIG_PARAM_OUT_OF_RANGE);
-    c = good; c.near = 255;
-    expect("create: near 255", create_with(storage, storage_len, &c), VTSM_CONFIG_PARAM_OUT_OF_RANGE);
+    c = good; c.near_on = 255;
+    expect("create: near_on 255", create_with(storage, storage_len, &c), VTSM_CONFIG_PARAM_OUT_OF_RANGE);
     c = good; c.accuracy_sigma_t_m = 0.005f; /* rotation bound left 0 */
     expect("create: accuracy half given", create_with(storage, storage_len, &c), VTSM_CONFIG_PARAM_OUT_OF_RANGE);
     c = good; c.accuracy_sigma_t_m = -0.005f; c.accuracy_sigma_r_deg = 0.1f;

@@ -231,15 +231,15 @@ int main(void) {
         out.stats.near_drawn != 0 || off.stats.near_drawn != 0)
         failed++;
     VtsmConfig nearby = cfg;
-    nearby.near = 1u;
-    VtsmOutcome near;
+    nearby.near_on = 1u;
+    VtsmOutcome drawn_near;
     rc = vtsm_engine_create(storage, sizeof storage, &nearby, &engine);
-    if (rc == VTSM_OK) rc = vtsm_engine_run(engine, &limits, &near);
+    if (rc == VTSM_OK) rc = vtsm_engine_run(engine, &limits, &drawn_near);
     printf("VTSM-C-NEAR %s: %s, near %lu, revisited %lu, %lu attempts (default: %lu)\n",
-           vtsm_failure_name(rc), vtsm_failure_name(near.failure), (unsigned long)near.stats.near_drawn,
-           (unsigned long)near.stats.revisited, (unsigned long)near.stats.attempts,
+           vtsm_failure_name(rc), vtsm_failure_name(drawn_near.failure), (unsigned long)drawn_near.stats.near_drawn,
+           (unsigned long)drawn_near.stats.revisited, (unsigned long)drawn_near.stats.attempts,
            (unsigned long)out.stats.attempts);
-    if (rc != VTSM_OK || near.failure != VTSM_OK || near.stats.near_drawn == 0 || near.stats.revisited == 0)
+    if (rc != VTSM_OK || drawn_near.failure != VTSM_OK || drawn_near.stats.near_drawn == 0 || drawn_near.stats.revisited == 0)
         failed++;
 
     failed += bad_input_tests(storage, sizeof storage);

@@ -483,8 +483,9 @@ typedef struct VtsmConfig {
     uint8_t revisit_off;
     // Near (VTSM-RELOC-047; `Near`): 0 off, the engine's default; 1 on
     // (`Near::ON`: fewer attempts under a large lighting change, a less
-    // exact pose). A zeroed configuration runs `Search::DEFAULT`.
-    uint8_t near;
+    // exact pose). A zeroed configuration runs `Search::DEFAULT`. (Not
+    // `near`: a Windows header defines that name as an empty macro.)
+    uint8_t near_on;
     // The devices.
     struct VtsmIo io;
 } VtsmConfig;
@@ -524,7 +525,7 @@ typedef struct VtsmStats {
     // [`VtsmConfig::revisit_off`]).
     uint32_t revisited;
     // Attempts whose vertex Near drew near an agreeing one (VTSM-RELOC-047;
-    // 0 unless [`VtsmConfig::near`]).
+    // 0 unless [`VtsmConfig::near_on`]).
     uint32_t near_drawn;
     // NCC multiply-accumulates.
     uint64_t ncc_macs;

@@ -455,8 +455,9 @@ pub struct VtsmConfig {
     pub revisit_off: u8,
     /// Near (VTSM-RELOC-047; `Near`): 0 off, the engine's default; 1 on
     /// (`Near::ON`: fewer attempts under a large lighting change, a less
-    /// exact pose). A zeroed configuration runs `Search::DEFAULT`.
-    pub near: u8,
+    /// exact pose). A zeroed configuration runs `Search::DEFAULT`. (Not
+    /// `near`: a Windows header defines that name as an empty macro.)
+    pub near_on: u8,
     /// The devices.
     pub io: VtsmIo,
 }
@@ -500,7 +501,7 @@ pub struct VtsmStats {
     /// [`VtsmConfig::revisit_off`]).
     pub revisited: u32,
     /// Attempts whose vertex Near drew near an agreeing one (VTSM-RELOC-047;
-    /// 0 unless [`VtsmConfig::near`]).
+    /// 0 unless [`VtsmConfig::near_on`]).
     pub near_drawn: u32,
     /// NCC multiply-accumulates.
     pub ncc_macs: u64,
@@ -1087,7 +1088,11 @@ unsafe fn create(
     }
     let search = Search {
         revisit: !flag(cfg.revisit_off)?,
-        near: if flag(cfg.near)? { Near::ON } else { Near::OFF },
+        near: if flag(cfg.near_on)? {
+            Near::ON
+        } else {
+            Near::OFF
+        },
     };
     if cfg.map_len == 0 || u32::try_from(cfg.map_len).is_err() {
         return Err(FailureCode::HalMapTooLarge);
