@@ -200,7 +200,14 @@ fn result_file_has_the_design_fields() {
     assert_eq!(v["inliers"], 87);
     assert_eq!(v["iterations"], 5);
     assert_eq!(v["stats"]["renders"], 12);
-    assert_eq!(v["stats"].as_object().unwrap().len(), 31);
+    assert_eq!(v["stats"].as_object().unwrap().len(), 33);
+    assert_eq!(
+        v["stats"]["ncc_matches_by_variant"]
+            .as_array()
+            .unwrap()
+            .len(),
+        6
+    );
     assert_eq!(v["covariance"].as_array().unwrap().len(), 36);
     assert_eq!(v["covariance"][7], 1e-6);
     assert_eq!(v["verified"]["repeat_solve"], true);
