@@ -132,6 +132,15 @@ uint64_t outcome_digest(const VtsmOutcome *o) {
     return h;
 }
 
+/* One relocalization of `c` to completion in the static storage: the
+ * create's code when it fails, else the run's. */
+static uint16_t run_config(const VtsmConfig *c, const VtsmLimits *limits, VtsmOutcome *out) {
+    VtsmEngine *engine = NULL;
+    uint16_t rc = vtsm_engine_create(storage, sizeof storage, c, &engine);
+    if (rc == VTSM_OK) rc = vtsm_engine_run(engine, limits, out);
+    return rc;
+}
+
 int main(void) {
     int failed = 0;
     Devices dev = scene_devices();
@@ -192,8 +201,7 @@ int main(void) {
     loose.accuracy_sigma_t_m = 0.02f;
     loose.accuracy_sigma_r_deg = 0.5f;
     VtsmOutcome early;
-    rc = vtsm_engine_create(storage, sizeof storage, &loose, &engine);
-    if (rc == VTSM_OK) rc = vtsm_engine_run(engine, &limits, &early);
+    rc = run_config(&loose, &limits, &early);
     printf("VTSM-C-ACCURACY %s: %s, %u pose updates, %u saved, attempts %lu (all updates: %lu)\n",
            vtsm_failure_name(rc), vtsm_failure_name(early.failure), (unsigned)early.stats.successes,
            (unsigned)early.stats.rounds_saved, (unsigned long)early.stats.attempts,
@@ -207,8 +215,7 @@ int main(void) {
     VtsmConfig wide = cfg;
     wide.final_pairs = (uint16_t)(cfg.params.n_corr + cfg.params.n_corr / 2u);
     VtsmOutcome more;
-    rc = vtsm_engine_create(storage, sizeof storage, &wide, &engine);
-    if (rc == VTSM_OK) rc = vtsm_engine_run(engine, &limits, &more);
+    rc = run_config(&wide, &limits, &more);
     printf("VTSM-C-FINAL-PAIRS %s: %s, final_pairs %u, %lu attempts (N_corr: %lu), %u inliers\n",
            vtsm_failure_name(rc), vtsm_failure_name(more.failure), (unsigned)wide.final_pairs,
            (unsigned long)more.stats.attempts, (unsigned long)out.stats.attempts, (unsigned)more.inliers);
@@ -221,8 +228,7 @@ int main(void) {
     VtsmConfig plain = cfg;
     plain.revisit_off = 1u;
     VtsmOutcome off;
-    rc = vtsm_engine_create(storage, sizeof storage, &plain, &engine);
-    if (rc == VTSM_OK) rc = vtsm_engine_run(engine, &limits, &off);
+    rc = run_config(&plain, &limits, &off);
     printf("VTSM-C-REVISIT-OFF %s: %s, revisited %lu (default: %lu), near %lu, %lu attempts (default: %lu)\n",
            vtsm_failure_name(rc), vtsm_failure_name(off.failure), (unsigned long)off.stats.revisited,
            (unsigned long)out.stats.revisited, (unsigned long)off.stats.near_drawn,
@@ -233,8 +239,7 @@ int main(void) {
     VtsmConfig nearby = cfg;
     nearby.near_on = 1u;
     VtsmOutcome drawn_near;
-    rc = vtsm_engine_create(storage, sizeof storage, &nearby, &engine);
-    if (rc == VTSM_OK) rc = vtsm_engine_run(engine, &limits, &drawn_near);
+    rc = run_config(&nearby, &limits, &drawn_near);
     printf("VTSM-C-NEAR %s: %s, near %lu, revisited %lu, %lu attempts (default: %lu)\n",
            vtsm_failure_name(rc), vtsm_failure_name(drawn_near.failure), (unsigned long)drawn_near.stats.near_drawn,
            (unsigned long)drawn_near.stats.revisited, (unsigned long)drawn_near.stats.attempts,
