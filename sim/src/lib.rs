@@ -24,6 +24,7 @@ pub mod mapscore;
 pub mod panel;
 pub mod progress;
 pub mod rectify;
+pub mod relight;
 pub mod render;
 pub mod scene;
 pub mod terrain;
