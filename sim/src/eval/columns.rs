@@ -220,6 +220,58 @@ const SCORE_NAMES: [[&str; 2]; 10] = [
     ["score_d9_attempts", "score_d9_correct"],
 ];
 
+/// Matches per template variant (`--variant-counts`), in the order of the
+/// engine's `ncc_matches_by_variant`: gray, Sobel, Laplacian at ℓ, then the
+/// same at ℓ/2.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct VariantColumns {
+    /// Template searches of the variant (the engine's count).
+    pub matches: [u32; VARIANTS],
+    /// Attempts whose correspondence came from the variant.
+    pub accepted: [u32; VARIANTS],
+    /// Of those, the ones within `max(3σ, 1 cm)` of the vertex's true
+    /// position in the camera.
+    pub correct: [u32; VARIANTS],
+}
+
+/// Template variants counted by [`VariantColumns`].
+pub const VARIANTS: usize = vtsm_core::reloc::MATCH_VARIANTS;
+
+/// Column names of [`VariantColumns`]: matches, accepted, correct of
+/// variant k.
+pub const VARIANT_NAMES: [[&str; 3]; VARIANTS] = [
+    [
+        "variant_0_matches",
+        "variant_0_accepted",
+        "variant_0_correct",
+    ],
+    [
+        "variant_1_matches",
+        "variant_1_accepted",
+        "variant_1_correct",
+    ],
+    [
+        "variant_2_matches",
+        "variant_2_accepted",
+        "variant_2_correct",
+    ],
+    [
+        "variant_3_matches",
+        "variant_3_accepted",
+        "variant_3_correct",
+    ],
+    [
+        "variant_4_matches",
+        "variant_4_accepted",
+        "variant_4_correct",
+    ],
+    [
+        "variant_5_matches",
+        "variant_5_accepted",
+        "variant_5_correct",
+    ],
+];
+
 /// What a caller's accuracy (`--accuracy`) saved.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct AccuracyColumns {
@@ -283,6 +335,8 @@ pub struct TrialColumns {
     pub verify: Option<VerifyColumns>,
     /// Set by a VTSM relocalization under `--score-deciles`.
     pub scores: Option<ScoreColumns>,
+    /// Set by a VTSM relocalization under `--variant-counts`.
+    pub variants: Option<VariantColumns>,
     /// Set by the feature baseline.
     pub features: Option<FeatureColumns>,
 }
@@ -341,6 +395,15 @@ impl TrialColumns {
                 ("verify_repeat_solve", f64::from(u8::from(v.repeat_solve))),
                 ("verify_recheck_map", f64::from(u8::from(v.recheck_map))),
             ]);
+        }
+        if let Some(v) = &self.variants {
+            for (k, [m, a, c]) in VARIANT_NAMES.iter().enumerate() {
+                out.extend([
+                    (*m, f64::from(v.matches[k])),
+                    (*a, f64::from(v.accepted[k])),
+                    (*c, f64::from(v.correct[k])),
+                ]);
+            }
         }
         if let Some(sc) = &self.scores {
             for (k, [a, c]) in SCORE_NAMES.iter().enumerate() {

@@ -200,6 +200,16 @@ pub struct Args {
     /// `score_d<k>_correct`; the notes' decile table).
     #[arg(long)]
     pub score_deciles: bool,
+    /// Relight each group's map from the mapping sun to its live pairs' sun
+    /// before matching ([`crate::relight`]; `on`), or match the map as made
+    /// (`off`, the default).
+    #[arg(long, value_enum, ignore_case = true, default_value_t = super::super::OnOff::Off)]
+    pub relight: super::super::OnOff,
+    /// Count each VTSM trial's matches, accepted matches and correct
+    /// matches per template variant (columns `variant_<k>_matches`,
+    /// `_accepted`, `_correct`; the notes' variant table).
+    #[arg(long)]
+    pub variant_counts: bool,
     /// Live pairs in the physical form of `vtsm scene export --physical`
     /// (distorted, slightly rotated cameras, OpenCV calibration), rectified on
     /// the host as `vtsm relocalize` does; errors are those of the physical
@@ -289,6 +299,8 @@ impl Args {
             search: super::super::SearchArgs::default(),
             map_scores: super::super::MapScoresArg::default(),
             score_deciles: false,
+            relight: super::super::OnOff::Off,
+            variant_counts: false,
             physical: false,
             interp: Interp::Lanczos4,
             light_model: LightModelArg::Full,
@@ -362,6 +374,8 @@ pub fn config_from_args(args: &Args) -> Result<SuiteConfig> {
     cfg.search = args.search.search();
     cfg.map_scores = args.map_scores.on();
     cfg.score_deciles = args.score_deciles;
+    cfg.relight = args.relight == super::super::OnOff::On;
+    cfg.variant_counts = args.variant_counts;
     cfg.physical = args.physical;
     cfg.interp = args.interp;
     cfg.light_model = args.light_model.into();

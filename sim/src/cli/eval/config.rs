@@ -119,6 +119,10 @@ pub struct SuiteConfig {
     /// the map's scores (`--score-deciles`; scores computed whether or not
     /// the map carries them).
     pub score_deciles: bool,
+    /// Each group's map relit to its live pairs' sun (`--relight on`).
+    pub relight: bool,
+    /// Count matches per template variant (`--variant-counts`).
+    pub variant_counts: bool,
     /// Run only this shard of the campaign's trials (`--shard K/N`).
     pub shard: Option<super::shard::Shard>,
     /// The data set directory (`dataset` only, `--data`).
@@ -158,6 +162,8 @@ impl SuiteConfig {
             camera: crate::effects::CameraEffects::NONE,
             map_scores: false,
             score_deciles: false,
+            relight: false,
+            variant_counts: false,
             shard: None,
             data: None,
             panels: None,

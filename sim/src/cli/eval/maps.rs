@@ -5,7 +5,10 @@ use super::protocol::TILE_M;
 use crate::error::{Error, Result};
 use crate::io::mesh::MeshData;
 use crate::mapscore;
+use crate::relight::{relit_mesh, RelightOptions, RelightStats, SunAngles};
+use crate::render::Sun;
 use std::borrow::Cow;
+use std::sync::Arc;
 use vtsm_core::geom::Pose;
 
 /// One map product and the mapping views its distances are measured to.
@@ -19,6 +22,9 @@ pub struct MapEntry {
     /// The decile of each mask vertex's sampling score, by mask index
     /// (empty unless asked for: `--score-deciles`).
     pub deciles: Vec<u8>,
+    /// The mesh the product was encoded from and the sun it was mapped
+    /// under, kept for `--relight on` ([`MapEntry::relit`]).
+    pub source: Option<(Arc<MeshData>, SunAngles)>,
 }
 
 /// What a suite's maps carry beyond the mesh.
@@ -66,7 +72,58 @@ impl MapEntry {
             views,
             origin,
             deciles,
+            source: None,
         }
+    }
+
+    /// Keep `mesh` and its mapping `sun` for relighting when `keep`
+    /// (`--relight on`).
+    pub fn with_source(self, mesh: &MeshData, sun: &Sun, keep: bool) -> Self {
+        Self {
+            source: keep.then(|| {
+                (
+                    Arc::new(mesh.clone()),
+                    SunAngles {
+                        azimuth_deg: sun.azimuth_deg,
+                        elevation_deg: sun.elevation_deg,
+                    },
+                )
+            }),
+            ..self
+        }
+    }
+
+    /// This map relit to `sun` and encoded as `scoring` asks, with the same
+    /// views; `None` when no source was kept.
+    pub fn relit(
+        &self,
+        sun: &Sun,
+        scoring: Scoring,
+        offset: Option<[f64; 3]>,
+    ) -> Option<(Self, Option<RelightStats>)> {
+        let (mesh, map_sun) = self.source.as_ref()?;
+        let to = SunAngles {
+            azimuth_deg: sun.azimuth_deg,
+            elevation_deg: sun.elevation_deg,
+        };
+        Some(
+            match relit_mesh(mesh, *map_sun, to, &RelightOptions::default()) {
+                Ok((m, stats)) => (
+                    Self::encode(&m, offset, self.views.clone(), scoring),
+                    Some(stats),
+                ),
+                Err(e) => (
+                    Self {
+                        bytes: Err(format!("relighting: {e}")),
+                        views: self.views.clone(),
+                        origin: self.origin,
+                        deciles: Vec::new(),
+                        source: None,
+                    },
+                    None,
+                ),
+            },
+        )
     }
 }
 

@@ -5,15 +5,17 @@ use super::config::{Method, SuiteConfig};
 use super::depot::Depot;
 use super::figures;
 use super::group::with_baseline_groups;
+use super::maps::MapEntry;
 use super::plot::Figure;
 use super::protocol::{MAP_VIEW_RANGE_M, PRIOR_MAX_DEG, TILE_M};
 use super::suites::SuiteDef;
-use super::tables::{integrity_table, score_decile_table, side_by_side};
+use super::tables::{integrity_table, score_decile_table, side_by_side, variant_table};
 use super::trial::{run_trial, Shared, Spec};
 use crate::cli::demo::MAP_HOURS;
 use crate::error::{Error, Result};
 use crate::eval::{self, GroupSummary, RunMeta, TrialOutcome};
 use crate::locate;
+use rayon::prelude::*;
 use std::time::Instant;
 
 /// A finished suite run.
@@ -73,7 +75,13 @@ pub fn run_suite_journaled(
     let t_setup = Instant::now();
     let depot = Depot::build(cfg, def.live_hours(cfg), &def.worlds(cfg));
     let maps = def.maps(cfg, &depot);
-    let groups = with_baseline_groups(def.groups(cfg, &depot, &maps), cfg.baseline);
+    let groups = def.groups(cfg, &depot, &maps);
+    let (maps, groups) = if cfg.relight {
+        relit_groups(cfg, &depot, maps, groups)
+    } else {
+        (maps, groups)
+    };
+    let groups = with_baseline_groups(groups, cfg.baseline);
     let setup_s = t_setup.elapsed().as_secs_f64();
     let meta = run_meta(cfg, def, &depot, command);
     let shared = Shared {
@@ -85,6 +93,48 @@ pub fn run_suite_journaled(
     run_campaign(cfg, meta, groups.len(), journal, setup_s, |group, k| {
         run_trial(&shared, &Spec { group, k })
     })
+}
+
+/// `--relight on`: every group's map relit to the sun of its live pairs,
+/// one product per distinct (map, lighting), appended to `maps`, and the
+/// groups pointed at them. A map whose source was not kept (a suite with
+/// maps of its own, as `dataset`) stays as made.
+fn relit_groups(
+    cfg: &SuiteConfig,
+    depot: &Depot,
+    mut maps: Vec<MapEntry>,
+    mut groups: Vec<super::group::Group>,
+) -> (Vec<MapEntry>, Vec<super::group::Group>) {
+    let mut keys: Vec<(usize, usize)> = Vec::new();
+    for g in &groups {
+        if !keys.contains(&(g.map, g.light)) {
+            keys.push((g.map, g.light));
+        }
+    }
+    let scoring = super::maps::Scoring::of(cfg);
+    let relit: Vec<Option<MapEntry>> = keys
+        .par_iter()
+        .map(|&(m, l)| {
+            let sun = &depot.lights.get(l)?.sun;
+            maps.get(m)?
+                .relit(sun, scoring, cfg.origin)
+                .map(|(entry, _)| entry)
+        })
+        .collect();
+    let mut index = vec![None; keys.len()];
+    for (k, r) in relit.into_iter().enumerate() {
+        if let Some(entry) = r {
+            index[k] = Some(maps.len());
+            maps.push(entry);
+        }
+    }
+    for g in &mut groups {
+        let k = keys.iter().position(|&key| key == (g.map, g.light));
+        if let Some(Some(m)) = k.map(|k| index[k]) {
+            g.map = m;
+        }
+    }
+    (maps, groups)
 }
 
 /// Run the campaign of `groups` groups of `cfg.trials` trials described by
@@ -209,6 +259,7 @@ pub(super) fn finish(
     let mut notes = cfg.suite.def().notes(&outcomes);
     notes.push_str(&integrity_table(&outcomes));
     notes.push_str(&score_decile_table(&outcomes));
+    notes.push_str(&variant_table(&outcomes));
     if let Some(m) = cfg.baseline {
         notes = side_by_side(&summary, m) + &notes;
     }

@@ -181,6 +181,64 @@ pub fn view_dist_m(o: &TrialOutcome) -> f64 {
     o.columns.view.map_or(f64::NAN, |v| v.dist_m)
 }
 
+/// Matches per template variant (`--variant-counts`), one row per group:
+/// for each variant, the correspondences it gave per attempt and the share
+/// of them that were correct (within `max(3σ, 1 cm)` of the truth). Empty
+/// when no trial counted them.
+pub fn variant_table(outcomes: &[TrialOutcome]) -> String {
+    use crate::eval::columns::{VariantColumns, VARIANTS};
+    let mut groups: Vec<(&str, u64, VariantColumns)> = Vec::new();
+    for o in outcomes {
+        let (Some(v), Some(e)) = (&o.columns.variants, &o.columns.engine) else {
+            continue;
+        };
+        let at = match groups.iter().position(|(g, _, _)| *g == o.group) {
+            Some(i) => i,
+            None => {
+                groups.push((&o.group, 0, VariantColumns::default()));
+                groups.len() - 1
+            }
+        };
+        let (_, attempts, sum) = &mut groups[at];
+        *attempts += u64::from(e.attempts);
+        for k in 0..VARIANTS {
+            sum.matches[k] += v.matches[k];
+            sum.accepted[k] += v.accepted[k];
+            sum.correct[k] += v.correct[k];
+        }
+    }
+    if groups.is_empty() {
+        return String::new();
+    }
+    let mut s = String::from(
+        "\nCorrespondences per attempt by template variant, and the share of them correct (gray, Sobel, Laplacian at ℓ, then at ℓ/2; all trials of the group):\n\n| group | attempts | gray | Sobel | Laplacian | gray ℓ/2 | Sobel ℓ/2 | Laplacian ℓ/2 | all |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for (g, attempts, v) in &groups {
+        let n = (*attempts).max(1) as f64;
+        let cell = |a: u32, c: u32| {
+            if a == 0 {
+                "0".to_string()
+            } else {
+                format!(
+                    "{:.3} ({:.0} %)",
+                    f64::from(a) / n,
+                    100.0 * f64::from(c) / f64::from(a)
+                )
+            }
+        };
+        let _ = write!(s, "| {g} | {attempts} |");
+        for k in 0..VARIANTS {
+            let _ = write!(s, " {} |", cell(v.accepted[k], v.correct[k]));
+        }
+        let (a, c) = (
+            v.accepted.iter().sum::<u32>(),
+            v.correct.iter().sum::<u32>(),
+        );
+        let _ = writeln!(s, " {} |", cell(a, c));
+    }
+    s
+}
+
 /// Correct matches per attempt by decile of the map's sampling scores
 /// (`--score-deciles`), one row per group: what the scores predict. Empty
 /// when no trial counted them.

@@ -342,8 +342,21 @@ pub(super) fn run_vtsm(
     deciles: Option<&[u8]>,
 ) -> Option<(Pose, u16)> {
     let mut counts = crate::eval::columns::ScoreColumns::default();
+    let mut variants = crate::eval::columns::VariantColumns::default();
     let truth = frame.local_truth();
     let mut count = |s: crate::workers::SampleRecord| {
+        if let Ok(c) = &s.result {
+            let v = usize::from(c.variant);
+            let ok = truth.is_some_and(|t| {
+                let want = t.inverse().transform_point(&c.world);
+                (c.cam - want).norm() <= (3.0 * c.sigma_m).max(0.01)
+            });
+            if let (Some(a), Some(r)) = (variants.accepted.get_mut(v), variants.correct.get_mut(v))
+            {
+                *a += 1;
+                *r += u32::from(ok);
+            }
+        }
         let (Some(dec), Some(k)) = (deciles, s.mask_index) else {
             return;
         };
@@ -358,13 +371,21 @@ pub(super) fn run_vtsm(
             }
         }
     };
-    let opts = match deciles {
-        Some(_) => RunOptions::default().samples(&mut count),
-        None => RunOptions::default(),
+    let record = deciles.is_some() || cfg.variant_counts;
+    let opts = if record {
+        RunOptions::default().samples(&mut count)
+    } else {
+        RunOptions::default()
     };
     let r = locate::relocalize(req, opts);
     if deciles.is_some() {
         o.columns.scores = Some(counts);
+    }
+    if cfg.variant_counts {
+        if let Ok(r) = &r {
+            variants.matches = r.outcome.stats.pipeline.matches;
+        }
+        o.columns.variants = Some(variants);
     }
     let r = match r {
         Ok(r) => r,

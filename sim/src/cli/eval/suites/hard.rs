@@ -292,11 +292,11 @@ impl SuiteDef for Hard {
         maps.par_extend(keys.par_iter().map(|&(t, (hours, k))| {
             let scene = depot.scenes[t].clone().with_map_coarse(k);
             let views = mapping_trajectory(&scene.terrain, Trajectory::Wave, 1);
-            MapEntry::encode(
-                &mapped_mesh(cfg, &scene, hours),
-                cfg.origin,
-                views,
-                Scoring::of(cfg),
+            let mesh = mapped_mesh(cfg, &scene, hours);
+            MapEntry::encode(&mesh, cfg.origin, views, Scoring::of(cfg)).with_source(
+                &mesh,
+                &Sun::depot(hours),
+                cfg.relight,
             )
         }));
         maps

@@ -129,7 +129,11 @@ pub fn full_maps(cfg: &SuiteConfig, depot: &Depot) -> Vec<MapEntry> {
         .zip(&depot.meshes)
         .map(|(s, m)| {
             let views = mapping_trajectory(&s.terrain, Trajectory::Wave, 1);
-            MapEntry::encode(m, cfg.origin, views, Scoring::of(cfg))
+            MapEntry::encode(m, cfg.origin, views, Scoring::of(cfg)).with_source(
+                m,
+                &crate::render::Sun::depot(crate::cli::demo::MAP_HOURS),
+                cfg.relight,
+            )
         })
         .collect()
 }

@@ -56,7 +56,11 @@ impl SuiteDef for Stepsize {
                 let s = &depot.scenes[t];
                 let views = mapping_trajectory(&s.terrain, traj, step);
                 let mesh = restrict_to_views(&depot.meshes[t], &s.camera(), &views);
-                MapEntry::encode(&mesh, cfg.origin, views, Scoring::of(cfg))
+                MapEntry::encode(&mesh, cfg.origin, views, Scoring::of(cfg)).with_source(
+                    &mesh,
+                    &crate::render::Sun::depot(crate::cli::demo::MAP_HOURS),
+                    cfg.relight,
+                )
             })
             .collect()
     }
