@@ -51,6 +51,10 @@ pub struct MapSpec {
     /// Score the product built from `mesh` for SamplePoint
     /// ([`crate::mapscore`], version 3; `--map-scores on`).
     pub scores: bool,
+    /// The sun the map was made under (`--map-sun`): with a prior that
+    /// states the capture-time sun, each pair's map is relit to it
+    /// ([`crate::relight`]).
+    pub sun: Option<crate::relight::SunAngles>,
 }
 
 /// One relocalization job besides its pairs.
@@ -229,6 +233,12 @@ pub struct Inputs {
     pub physical: Option<Rectifier>,
     /// The map's origin in the user frame ([`MapView::origin`]).
     pub origin: [f64; 3],
+    /// The capture-time sun the prior states (`None` from a prior without
+    /// one).
+    pub sun: Option<crate::relight::SunAngles>,
+    /// The sun the map was made under (`None` from [`load_inputs`]; a job
+    /// sets its [`MapSpec::sun`]). With [`Inputs::sun`] the map is relit.
+    pub map_sun: Option<crate::relight::SunAngles>,
 }
 
 /// Load and check the images and prior of `pair` with the calibration
@@ -277,6 +287,8 @@ pub fn load_inputs(
         threads: 1,
         physical,
         origin,
+        sun: prior_file.sun,
+        map_sun: None,
     })
 }
 
@@ -325,6 +337,22 @@ pub struct Ran {
 /// # Errors
 /// Inputs the core rejects (image sizes, parameters), with their codes.
 pub fn run_engine(map: MapView<'_>, inputs: &Inputs) -> Result<Ran> {
+    let relit;
+    let map = match (inputs.map_sun, inputs.sun) {
+        (Some(from), Some(to)) => {
+            relit = crate::relight::relit_product(
+                &map,
+                from,
+                to,
+                &crate::relight::RelightOptions::default(),
+            )?
+            .0;
+            MapView::new_checked(&relit).map_err(|c| {
+                Error::msg(format!("the relit map was refused: {}", c.name())).with_code(c)
+            })?
+        }
+        _ => map,
+    };
     let req = Request::new(
         map,
         &inputs.left.pixels,
@@ -454,6 +482,7 @@ pub fn run_pair(
         final_pairs: spec.final_pairs,
         search: spec.search,
         threads: spec.threads,
+        map_sun: spec.map.sun,
         ..load_inputs(&map, calib, pair, spec.verify)?
     };
     let ran = run_engine(map, &inputs)?;

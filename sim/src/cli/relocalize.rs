@@ -78,6 +78,13 @@ pub struct Args {
     /// (a product given with `--map` carries its own scores or none).
     #[command(flatten)]
     pub map_scores: super::MapScoresArg,
+    /// The sun the map was made under, `AZIMUTH,ELEVATION` in degrees in the
+    /// map's frame (azimuth clockwise from `+y`, elevation above the `xy`
+    /// plane). A pair whose prior states its capture-time `sun` is then
+    /// matched against the map relit to that sun; without it, or without a
+    /// `sun` in the prior, the map is matched as made.
+    #[arg(long, value_name = "AZ,EL", value_parser = parse_sun)]
+    pub map_sun: Option<crate::relight::SunAngles>,
     /// `--threads N`: the threads each pair's attempts run on (same result).
     #[command(flatten)]
     pub threads: super::ThreadsArg,
@@ -127,6 +134,11 @@ pub fn check_args(args: &Args) -> Result<()> {
     Ok(())
 }
 
+/// `--map-sun AZ,EL`.
+fn parse_sun(s: &str) -> std::result::Result<crate::relight::SunAngles, String> {
+    crate::relight::SunAngles::parse(s)
+}
+
 impl Args {
     /// The job these arguments describe (everything but the pairs).
     ///
@@ -144,6 +156,7 @@ impl Args {
                 origin: self.origin,
                 tile_size_m: self.tile_size_m,
                 scores: self.map_scores.on(),
+                sun: self.map_sun,
             },
             verify: self.verify.checks(),
             accuracy: self.accuracy.accuracy,
@@ -211,6 +224,7 @@ pub fn with_inputs<R>(
         final_pairs: spec.final_pairs,
         search: spec.search,
         threads: spec.threads,
+        map_sun: spec.map.sun,
         ..job::load_inputs(&map, &calib, &pair, spec.verify)?
     };
     f(map, &inputs)

@@ -144,6 +144,8 @@ pub fn run(args: &Args) -> Result<u8> {
         "baseline_m": args.baseline, "wind": args.wind, "map_coarse": args.map_coarse,
         "change": change.label(), "camera": camera.label(), "sun_elevation_deg": light.sun.elevation_deg,
         "sun_azimuth_deg": light.sun.azimuth_deg, "triangles": map.triangles.len(),
+        "map_sun_elevation_deg": map_light.sun.elevation_deg,
+        "map_sun_azimuth_deg": map_light.sun.azimuth_deg,
         "masked_triangles": map.mask.iter().filter(|&&m| m).count(),
         "physical": args.physical,
     });
@@ -155,6 +157,10 @@ pub fn run(args: &Args) -> Result<u8> {
         prior: &prior,
         truth: &truth,
         meta,
+        sun: Some(crate::relight::SunAngles {
+            azimuth_deg: light.sun.azimuth_deg,
+            elevation_deg: light.sun.elevation_deg,
+        }),
     };
     let t4 = Instant::now();
     match &calib_text {

@@ -275,6 +275,12 @@ pub struct PoseFile {
     /// paper's 0.20 m, 1.5°). Read but not used in `truth.json`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub uncertainty: Option<UncertaintyJson>,
+    /// The sun at capture time, in the map's frame (`azimuth_deg` clockwise
+    /// from `+y`, `elevation_deg` above the `xy` plane); absent: the map is
+    /// matched as made. With the map's own sun (`--map-sun`) the map is
+    /// relit to it ([`crate::relight`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sun: Option<crate::relight::SunAngles>,
 }
 
 /// `result.json`, written by `vtsm relocalize` and `vtsm demo`.
@@ -545,6 +551,16 @@ pub fn parse_prior(bytes: &[u8], path: &Path) -> Result<PoseFile> {
             .with_code(FailureCode::HalPriorInvalid)
         })?;
     }
+    if let Some(s) = &f.sun {
+        s.check().map_err(|why| {
+            let msg = format!("`sun`: {why}");
+            match key_line(&text(), "sun") {
+                Some(l) => Error::at(path, l, msg),
+                None => Error::file(path, msg),
+            }
+            .with_code(FailureCode::HalPriorInvalid)
+        })?;
+    }
     Ok(f)
 }
 
@@ -577,6 +593,7 @@ pub fn pose_file_text(pose: &Pose) -> String {
     let f = PoseFile {
         world_from_left: PoseJson::from_pose(pose),
         uncertainty: None,
+        sun: None,
     };
     serde_json::to_string_pretty(&f).unwrap_or_default() + "\n"
 }

@@ -75,6 +75,7 @@ impl Default for RelightOptions {
 /// A sun direction: azimuth clockwise from the map's `+y` ("north") and
 /// elevation above its `xy` plane, degrees.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct SunAngles {
     /// Azimuth clockwise from `+y`, degrees.
     pub azimuth_deg: f32,
@@ -314,10 +315,20 @@ impl ShadowMap {
     }
 }
 
-/// Area-weighted vertex normals, each face turned to `+z`.
-fn vertex_normals(mesh: &MeshData) -> Vec<[f32; 3]> {
+/// The triangles of `mesh` in a canonical order (by vertex indices, then
+/// UV bits): a mesh and the map product made from it (whose triangles come
+/// in tile order) are relit bit for bit alike.
+fn canonical_order(mesh: &MeshData) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..mesh.triangles.len().min(mesh.uvs.len())).collect();
+    order.sort_by_key(|&i| (mesh.triangles[i], mesh.uvs[i].map(|c| c.map(f32::to_bits))));
+    order
+}
+
+/// Area-weighted vertex normals, each face turned to `+z`, summed in
+/// `order`.
+fn vertex_normals(mesh: &MeshData, order: &[usize]) -> Vec<[f32; 3]> {
     let mut n = vec![[0.0f32; 3]; mesh.vertices.len()];
-    for t in &mesh.triangles {
+    for t in order.iter().map(|&i| &mesh.triangles[i]) {
         let p = t.map(|k| mesh.vertices[k as usize]);
         let a = [0, 1, 2].map(|k| p[1][k] - p[0][k]);
         let b = [0, 1, 2].map(|k| p[2][k] - p[0][k]);
@@ -337,13 +348,14 @@ fn vertex_normals(mesh: &MeshData) -> Vec<[f32; 3]> {
         .collect()
 }
 
-/// Half the median triangle edge length (the shadow maps' cell), metres.
-fn shadow_cell(mesh: &MeshData) -> f32 {
-    let step = (mesh.triangles.len() / 4096).max(1);
-    let mut e: Vec<f32> = mesh
-        .triangles
+/// Half the median triangle edge length (the shadow maps' cell), metres,
+/// over at most ~4096 triangles taken in `order`.
+fn shadow_cell(mesh: &MeshData, order: &[usize]) -> f32 {
+    let step = (order.len() / 4096).max(1);
+    let mut e: Vec<f32> = order
         .iter()
         .step_by(step)
+        .map(|&i| &mesh.triangles[i])
         .flat_map(|t| {
             let p = t.map(|k| mesh.vertices[k as usize]);
             [(0, 1), (1, 2), (2, 0)].map(|(a, b)| {
@@ -394,14 +406,15 @@ pub fn relight(
     if !(opts.ambient > 0.0 && opts.gamma > 0.0 && opts.max_ratio >= 1.0) {
         return Err(Error::msg("relighting options out of range").with_code(code));
     }
-    let cell = shadow_cell(mesh);
+    let order = canonical_order(mesh);
+    let cell = shadow_cell(mesh, &order);
     let no_surface = || {
         Error::msg("the mesh has no extent to cast shadows").with_code(FailureCode::MapNoSurface)
     };
     let (sm, sc) = (map_sun.dir(), capture_sun.dir());
     let shadow_map = ShadowMap::build(mesh, sm, cell).ok_or_else(no_surface)?;
     let shadow_cap = ShadowMap::build(mesh, sc, cell).ok_or_else(no_surface)?;
-    let normals = vertex_normals(mesh);
+    let normals = vertex_normals(mesh, &order);
     let lin_lut: Vec<f32> = (0..256)
         .map(|t| (t as f32 / 255.0).powf(opts.gamma))
         .collect();
@@ -412,7 +425,7 @@ pub fn relight(
         ..RelightStats::default()
     };
     let (mut shadowed_map, mut shadowed_cap) = (0usize, 0usize);
-    for (t, uv) in mesh.triangles.iter().zip(&mesh.uvs) {
+    for (t, uv) in order.iter().map(|&i| (&mesh.triangles[i], &mesh.uvs[i])) {
         let p = t.map(|k| mesh.vertices[k as usize]);
         let n = t.map(|k| normals[k as usize]);
         let q = uv.map(|c| [c[0] * w as f32, (1.0 - c[1]) * h as f32]);
@@ -500,6 +513,85 @@ pub fn relit_mesh(
         },
         stats,
     ))
+}
+
+/// The textured mesh a checked map product holds: its vertices (local
+/// frame), triangles (in the product's tile order), UVs (normalized, OBJ
+/// convention), mask flags, texture and origin.
+///
+/// # Errors
+/// A record the checked view cannot give (not expected of a checked
+/// product), with `MAP_INCONSISTENT`.
+pub fn mesh_of_product(view: &vtsm_core::map::MapView<'_>) -> Result<MeshData> {
+    let bad =
+        || Error::msg("map product record out of range").with_code(FailureCode::MapInconsistent);
+    let vertices = (0..view.vertex_count())
+        .map(|i| view.vertex(i).map(|v| [v.x, v.y, v.z]).ok_or_else(bad))
+        .collect::<Result<Vec<_>>>()?;
+    let tex = view.texture();
+    let (w, h) = (tex.width() as f32, tex.height() as f32);
+    let mut triangles = Vec::with_capacity(view.triangle_count() as usize);
+    let mut uvs = Vec::with_capacity(triangles.capacity());
+    let mut mask = Vec::with_capacity(triangles.capacity());
+    for i in 0..view.triangle_count() {
+        let t = view.triangle(i).ok_or_else(bad)?;
+        triangles.push(t.v);
+        uvs.push(t.uv.map(|c| [(c[0] + 0.5) / w, 1.0 - (c[1] + 0.5) / h]));
+        mask.push(t.mask);
+    }
+    let mut pixels = Vec::with_capacity(tex.width() * tex.height());
+    for y in 0..tex.height() {
+        pixels.extend_from_slice(tex.row(y).ok_or_else(bad)?);
+    }
+    Ok(MeshData {
+        vertices,
+        triangles,
+        uvs,
+        mask,
+        texture: Gray8 {
+            width: tex.width() as u32,
+            height: tex.height() as u32,
+            pixels,
+        },
+        origin: view.origin(),
+    })
+}
+
+/// The sampling score of every vertex of a scored product (0 off the
+/// mask), as [`MeshData::encode_scored_map`] takes them; `None` for an
+/// unscored product.
+pub fn scores_of_product(view: &vtsm_core::map::MapView<'_>) -> Option<Vec<u8>> {
+    if !view.scored() {
+        return None;
+    }
+    let mut scores = vec![0u8; view.vertex_count() as usize];
+    for k in 0..view.mask_vertex_count() {
+        if let (Some(v), Some(s)) = (view.mask_vertex(k), view.mask_score(k)) {
+            if let Some(slot) = scores.get_mut(v as usize) {
+                *slot = s;
+            }
+        }
+    }
+    Some(scores)
+}
+
+/// A checked map product relit from `map_sun` to `capture_sun`: the
+/// product's mesh and texture ([`mesh_of_product`]) relit and encoded again
+/// with the product's tile size and scores.
+///
+/// # Errors
+/// As [`relight`], or the encoder's failure code.
+pub fn relit_product(
+    view: &vtsm_core::map::MapView<'_>,
+    map_sun: SunAngles,
+    capture_sun: SunAngles,
+    opts: &RelightOptions,
+) -> Result<(Vec<u8>, RelightStats)> {
+    let mesh = mesh_of_product(view)?;
+    let (relit, stats) = relit_mesh(&mesh, map_sun, capture_sun, opts)?;
+    let tile = view.tile_grid().2;
+    let bytes = relit.encode_scored_map(tile, scores_of_product(view).as_deref())?;
+    Ok((bytes, stats))
 }
 
 #[cfg(test)]

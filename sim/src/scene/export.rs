@@ -99,9 +99,22 @@ fn short(x: f32) -> f64 {
 
 /// `{"world_from_left":{"t":[..],"q":[w,x,y,z]}}`.
 pub fn pose_json(pose: &Pose) -> String {
+    prior_json(pose, None)
+}
+
+/// [`pose_json`] with the capture-time sun as `prior.json`'s `sun` when
+/// given.
+pub fn prior_json(pose: &Pose, sun: Option<crate::relight::SunAngles>) -> String {
     let t = pose.t().map(short);
     let q = pose.q().map(short);
-    serde_json::json!({"world_from_left": {"t": t, "q": q}}).to_string()
+    match sun {
+        None => serde_json::json!({"world_from_left": {"t": t, "q": q}}).to_string(),
+        Some(s) => serde_json::json!({
+            "world_from_left": {"t": t, "q": q},
+            "sun": {"azimuth_deg": short(s.azimuth_deg), "elevation_deg": short(s.elevation_deg)}
+        })
+        .to_string(),
+    }
 }
 
 /// `{"width":W,"height":H,"fx":..,"fy":..,"cx":..,"cy":..,"baseline_m":B}`.
@@ -131,6 +144,9 @@ pub struct SceneFiles<'a> {
     pub truth: &'a Pose,
     /// Free-form description written to `scene.json`.
     pub meta: serde_json::Value,
+    /// The capture-time sun, written into `prior.json` as its `sun` (`None`:
+    /// a prior without one).
+    pub sun: Option<crate::relight::SunAngles>,
 }
 
 /// Files of [`FILES`] that already exist in `dir`.
@@ -182,7 +198,7 @@ pub fn write_scene_with_calib(
     write_text(&dir.join("calib.json"), calib_text)?;
     write_png_gray(&dir.join("left.png"), w, h, files.left)?;
     write_png_gray(&dir.join("right.png"), w, h, files.right)?;
-    write_text(&dir.join("prior.json"), &pose_json(files.prior))?;
+    write_text(&dir.join("prior.json"), &prior_json(files.prior, files.sun))?;
     write_text(&dir.join("truth.json"), &pose_json(files.truth))?;
     write_text(&dir.join("scene.json"), &files.meta.to_string())?;
     Ok(())

@@ -381,6 +381,7 @@ fn export_writes_design_files_and_refuses_to_overwrite() {
         prior: &prior,
         truth: &truth,
         meta: serde_json::json!({"terrain": "cfa6"}),
+        sun: None,
     };
     export::write_scene(&dir, &files, false).unwrap();
     for f in export::FILES {

@@ -372,3 +372,51 @@ fn result_without_prior_uncertainty_reads_as_none() {
     let r = json::parse_result(text.as_bytes(), p()).unwrap();
     assert_eq!((r.prior_uncertainty, r.covariance), (None, None));
 }
+
+/// A prior's capture-time `sun` reads as written, absent means none, and a
+/// sun out of range or with an unknown field is refused with the prior's
+/// code and the line of the `sun` key.
+#[test]
+fn prior_sun_reads_as_written_and_bad_suns_are_refused() {
+    let with = |sun: &str| {
+        format!(
+            "{{\"world_from_left\": {{\"t\": [1.0, 2.0, 0.5], \"q\": [1.0, 0.0, 0.0, 0.0]}},\n \"sun\": {sun}}}"
+        )
+    };
+    let f = json::parse_prior(
+        with("{\"azimuth_deg\": 231.0, \"elevation_deg\": 16.5}").as_bytes(),
+        Path::new("prior.json"),
+    )
+    .unwrap();
+    let s = f.sun.unwrap();
+    assert_eq!((s.azimuth_deg, s.elevation_deg), (231.0, 16.5));
+    let none = json::parse_prior(
+        pose_text([1.0, 2.0, 0.5], [1.0, 0.0, 0.0, 0.0]).as_bytes(),
+        Path::new("prior.json"),
+    )
+    .unwrap();
+    assert_eq!(none.sun, None);
+    for bad in [
+        "{\"azimuth_deg\": 231.0, \"elevation_deg\": 0.5}",
+        "{\"azimuth_deg\": 231.0, \"elevation_deg\": -4.0}",
+        "{\"azimuth_deg\": 231.0, \"elevation_deg\": 95.0}",
+    ] {
+        let e = json::parse_prior(with(bad).as_bytes(), Path::new("prior.json")).unwrap_err();
+        assert_eq!(
+            e.code,
+            Some(vtsm_core::FailureCode::HalPriorInvalid),
+            "{bad}: {e}"
+        );
+        assert!(e.to_string().contains("prior.json:2"), "{bad}: {e}");
+    }
+    for bad in [
+        "{\"azimuth_deg\": 231.0}",
+        "{\"azimuth_deg\": 231.0, \"elevation_deg\": 20.0, \"hours\": 15}",
+        "\"231,20\"",
+    ] {
+        assert!(
+            json::parse_prior(with(bad).as_bytes(), Path::new("prior.json")).is_err(),
+            "{bad} was taken"
+        );
+    }
+}

@@ -67,6 +67,7 @@ fn args(dir: &Path, prior: &str, out: Option<PathBuf>) -> Args {
         final_pairs: Default::default(),
         search: Default::default(),
         map_scores: Default::default(),
+        map_sun: None,
         threads: Default::default(),
         out,
         force: false,

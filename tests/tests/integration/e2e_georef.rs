@@ -81,6 +81,7 @@ fn args(dir: &Path, prior: &str, origin: Option<&str>) -> Args {
         final_pairs: Default::default(),
         search: Default::default(),
         map_scores: Default::default(),
+        map_sun: None,
         threads: Default::default(),
         out: None,
         force: false,

@@ -43,6 +43,7 @@ fn args(dir: &Path) -> Args {
         final_pairs: Default::default(),
         search: Default::default(),
         map_scores: Default::default(),
+        map_sun: None,
         threads: Default::default(),
         out: None,
         force: false,

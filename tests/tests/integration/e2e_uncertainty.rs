@@ -80,6 +80,7 @@ fn args(dir: &Path, prior: Option<&str>, out: Option<PathBuf>) -> Args {
         final_pairs: Default::default(),
         search: Default::default(),
         map_scores: Default::default(),
+        map_sun: None,
         threads: Default::default(),
     }
 }

@@ -51,6 +51,7 @@ impl Shot {
             prior: &self.prior,
             truth: &self.truth,
             meta,
+            sun: None,
         }
     }
 }

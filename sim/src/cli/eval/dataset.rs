@@ -172,6 +172,7 @@ fn find_map(dir: &Path, files: &[PathBuf]) -> Result<MapSpec> {
             origin: None,
             tile_size_m: TILE_M,
             scores: false,
+            sun: None,
         }),
     }
 }
