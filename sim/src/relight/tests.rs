@@ -145,13 +145,11 @@ fn a_product_relights_as_its_mesh_does() {
     let (relit, stats) = relit_product(&view, angles(&light.sun), to, &opts).unwrap();
     let relit_view = vtsm_core::map::MapView::new_checked(&relit).unwrap();
     let back = mesh_of_product(&relit_view).unwrap().texture;
-    // Bit for bit: the product's triangles come in tile order and its UVs
-    // round-trip through texture pixels, and relighting does not see either.
-    assert!(
-        back.pixels == from_mesh.pixels,
-        "{} counts apart",
-        max_apart(&back.pixels, &from_mesh.pixels)
-    );
+    // The product's triangles come in tile order, which relighting does not
+    // see; its UVs round-trip through texture pixels, a last bit apart, which
+    // moves a texel on a shared edge by at most one count.
+    let apart = max_apart(&back.pixels, &from_mesh.pixels);
+    assert!(apart <= 1, "product and mesh relit {apart} counts apart");
     assert_eq!(relit_view.vertex_count(), view.vertex_count());
     assert_eq!(relit_view.triangle_count(), view.triangle_count());
     assert_eq!(relit_view.mask_vertex_count(), view.mask_vertex_count());
