@@ -239,16 +239,24 @@ impl ShadowMap {
             return None;
         }
         let mut cell = cell.max(1e-4);
+        // Saturating: a float cast saturates, and so does the margin.
         let dims = |c: f32| {
             (
-                ((hi[0] - lo[0]) / c).ceil() as usize + 3,
-                ((hi[1] - lo[1]) / c).ceil() as usize + 3,
+                (((hi[0] - lo[0]) / c).ceil() as usize).saturating_add(3),
+                (((hi[1] - lo[1]) / c).ceil() as usize).saturating_add(3),
             )
         };
-        while dims(cell).0.saturating_mul(dims(cell).1) > MAX_SHADOW_CELLS {
+        // The cell grows by 1.25 a step: 400 steps cover any finite extent.
+        for _ in 0..400 {
+            if dims(cell).0.saturating_mul(dims(cell).1) <= MAX_SHADOW_CELLS {
+                break;
+            }
             cell *= 1.25;
         }
         let (nu, nv) = dims(cell);
+        if nu.saturating_mul(nv) > MAX_SHADOW_CELLS {
+            return None;
+        }
         let origin = [lo[0] - cell, lo[1] - cell];
         let mut map = Self {
             s,

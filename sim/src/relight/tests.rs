@@ -19,6 +19,8 @@ fn agreement(a: &Gray8, b: &Gray8) -> f64 {
     ncc(&a.pixels, &b.pixels, &valid)
 }
 
+/// Verifies: VTSM-SIM-022
+///
 /// The map made at 9:30 relit to 15:30 is closer to the map made at 15:30
 /// (the oracle: same mesh, texture baked under the capture-time sun) than
 /// the 9:30 map is, on every terrain (measured at seed 1: Flagstone 0.42 →

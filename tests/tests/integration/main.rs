@@ -12,6 +12,7 @@ mod e2e_budget;
 mod e2e_file_path;
 mod e2e_georef;
 mod e2e_physical;
+mod e2e_relight;
 mod e2e_uncertainty;
 mod failure_codes;
 mod fault_scenarios;
