@@ -100,16 +100,6 @@ fn run(name: &str, prior: &str, map_sun: Option<SunAngles>) -> (Vec<u8>, json::R
     (bytes, r)
 }
 
-fn error_mm(r: &json::ResultFile, truth: &Pose) -> f64 {
-    let t = r.world_from_left.unwrap().t;
-    let tt = truth.t();
-    (0..3)
-        .map(|k| (t[k] - f64::from(tt[k])).powi(2))
-        .sum::<f64>()
-        .sqrt()
-        * 1e3
-}
-
 /// With both suns the map is relit: the run succeeds within 5 cm and is not
 /// the unrelit run. With only one of them (no `--map-sun`, or a prior without
 /// a sun) the run is today's, byte for byte.
@@ -123,11 +113,11 @@ fn a_stated_sun_relights_the_map_and_no_sun_changes_nothing() {
     assert_eq!(plain, nosun, "a prior without a sun must give today's run");
     let (_, r1) = run("result_relit.json", "prior.json", Some(s.map_sun));
     assert_eq!(r1.status, "ok", "{r1:?}");
-    let e = error_mm(&r1, &s.truth);
+    let e = scenes::error_mm(&r1, &s.truth);
     eprintln!(
         "relit: {e:.1} mm, {} attempts; as made: {:.1} mm, {} attempts",
         r1.stats.attempts,
-        error_mm(&r0, &s.truth),
+        scenes::error_mm(&r0, &s.truth),
         r0.stats.attempts
     );
     assert!(e < 50.0, "relit final error {e} mm");

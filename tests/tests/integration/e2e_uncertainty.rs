@@ -85,16 +85,6 @@ fn args(dir: &Path, prior: Option<&str>, out: Option<PathBuf>) -> Args {
     }
 }
 
-fn error_mm(r: &json::ResultFile, truth: &Pose) -> f64 {
-    let t = r.world_from_left.unwrap().t;
-    let tt = truth.t();
-    (0..3)
-        .map(|k| (t[k] - f64::from(tt[k])).powi(2))
-        .sum::<f64>()
-        .sqrt()
-        * 1e3
-}
-
 /// A prior 0.40 m off that states 0.50 m / 1.5° relocalizes from a single
 /// start to within 5 cm of the truth, its first round focused on the position
 /// its pairs agreed on, and `result.json` says what it ran with.
@@ -107,7 +97,7 @@ fn far_prior_stating_its_uncertainty_relocalizes_within_5_cm() {
     let code = relocalize::run(&args(&s.dir, Some("prior_far.json"), Some(out.clone()))).unwrap();
     let r = json::parse_result(&std::fs::read(&out).unwrap(), &out).unwrap();
     assert_eq!((code, r.status.as_str()), (0, "ok"), "{r:?}");
-    let e = error_mm(&r, &s.truth);
+    let e = scenes::error_mm(&r, &s.truth);
     eprintln!("final error {e:.1} mm from a 0.40 m prior");
     assert!(e < 50.0, "final error {e} mm");
     assert_eq!(r.prior_uncertainty, Some(STATED));

@@ -79,3 +79,14 @@ pub fn scratch_dir(name: &str, seed: u64) -> PathBuf {
     let _ = std::fs::remove_dir_all(&dir);
     dir
 }
+
+/// Distance, mm, of a `result.json`'s estimate to `truth`.
+pub fn error_mm(r: &vtsm_sim::io::json::ResultFile, truth: &Pose) -> f64 {
+    let t = r.world_from_left.unwrap().t;
+    let tt = truth.t();
+    (0..3)
+        .map(|k| (t[k] - f64::from(tt[k])).powi(2))
+        .sum::<f64>()
+        .sqrt()
+        * 1e3
+}
