@@ -63,6 +63,10 @@ pub struct Args {
     /// `--map-scores on|off`: the map with sampling scores.
     #[command(flatten)]
     pub map_scores: super::MapScoresArg,
+    /// Relight the map from the 9:30 sun to the sun of the pair before
+    /// matching (`on`; [`crate::relight`]), or match it as made (`off`).
+    #[arg(long, value_enum, ignore_case = true, default_value_t = super::OnOff::Off)]
+    pub relight: super::OnOff,
     /// Output directory (default: the first free `vtsm-demo/run-N`).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -128,11 +132,36 @@ pub fn run(args: &Args) -> Result<u8> {
     }
     let t0 = Instant::now();
     let scene = Scene::new(kind, args.seed, profile).with_map_coarse(args.map_coarse);
-    let map_mesh = scene.map(&scene.lighting(MAP_HOURS));
-    let map_bytes = crate::mapscore::encode(&map_mesh, 0.5, args.map_scores.on())?;
+    let map_light = scene.lighting(MAP_HOURS);
+    let map_mesh = scene.map(&map_light);
     let capture = Capture::from_index(args.stop, 0, 0.40);
     let live = scene.live(0.0, &change, args.seed);
-    let (rig, truth, pair) = live.capture(&live.lighting(MAP_HOURS + args.hours), &capture);
+    let live_light = live.lighting(MAP_HOURS + args.hours);
+    let map_mesh = if args.relight == super::OnOff::On {
+        let angles = |s: &crate::render::Sun| crate::relight::SunAngles {
+            azimuth_deg: s.azimuth_deg,
+            elevation_deg: s.elevation_deg,
+        };
+        let (relit, stats) = crate::relight::relit_mesh(
+            &map_mesh,
+            angles(&map_light.sun),
+            angles(&live_light.sun),
+            &crate::relight::RelightOptions::default(),
+        )?;
+        println!(
+            "  map relit from the {:.1}° sun to the {:.1}° sun: {} texels, {:.1} % in cast shadow then, {:.1} % now",
+            map_light.sun.elevation_deg,
+            live_light.sun.elevation_deg,
+            stats.texels_relit,
+            100.0 * stats.shadowed[0],
+            100.0 * stats.shadowed[1]
+        );
+        relit
+    } else {
+        map_mesh
+    };
+    let map_bytes = crate::mapscore::encode(&map_mesh, 0.5, args.map_scores.on())?;
+    let (rig, truth, pair) = live.capture(&live_light, &capture);
     let pair = camera.apply(&pair, args.seed ^ CAMERA_SEED)?;
     let prior = perturbed_prior(&truth, args.seed);
     println!(
