@@ -347,7 +347,7 @@ fn bad_prior_uncertainty_is_refused_with_the_exact_error() {
         (
             r#"{"world_from_left": {"t": [1, 2, 0.5], "q": [1, 0, 0, 0]}, "uncertainty_m": 0.5}"#
                 .into(),
-            "prior.json:1: invalid JSON: unknown field `uncertainty_m`, expected `world_from_left` or `uncertainty`".into(),
+            "prior.json:1: invalid JSON: unknown field `uncertainty_m`, expected one of `world_from_left`, `uncertainty`, `sun`".into(),
             None,
         ),
     ];
