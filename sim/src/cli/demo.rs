@@ -138,14 +138,10 @@ pub fn run(args: &Args) -> Result<u8> {
     let live = scene.live(0.0, &change, args.seed);
     let live_light = live.lighting(MAP_HOURS + args.hours);
     let map_mesh = if args.relight == super::OnOff::On {
-        let angles = |s: &crate::render::Sun| crate::relight::SunAngles {
-            azimuth_deg: s.azimuth_deg,
-            elevation_deg: s.elevation_deg,
-        };
         let (relit, stats) = crate::relight::relit_mesh(
             &map_mesh,
-            angles(&map_light.sun),
-            angles(&live_light.sun),
+            (&map_light.sun).into(),
+            (&live_light.sun).into(),
             &crate::relight::RelightOptions::default(),
         )?;
         println!(

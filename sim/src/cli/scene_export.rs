@@ -157,10 +157,7 @@ pub fn run(args: &Args) -> Result<u8> {
         prior: &prior,
         truth: &truth,
         meta,
-        sun: Some(crate::relight::SunAngles {
-            azimuth_deg: light.sun.azimuth_deg,
-            elevation_deg: light.sun.elevation_deg,
-        }),
+        sun: Some((&light.sun).into()),
     };
     let t4 = Instant::now();
     match &calib_text {

@@ -83,6 +83,17 @@ pub struct SunAngles {
     pub elevation_deg: f32,
 }
 
+impl From<&crate::render::Sun> for SunAngles {
+    /// The angles of a simulated sun (same convention: azimuth clockwise
+    /// from north = `+y`, elevation above the horizon).
+    fn from(sun: &crate::render::Sun) -> Self {
+        Self {
+            azimuth_deg: sun.azimuth_deg,
+            elevation_deg: sun.elevation_deg,
+        }
+    }
+}
+
 impl SunAngles {
     /// Unit vector towards the sun (`x` east, `y` north, `z` up).
     pub fn dir(self) -> [f32; 3] {

@@ -7,10 +7,7 @@ use crate::scene::{Profile, Scene};
 use crate::terrain::TerrainKind;
 
 fn angles(sun: &Sun) -> SunAngles {
-    SunAngles {
-        azimuth_deg: sun.azimuth_deg,
-        elevation_deg: sun.elevation_deg,
-    }
+    SunAngles::from(sun)
 }
 
 /// NCC of two textures over the texels of the mask's rocks and sand alike.

@@ -27,10 +27,7 @@ struct Scenario {
 }
 
 fn angles(sun: &vtsm_sim::render::Sun) -> SunAngles {
-    SunAngles {
-        azimuth_deg: sun.azimuth_deg,
-        elevation_deg: sun.elevation_deg,
-    }
+    SunAngles::from(sun)
 }
 
 /// The scene written with the capture sun in `prior.json`, and the same

@@ -5,7 +5,7 @@ use super::protocol::TILE_M;
 use crate::error::{Error, Result};
 use crate::io::mesh::MeshData;
 use crate::mapscore;
-use crate::relight::{relit_mesh, RelightOptions, RelightStats, SunAngles};
+use crate::relight::{relit_mesh, RelightOptions, SunAngles};
 use crate::render::Sun;
 use std::borrow::Cow;
 use std::sync::Arc;
@@ -80,50 +80,27 @@ impl MapEntry {
     /// (`--relight on`).
     pub fn with_source(self, mesh: &MeshData, sun: &Sun, keep: bool) -> Self {
         Self {
-            source: keep.then(|| {
-                (
-                    Arc::new(mesh.clone()),
-                    SunAngles {
-                        azimuth_deg: sun.azimuth_deg,
-                        elevation_deg: sun.elevation_deg,
-                    },
-                )
-            }),
+            source: keep.then(|| (Arc::new(mesh.clone()), SunAngles::from(sun))),
             ..self
         }
     }
 
     /// This map relit to `sun` and encoded as `scoring` asks, with the same
-    /// views; `None` when no source was kept.
-    pub fn relit(
-        &self,
-        sun: &Sun,
-        scoring: Scoring,
-        offset: Option<[f64; 3]>,
-    ) -> Option<(Self, Option<RelightStats>)> {
+    /// views (or why it could not be relit, as the entry's bytes); `None`
+    /// when no source was kept.
+    pub fn relit(&self, sun: &Sun, scoring: Scoring, offset: Option<[f64; 3]>) -> Option<Self> {
         let (mesh, map_sun) = self.source.as_ref()?;
-        let to = SunAngles {
-            azimuth_deg: sun.azimuth_deg,
-            elevation_deg: sun.elevation_deg,
-        };
-        Some(
-            match relit_mesh(mesh, *map_sun, to, &RelightOptions::default()) {
-                Ok((m, stats)) => (
-                    Self::encode(&m, offset, self.views.clone(), scoring),
-                    Some(stats),
-                ),
-                Err(e) => (
-                    Self {
-                        bytes: Err(format!("relighting: {e}")),
-                        views: self.views.clone(),
-                        origin: self.origin,
-                        deciles: Vec::new(),
-                        source: None,
-                    },
-                    None,
-                ),
+        let opts = RelightOptions::default();
+        Some(match relit_mesh(mesh, *map_sun, sun.into(), &opts) {
+            Ok((m, _)) => Self::encode(&m, offset, self.views.clone(), scoring),
+            Err(e) => Self {
+                bytes: Err(format!("relighting: {e}")),
+                views: self.views.clone(),
+                origin: self.origin,
+                deciles: Vec::new(),
+                source: None,
             },
-        )
+        })
     }
 }
 

@@ -116,9 +116,7 @@ fn relit_groups(
         .par_iter()
         .map(|&(m, l)| {
             let sun = &depot.lights.get(l)?.sun;
-            maps.get(m)?
-                .relit(sun, scoring, cfg.origin)
-                .map(|(entry, _)| entry)
+            maps.get(m)?.relit(sun, scoring, cfg.origin)
         })
         .collect();
     let mut index = vec![None; keys.len()];

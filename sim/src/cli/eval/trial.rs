@@ -345,16 +345,21 @@ pub(super) fn run_vtsm(
     let mut variants = crate::eval::columns::VariantColumns::default();
     let truth = frame.local_truth();
     let mut count = |s: crate::workers::SampleRecord| {
-        if let Ok(c) = &s.result {
-            let v = usize::from(c.variant);
-            let ok = truth.is_some_and(|t| {
+        // Whether the attempt gave a correspondence within max(3σ, 1 cm)
+        // of the vertex's true position in the camera.
+        let correct = match (&s.result, truth) {
+            (Ok(c), Some(t)) => {
                 let want = t.inverse().transform_point(&c.world);
                 (c.cam - want).norm() <= (3.0 * c.sigma_m).max(0.01)
-            });
+            }
+            _ => false,
+        };
+        if let Ok(c) = &s.result {
+            let v = usize::from(c.variant);
             if let (Some(a), Some(r)) = (variants.accepted.get_mut(v), variants.correct.get_mut(v))
             {
                 *a += 1;
-                *r += u32::from(ok);
+                *r += u32::from(correct);
             }
         }
         let (Some(dec), Some(k)) = (deciles, s.mask_index) else {
@@ -364,12 +369,7 @@ pub(super) fn run_vtsm(
             return;
         };
         counts.attempts[d] += 1;
-        if let (Ok(c), Some(t)) = (s.result, truth) {
-            let want = t.inverse().transform_point(&c.world);
-            if (c.cam - want).norm() <= (3.0 * c.sigma_m).max(0.01) {
-                counts.correct[d] += 1;
-            }
-        }
+        counts.correct[d] += u32::from(correct);
     };
     let record = deciles.is_some() || cfg.variant_counts;
     let opts = if record {
