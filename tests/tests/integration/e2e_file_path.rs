@@ -53,30 +53,12 @@ fn exported() -> &'static Exported {
 
 fn args(dir: &Path, prior: &str, out: Option<PathBuf>) -> Args {
     Args {
-        mesh: Some(dir.join("map.obj")),
-        mask: Some(dir.join("mask.obj")),
-        map: None,
-        calib: dir.join("calib.json"),
-        left: Some(dir.join("left.png")),
-        right: Some(dir.join("right.png")),
-        prior: Some(dir.join(prior)),
-        pairs: None,
-        seed: SEED,
-        verify: Default::default(),
-        accuracy: Default::default(),
-        final_pairs: Default::default(),
-        search: Default::default(),
-        map_scores: Default::default(),
-        map_sun: None,
-        threads: Default::default(),
         out,
-        force: false,
-        tile_size_m: DEFAULT_TILE_SIZE_M,
-        interp: vtsm_sim::rectify::Interp::Lanczos4,
         // The simulator's frame is the exported files' frame: origin 0 keeps
         // the local vertices those of the in-memory scene, bit for bit (the
         // default, the box centre, moves the local frame by it).
         origin: Some([0.0; 3]),
+        ..scenes::exported_args(dir, prior, SEED)
     }
 }
 

@@ -8,7 +8,6 @@ use super::scenes;
 use std::path::{Path, PathBuf};
 use vtsm_core::geom::Pose;
 use vtsm_sim::cli::batch;
-use vtsm_sim::cli::map_build::DEFAULT_TILE_SIZE_M;
 use vtsm_sim::cli::relocalize::{self, Args, Outcome};
 use vtsm_sim::error::EXIT_RELOC_FAILED;
 use vtsm_sim::frame::{self, UserPose};
@@ -67,27 +66,8 @@ fn dirs() -> &'static Dirs {
 
 fn args(dir: &Path, prior: &str, origin: Option<&str>) -> Args {
     Args {
-        mesh: Some(dir.join("map.obj")),
-        mask: Some(dir.join("mask.obj")),
-        map: None,
-        calib: dir.join("calib.json"),
-        left: Some(dir.join("left.png")),
-        right: Some(dir.join("right.png")),
-        prior: Some(dir.join(prior)),
-        pairs: None,
-        seed: SEED,
-        verify: Default::default(),
-        accuracy: Default::default(),
-        final_pairs: Default::default(),
-        search: Default::default(),
-        map_scores: Default::default(),
-        map_sun: None,
-        threads: Default::default(),
-        out: None,
-        force: false,
-        tile_size_m: DEFAULT_TILE_SIZE_M,
-        interp: vtsm_sim::rectify::Interp::Lanczos4,
         origin: origin.map(|o| frame::parse_origin(o).unwrap()),
+        ..scenes::exported_args(dir, prior, SEED)
     }
 }
 

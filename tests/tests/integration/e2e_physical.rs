@@ -13,7 +13,6 @@ use vtsm_core::geom::Pose;
 use vtsm_sim::cli::eval::{
     args::TerrainArg, config_from_args, run_suite, write_run, Args as EvalArgs, Suite, SuiteConfig,
 };
-use vtsm_sim::cli::map_build::DEFAULT_TILE_SIZE_M;
 use vtsm_sim::cli::relocalize::{self, outcome_result, Args};
 use vtsm_sim::io::calib::model::{OpenCvCalib, OpenCvCamera};
 use vtsm_sim::io::calib::opencv::opencv_calib_text;
@@ -28,29 +27,7 @@ const SEED: u64 = 3;
 const HOURS: f32 = scenes::MAP_HOURS;
 
 fn args(dir: &Path) -> Args {
-    Args {
-        mesh: Some(dir.join("map.obj")),
-        mask: Some(dir.join("mask.obj")),
-        map: None,
-        calib: dir.join("calib.json"),
-        left: Some(dir.join("left.png")),
-        right: Some(dir.join("right.png")),
-        prior: Some(dir.join("prior.json")),
-        pairs: None,
-        seed: SEED,
-        verify: Default::default(),
-        accuracy: Default::default(),
-        final_pairs: Default::default(),
-        search: Default::default(),
-        map_scores: Default::default(),
-        map_sun: None,
-        threads: Default::default(),
-        out: None,
-        force: false,
-        tile_size_m: DEFAULT_TILE_SIZE_M,
-        interp: vtsm_sim::rectify::Interp::Lanczos4,
-        origin: None,
-    }
+    scenes::exported_args(dir, "prior.json", SEED)
 }
 
 /// `calib` as a Kalibr camera chain (pinhole-radtan: `k1 k2 p1 p2`; cam1's

@@ -8,7 +8,6 @@
 use super::scenes;
 use std::path::{Path, PathBuf};
 use vtsm_core::geom::Pose;
-use vtsm_sim::cli::map_build::DEFAULT_TILE_SIZE_M;
 use vtsm_sim::cli::relocalize::{self, Args};
 use vtsm_sim::io::json;
 use vtsm_sim::relight::SunAngles;
@@ -64,27 +63,9 @@ fn scenario() -> &'static Scenario {
 
 fn args(dir: &Path, prior: &str, map_sun: Option<SunAngles>, out: PathBuf) -> Args {
     Args {
-        mesh: Some(dir.join("map.obj")),
-        mask: Some(dir.join("mask.obj")),
-        map: None,
-        calib: dir.join("calib.json"),
-        left: Some(dir.join("left.png")),
-        right: Some(dir.join("right.png")),
-        prior: Some(dir.join(prior)),
-        pairs: None,
-        seed: SEED,
         out: Some(out),
-        force: false,
-        tile_size_m: DEFAULT_TILE_SIZE_M,
-        interp: vtsm_sim::rectify::Interp::Lanczos4,
-        origin: None,
-        verify: Default::default(),
-        accuracy: Default::default(),
-        final_pairs: Default::default(),
-        search: Default::default(),
-        map_scores: Default::default(),
         map_sun,
-        threads: Default::default(),
+        ..scenes::exported_args(dir, prior, SEED)
     }
 }
 

@@ -10,7 +10,6 @@ use super::scenes;
 use std::path::{Path, PathBuf};
 use vtsm_core::config::PriorUncertainty;
 use vtsm_core::geom::{Pose, Vec3};
-use vtsm_sim::cli::map_build::DEFAULT_TILE_SIZE_M;
 use vtsm_sim::cli::relocalize::{self, Args};
 use vtsm_sim::io::json::{self, UncertaintyJson};
 use vtsm_sim::scene::export::write_scene;
@@ -61,27 +60,11 @@ fn scenario() -> &'static Scenario {
 
 fn args(dir: &Path, prior: Option<&str>, out: Option<PathBuf>) -> Args {
     Args {
-        mesh: Some(dir.join("map.obj")),
-        mask: Some(dir.join("mask.obj")),
-        map: None,
-        calib: dir.join("calib.json"),
-        left: prior.map(|_| dir.join("left.png")),
-        right: prior.map(|_| dir.join("right.png")),
+        left: prior.and(Some(dir.join("left.png"))),
+        right: prior.and(Some(dir.join("right.png"))),
         prior: prior.map(|p| dir.join(p)),
-        pairs: None,
-        seed: SEED,
         out,
-        force: false,
-        tile_size_m: DEFAULT_TILE_SIZE_M,
-        interp: vtsm_sim::rectify::Interp::Lanczos4,
-        origin: None,
-        verify: Default::default(),
-        accuracy: Default::default(),
-        final_pairs: Default::default(),
-        search: Default::default(),
-        map_scores: Default::default(),
-        map_sun: None,
-        threads: Default::default(),
+        ..scenes::exported_args(dir, "prior.json", SEED)
     }
 }
 

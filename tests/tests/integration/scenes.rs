@@ -90,3 +90,34 @@ pub fn error_mm(r: &vtsm_sim::io::json::ResultFile, truth: &Pose) -> f64 {
         .sqrt()
         * 1e3
 }
+
+/// `vtsm relocalize` arguments for a scene exported to `dir` (mesh and mask,
+/// `calib.json`, `left.png`, `right.png`, the prior file `prior`), with
+/// `seed` and every other option at its command-line default: no output
+/// file, the default origin and tile size. Tests set what they vary with
+/// struct update.
+pub fn exported_args(dir: &Path, prior: &str, seed: u64) -> vtsm_sim::cli::relocalize::Args {
+    vtsm_sim::cli::relocalize::Args {
+        mesh: Some(dir.join("map.obj")),
+        mask: Some(dir.join("mask.obj")),
+        map: None,
+        calib: dir.join("calib.json"),
+        left: Some(dir.join("left.png")),
+        right: Some(dir.join("right.png")),
+        prior: Some(dir.join(prior)),
+        pairs: None,
+        seed,
+        out: None,
+        force: false,
+        tile_size_m: vtsm_sim::cli::map_build::DEFAULT_TILE_SIZE_M,
+        interp: vtsm_sim::rectify::Interp::Lanczos4,
+        origin: None,
+        verify: Default::default(),
+        accuracy: Default::default(),
+        final_pairs: Default::default(),
+        search: Default::default(),
+        map_scores: Default::default(),
+        map_sun: None,
+        threads: Default::default(),
+    }
+}
